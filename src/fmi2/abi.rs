@@ -1,0 +1,525 @@
+//! Every FMI 2.0 common and co-simulation function (34), exported with C linkage.
+//!
+//! Each function checks its pointers, catches panics (no unwinding crosses the C boundary, fmi.md
+//! "The C ABI"), delegates to [`Instance`] and turns a [`Failure`] into its status plus one log
+//! line naming the function. The signatures are checked at compile time against the types bindgen
+//! generated from the official FMI 2.0 headers (the `const _: fmi2…TYPE` lines at the end).
+
+#![allow(non_snake_case)]
+#![allow(clippy::missing_safety_doc)]
+
+use std::ffi::{c_char, CStr};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::ptr;
+
+use fmi_sys::fmi2::*;
+
+use crate::fmi2::fmu_state;
+use crate::fmi2::instance::{copy_name, Failure, Instance, Severity, Snapshot, SNAPSHOT_MAGIC};
+use crate::fmi2::logging::{Category, Logger};
+use crate::fmi2::model_description::guid;
+use crate::fmi2::resources::resource_dir;
+use crate::fmi2::variables::VarType;
+
+static TYPES_PLATFORM: &CStr = c"default";
+static VERSION: &CStr = c"2.0";
+
+unsafe fn opt_str<'a>(s: fmi2String) -> Option<&'a str> {
+    if s.is_null() {
+        None
+    } else {
+        CStr::from_ptr(s).to_str().ok()
+    }
+}
+
+/// A slice from a C array; NULL is only accepted for an empty array.
+unsafe fn slice<'a, T>(p: *const T, n: usize) -> Option<&'a [T]> {
+    if n == 0 {
+        Some(&[])
+    } else if p.is_null() {
+        None
+    } else {
+        Some(std::slice::from_raw_parts(p, n))
+    }
+}
+
+fn status_of(s: Severity) -> fmi2Status {
+    match s {
+        Severity::Discard => fmi2Status_fmi2Discard,
+        Severity::Error => fmi2Status_fmi2Error,
+        Severity::Fatal => fmi2Status_fmi2Fatal,
+    }
+}
+
+/// Runs `f` on the instance behind `c`: NULL check, panic barrier, status and logging.
+unsafe fn call(c: fmi2Component, function: &str, f: impl FnOnce(&mut Instance) -> Result<(), Failure>) -> fmi2Status {
+    if c.is_null() {
+        return fmi2Status_fmi2Error;
+    }
+    let inst = c as *mut Instance;
+    match catch_unwind(AssertUnwindSafe(|| f(&mut *inst))) {
+        Ok(Ok(())) => {
+            (*inst).log(fmi2Status_fmi2OK, Category::All, function);
+            fmi2Status_fmi2OK
+        }
+        Ok(Err(failure)) => {
+            let status = status_of(failure.severity);
+            let category = if failure.severity == Severity::Discard { Category::Warning } else { Category::Error };
+            (*inst).log(status, category, &failure.message);
+            status
+        }
+        Err(_) => {
+            // The panic left the instance in an unknown state: it must not be used any more.
+            let _ = catch_unwind(AssertUnwindSafe(|| {
+                (*inst).set_fatal();
+                (*inst).log(fmi2Status_fmi2Fatal, Category::Error, &format!("{function}: internal error (panic caught)"));
+            }));
+            fmi2Status_fmi2Fatal
+        }
+    }
+}
+
+fn null_argument(function: &str, what: &str) -> Failure {
+    Failure::error(format!("{function}: {what} is NULL"))
+}
+
+// ------------------------------------------------------------------------------ common functions
+
+#[no_mangle]
+pub extern "C" fn fmi2GetTypesPlatform() -> *const c_char {
+    TYPES_PLATFORM.as_ptr()
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2GetVersion() -> *const c_char {
+    VERSION.as_ptr()
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetDebugLogging(
+    c: fmi2Component,
+    loggingOn: fmi2Boolean,
+    nCategories: usize,
+    categories: *const fmi2String,
+) -> fmi2Status {
+    call(c, "fmi2SetDebugLogging", |inst| {
+        let cats = slice(categories, nCategories).ok_or_else(|| null_argument("fmi2SetDebugLogging", "categories"))?;
+        let mut names = Vec::with_capacity(cats.len());
+        for &p in cats {
+            names.push(opt_str(p).ok_or_else(|| null_argument("fmi2SetDebugLogging", "a category name"))?);
+        }
+        inst.logger.set_debug_logging(loggingOn != 0, &names).map_err(|e| Failure::error(format!("fmi2SetDebugLogging: {e}")))
+    })
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2Instantiate(
+    instanceName: fmi2String,
+    fmuType: fmi2Type,
+    fmuGUID: fmi2String,
+    fmuResourceLocation: fmi2String,
+    functions: *const fmi2CallbackFunctions,
+    _visible: fmi2Boolean,
+    loggingOn: fmi2Boolean,
+) -> fmi2Component {
+    let result = catch_unwind(AssertUnwindSafe(|| {
+        if functions.is_null() {
+            return ptr::null_mut();
+        }
+        let cb = &*functions;
+        let name = opt_str(instanceName).unwrap_or("");
+        let logger = Logger::new(cb.logger, cb.componentEnvironment, copy_name(name), loggingOn != 0);
+        let refuse = |why: String| {
+            logger.log(fmi2Status_fmi2Error, Category::Error, &format!("fmi2Instantiate: {why}"));
+            ptr::null_mut()
+        };
+        if name.is_empty() {
+            return refuse("instanceName is NULL or empty".into());
+        }
+        if fmuType != fmi2Type_fmi2CoSimulation {
+            return refuse(format!("fmuType {fmuType} is not supported: this FMU is co-simulation only"));
+        }
+        match opt_str(fmuGUID) {
+            Some(g) if g == guid() => {}
+            other => return refuse(format!("GUID {:?} is not this FMU's GUID {}", other.unwrap_or("NULL"), guid())),
+        }
+        let location = opt_str(fmuResourceLocation);
+        let dir = resource_dir(location);
+        let inst = Box::new(Instance::new(logger, dir));
+        inst.log(
+            fmi2Status_fmi2OK,
+            Category::Events,
+            &format!("instantiated; resources: {:?}", inst.resource_dir),
+        );
+        Box::into_raw(inst) as fmi2Component
+    }));
+    result.unwrap_or(ptr::null_mut())
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2FreeInstance(c: fmi2Component) {
+    if !c.is_null() {
+        let _ = catch_unwind(AssertUnwindSafe(|| drop(Box::from_raw(c as *mut Instance))));
+    }
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetupExperiment(
+    c: fmi2Component,
+    toleranceDefined: fmi2Boolean,
+    tolerance: fmi2Real,
+    startTime: fmi2Real,
+    stopTimeDefined: fmi2Boolean,
+    stopTime: fmi2Real,
+) -> fmi2Status {
+    call(c, "fmi2SetupExperiment", |inst| {
+        inst.setup_experiment(
+            (toleranceDefined != 0).then_some(tolerance),
+            startTime,
+            (stopTimeDefined != 0).then_some(stopTime),
+        )
+    })
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2EnterInitializationMode(c: fmi2Component) -> fmi2Status {
+    call(c, "fmi2EnterInitializationMode", |inst| inst.enter_initialization_mode())
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2ExitInitializationMode(c: fmi2Component) -> fmi2Status {
+    call(c, "fmi2ExitInitializationMode", |inst| {
+        inst.exit_initialization_mode().map_err(|f| Failure { message: format!("fmi2ExitInitializationMode: {}", f.message), ..f })
+    })
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2Terminate(c: fmi2Component) -> fmi2Status {
+    call(c, "fmi2Terminate", |inst| inst.terminate())
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2Reset(c: fmi2Component) -> fmi2Status {
+    call(c, "fmi2Reset", |inst| inst.reset())
+}
+
+unsafe fn get_values<T: Copy>(
+    c: fmi2Component,
+    function: &'static str,
+    ty: VarType,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *mut T,
+    convert: impl Fn(f64) -> T,
+) -> fmi2Status {
+    call(c, function, |inst| {
+        let vrs = slice(vr, nvr).ok_or_else(|| null_argument(function, "vr"))?;
+        if nvr > 0 && value.is_null() {
+            return Err(null_argument(function, "value"));
+        }
+        inst.get(function, ty, vrs, |k, v| *value.add(k) = convert(v))
+    })
+}
+
+unsafe fn set_values<T: Copy>(
+    c: fmi2Component,
+    function: &'static str,
+    ty: VarType,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *const T,
+    convert: impl Fn(T) -> f64,
+) -> fmi2Status {
+    call(c, function, |inst| {
+        let vrs = slice(vr, nvr).ok_or_else(|| null_argument(function, "vr"))?;
+        let vals = slice(value, nvr).ok_or_else(|| null_argument(function, "value"))?;
+        inst.set(function, ty, vrs, |k| convert(vals[k]))
+    })
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetReal(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Real) -> fmi2Status {
+    get_values(c, "fmi2GetReal", VarType::Real, vr, nvr, value, |v| v)
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetInteger(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Integer) -> fmi2Status {
+    get_values(c, "fmi2GetInteger", VarType::Integer, vr, nvr, value, |v| v as fmi2Integer)
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetBoolean(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Boolean) -> fmi2Status {
+    get_values(c, "fmi2GetBoolean", VarType::Boolean, vr, nvr, value, |v| (v != 0.0) as fmi2Boolean)
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetString(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, _value: *mut fmi2String) -> fmi2Status {
+    call(c, "fmi2GetString", |_| no_strings("fmi2GetString", vr, nvr))
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetReal(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Real) -> fmi2Status {
+    set_values(c, "fmi2SetReal", VarType::Real, vr, nvr, value, |v| v)
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetInteger(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Integer) -> fmi2Status {
+    set_values(c, "fmi2SetInteger", VarType::Integer, vr, nvr, value, |v| v as f64)
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetBoolean(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Boolean) -> fmi2Status {
+    set_values(c, "fmi2SetBoolean", VarType::Boolean, vr, nvr, value, |v| (v != 0) as i32 as f64)
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetString(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, _value: *const fmi2String) -> fmi2Status {
+    call(c, "fmi2SetString", |_| no_strings("fmi2SetString", vr, nvr))
+}
+
+unsafe fn no_strings(function: &str, vr: *const fmi2ValueReference, nvr: usize) -> Result<(), Failure> {
+    match slice(vr, nvr) {
+        Some([]) => Ok(()),
+        Some(v) => Err(Failure::error(format!("{function}: value reference {} is not a String variable (this FMU has none)", v[0]))),
+        None => Err(null_argument(function, "vr")),
+    }
+}
+
+// ------------------------------------------------------------------------------ FMU state
+
+unsafe fn store_snapshot(state: *mut fmi2FMUstate, snap: Snapshot) {
+    let existing = *state as *mut Snapshot;
+    if !existing.is_null() && (*existing).magic == SNAPSHOT_MAGIC {
+        *existing = snap;
+    } else {
+        *state = Box::into_raw(Box::new(snap)) as fmi2FMUstate;
+    }
+}
+
+unsafe fn snapshot_ref<'a>(function: &str, state: fmi2FMUstate) -> Result<&'a Snapshot, Failure> {
+    let s = state as *const Snapshot;
+    if s.is_null() {
+        return Err(null_argument(function, "FMUstate"));
+    }
+    if (*s).magic != SNAPSHOT_MAGIC {
+        return Err(Failure::error(format!("{function}: FMUstate was not made by this FMU")));
+    }
+    Ok(&*s)
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetFMUstate(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
+    call(c, "fmi2GetFMUstate", |inst| {
+        if state.is_null() {
+            return Err(null_argument("fmi2GetFMUstate", "FMUstate"));
+        }
+        store_snapshot(state, inst.snapshot());
+        Ok(())
+    })
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetFMUstate(c: fmi2Component, state: fmi2FMUstate) -> fmi2Status {
+    call(c, "fmi2SetFMUstate", |inst| inst.restore(snapshot_ref("fmi2SetFMUstate", state)?))
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2FreeFMUstate(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
+    call(c, "fmi2FreeFMUstate", |_| {
+        if state.is_null() || (*state).is_null() {
+            return Ok(());
+        }
+        let s = *state as *mut Snapshot;
+        if (*s).magic != SNAPSHOT_MAGIC {
+            return Err(Failure::error("fmi2FreeFMUstate: FMUstate was not made by this FMU"));
+        }
+        (*s).magic = 0;
+        drop(Box::from_raw(s));
+        *state = ptr::null_mut();
+        Ok(())
+    })
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SerializedFMUstateSize(c: fmi2Component, state: fmi2FMUstate, size: *mut usize) -> fmi2Status {
+    call(c, "fmi2SerializedFMUstateSize", |_| {
+        let snap = snapshot_ref("fmi2SerializedFMUstateSize", state)?;
+        if size.is_null() {
+            return Err(null_argument("fmi2SerializedFMUstateSize", "size"));
+        }
+        *size = fmu_state::serialize(&snap.core)?.len();
+        Ok(())
+    })
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SerializeFMUstate(c: fmi2Component, state: fmi2FMUstate, bytes: *mut fmi2Byte, size: usize) -> fmi2Status {
+    call(c, "fmi2SerializeFMUstate", |_| {
+        let snap = snapshot_ref("fmi2SerializeFMUstate", state)?;
+        let data = fmu_state::serialize(&snap.core)?;
+        if bytes.is_null() || size < data.len() {
+            return Err(Failure::error(format!(
+                "fmi2SerializeFMUstate: buffer of {size} bytes is too small; {} needed",
+                data.len()
+            )));
+        }
+        ptr::copy_nonoverlapping(data.as_ptr(), bytes as *mut u8, data.len());
+        Ok(())
+    })
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2DeSerializeFMUstate(c: fmi2Component, bytes: *const fmi2Byte, size: usize, state: *mut fmi2FMUstate) -> fmi2Status {
+    call(c, "fmi2DeSerializeFMUstate", |_| {
+        let data = slice(bytes as *const u8, size).ok_or_else(|| null_argument("fmi2DeSerializeFMUstate", "serializedState"))?;
+        if state.is_null() {
+            return Err(null_argument("fmi2DeSerializeFMUstate", "FMUstate"));
+        }
+        let snap = Instance::snapshot_from_core(fmu_state::deserialize(data)?)?;
+        store_snapshot(state, snap);
+        Ok(())
+    })
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
+    c: fmi2Component,
+    _vUnknown_ref: *const fmi2ValueReference,
+    _nUnknown: usize,
+    _vKnown_ref: *const fmi2ValueReference,
+    _nKnown: usize,
+    _dvKnown: *const fmi2Real,
+    _dvUnknown: *mut fmi2Real,
+) -> fmi2Status {
+    call(c, "fmi2GetDirectionalDerivative", |_| {
+        Err(Failure::error("fmi2GetDirectionalDerivative: not provided by this FMU (providesDirectionalDerivative=\"false\")"))
+    })
+}
+
+// ------------------------------------------------------------------------------ co-simulation
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
+    c: fmi2Component,
+    _vr: *const fmi2ValueReference,
+    _nvr: usize,
+    _order: *const fmi2Integer,
+    _value: *const fmi2Real,
+) -> fmi2Status {
+    call(c, "fmi2SetRealInputDerivatives", |_| {
+        Err(Failure::error(
+            "fmi2SetRealInputDerivatives: not supported (canInterpolateInputs=\"false\"); supply crank.acceleration as an input instead",
+        ))
+    })
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetRealOutputDerivatives(
+    c: fmi2Component,
+    _vr: *const fmi2ValueReference,
+    _nvr: usize,
+    _order: *const fmi2Integer,
+    _value: *mut fmi2Real,
+) -> fmi2Status {
+    call(c, "fmi2GetRealOutputDerivatives", |_| {
+        Err(Failure::error("fmi2GetRealOutputDerivatives: not supported (maxOutputDerivativeOrder=\"0\")"))
+    })
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2DoStep(
+    c: fmi2Component,
+    currentCommunicationPoint: fmi2Real,
+    communicationStepSize: fmi2Real,
+    _noSetFMUStatePriorToCurrentPoint: fmi2Boolean,
+) -> fmi2Status {
+    call(c, "fmi2DoStep", |inst| inst.do_step(currentCommunicationPoint, communicationStepSize))
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2CancelStep(c: fmi2Component) -> fmi2Status {
+    call(c, "fmi2CancelStep", |_| {
+        Err(Failure::error("fmi2CancelStep: no asynchronous step is running (fmi2DoStep never returns fmi2Pending)"))
+    })
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetStatus(c: fmi2Component, _s: fmi2StatusKind, _value: *mut fmi2Status) -> fmi2Status {
+    call(c, "fmi2GetStatus", |_| Err(Failure::discard("fmi2GetStatus: no status available (no asynchronous steps)")))
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetRealStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Real) -> fmi2Status {
+    call(c, "fmi2GetRealStatus", |inst| {
+        if s != fmi2StatusKind_fmi2LastSuccessfulTime {
+            return Err(Failure::discard(format!("fmi2GetRealStatus: status kind {s} is not available")));
+        }
+        if value.is_null() {
+            return Err(null_argument("fmi2GetRealStatus", "value"));
+        }
+        *value = inst.time();
+        Ok(())
+    })
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetIntegerStatus(c: fmi2Component, s: fmi2StatusKind, _value: *mut fmi2Integer) -> fmi2Status {
+    call(c, "fmi2GetIntegerStatus", |_| Err(Failure::discard(format!("fmi2GetIntegerStatus: status kind {s} is not available"))))
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetBooleanStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Boolean) -> fmi2Status {
+    call(c, "fmi2GetBooleanStatus", |_| {
+        if s != fmi2StatusKind_fmi2Terminated {
+            return Err(Failure::discard(format!("fmi2GetBooleanStatus: status kind {s} is not available")));
+        }
+        if value.is_null() {
+            return Err(null_argument("fmi2GetBooleanStatus", "value"));
+        }
+        // The FMU never asks the master to stop.
+        *value = 0;
+        Ok(())
+    })
+}
+
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetStringStatus(c: fmi2Component, s: fmi2StatusKind, _value: *mut fmi2String) -> fmi2Status {
+    call(c, "fmi2GetStringStatus", |_| Err(Failure::discard(format!("fmi2GetStringStatus: status kind {s} is not available"))))
+}
+
+// ------------------------------------------------------------------------------ compile-time checks
+// Each exported function must have exactly the type the FMI 2.0 headers declare.
+const _: fmi2GetTypesPlatformTYPE = Some(fmi2GetTypesPlatform);
+const _: fmi2GetVersionTYPE = Some(fmi2GetVersion);
+const _: fmi2SetDebugLoggingTYPE = Some(fmi2SetDebugLogging);
+const _: fmi2InstantiateTYPE = Some(fmi2Instantiate);
+const _: fmi2FreeInstanceTYPE = Some(fmi2FreeInstance);
+const _: fmi2SetupExperimentTYPE = Some(fmi2SetupExperiment);
+const _: fmi2EnterInitializationModeTYPE = Some(fmi2EnterInitializationMode);
+const _: fmi2ExitInitializationModeTYPE = Some(fmi2ExitInitializationMode);
+const _: fmi2TerminateTYPE = Some(fmi2Terminate);
+const _: fmi2ResetTYPE = Some(fmi2Reset);
+const _: fmi2GetRealTYPE = Some(fmi2GetReal);
+const _: fmi2GetIntegerTYPE = Some(fmi2GetInteger);
+const _: fmi2GetBooleanTYPE = Some(fmi2GetBoolean);
+const _: fmi2GetStringTYPE = Some(fmi2GetString);
+const _: fmi2SetRealTYPE = Some(fmi2SetReal);
+const _: fmi2SetIntegerTYPE = Some(fmi2SetInteger);
+const _: fmi2SetBooleanTYPE = Some(fmi2SetBoolean);
+const _: fmi2SetStringTYPE = Some(fmi2SetString);
+const _: fmi2GetFMUstateTYPE = Some(fmi2GetFMUstate);
+const _: fmi2SetFMUstateTYPE = Some(fmi2SetFMUstate);
+const _: fmi2FreeFMUstateTYPE = Some(fmi2FreeFMUstate);
+const _: fmi2SerializedFMUstateSizeTYPE = Some(fmi2SerializedFMUstateSize);
+const _: fmi2SerializeFMUstateTYPE = Some(fmi2SerializeFMUstate);
+const _: fmi2DeSerializeFMUstateTYPE = Some(fmi2DeSerializeFMUstate);
+const _: fmi2GetDirectionalDerivativeTYPE = Some(fmi2GetDirectionalDerivative);
+const _: fmi2SetRealInputDerivativesTYPE = Some(fmi2SetRealInputDerivatives);
+const _: fmi2GetRealOutputDerivativesTYPE = Some(fmi2GetRealOutputDerivatives);
+const _: fmi2DoStepTYPE = Some(fmi2DoStep);
+const _: fmi2CancelStepTYPE = Some(fmi2CancelStep);
+const _: fmi2GetStatusTYPE = Some(fmi2GetStatus);
+const _: fmi2GetRealStatusTYPE = Some(fmi2GetRealStatus);
+const _: fmi2GetIntegerStatusTYPE = Some(fmi2GetIntegerStatus);
+const _: fmi2GetBooleanStatusTYPE = Some(fmi2GetBooleanStatus);
+const _: fmi2GetStringStatusTYPE = Some(fmi2GetStringStatus);

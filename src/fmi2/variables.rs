@@ -1,0 +1,293 @@
+//! THE variable table: the one source of truth for names, value references, types, causality,
+//! variability, units, start values, ranges, descriptions and output dependencies. The runtime
+//! (get/set, range checks, building `Params`) and the generator of modelDescription.xml both
+//! read it, so they cannot drift apart (fmi.md, "The archive").
+//!
+//! The value reference of a variable is its index in [`VARIABLES`]; references are unique across
+//! all types, and `fmi2GetReal` etc. check the type of the variable they address.
+
+use crate::model::drive::Outputs;
+use crate::model::params::{Params, DEFAULT_CRANK_SPEED};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VarType {
+    Real,
+    Integer,
+    Boolean,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Causality {
+    Parameter,
+    Input,
+    Output,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Variability {
+    Fixed,
+    Tunable,
+    Continuous,
+}
+
+/// Where an input's value goes in the model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InputSlot {
+    CrankAngle,
+    CrankSpeed,
+    CrankAcceleration,
+    ExternalForce,
+}
+
+/// How a variable is connected to the model. Values of every type are held as f64 in the
+/// instance (integers and booleans are exact in f64).
+#[derive(Clone, Copy)]
+pub enum Binding {
+    Param { get: fn(&Params) -> f64, set: fn(&mut Params, f64) },
+    Input { slot: InputSlot, start: f64 },
+    Output { get: fn(&Outputs) -> f64, depends_on: &'static [InputSlot] },
+}
+
+/// Allowed values. XML min/max are inclusive; an open end (e.g. r > 0) is marked so that the
+/// runtime check and its message are exact while the XML shows the nearest inclusive bound.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Range {
+    pub min: f64,
+    pub max: f64,
+    pub min_open: bool,
+    pub max_open: bool,
+}
+
+impl Range {
+    pub const ANY: Range = Range { min: f64::NEG_INFINITY, max: f64::INFINITY, min_open: true, max_open: true };
+    pub const POSITIVE: Range = Range { min: 0.0, max: f64::INFINITY, min_open: true, max_open: true };
+    pub const NON_NEGATIVE: Range = Range { min: 0.0, max: f64::INFINITY, min_open: false, max_open: true };
+    pub const fn closed(min: f64, max: f64) -> Range {
+        Range { min, max, min_open: false, max_open: false }
+    }
+
+    pub fn contains(&self, v: f64) -> bool {
+        if !v.is_finite() {
+            return false;
+        }
+        let above = if self.min_open { v > self.min } else { v >= self.min };
+        let below = if self.max_open { v < self.max } else { v <= self.max };
+        above && below
+    }
+
+    /// Human-readable interval, e.g. "(0, inf) m" or "[0, 2]".
+    pub fn describe(&self, unit: &str) -> String {
+        let lo = if self.min_open { '(' } else { '[' };
+        let hi = if self.max_open { ')' } else { ']' };
+        let mut s = format!("a finite number in {lo}{}, {}{hi}", fmt_bound(self.min), fmt_bound(self.max));
+        if !unit.is_empty() {
+            s.push(' ');
+            s.push_str(unit);
+        }
+        s
+    }
+}
+
+fn fmt_bound(v: f64) -> String {
+    if v == f64::INFINITY {
+        "inf".into()
+    } else if v == f64::NEG_INFINITY {
+        "-inf".into()
+    } else {
+        format!("{v}")
+    }
+}
+
+pub struct Var {
+    pub name: &'static str,
+    pub ty: VarType,
+    pub causality: Causality,
+    pub variability: Variability,
+    pub unit: &'static str,
+    pub description: &'static str,
+    pub range: Range,
+    pub binding: Binding,
+}
+
+impl Var {
+    /// Start value (parameters: the default machine of physics.md §8; inputs: their start).
+    pub fn start(&self) -> Option<f64> {
+        match self.binding {
+            Binding::Param { get, .. } => Some(get(&Params::default())),
+            Binding::Input { start, .. } => Some(start),
+            Binding::Output { .. } => None,
+        }
+    }
+}
+
+use Causality::*;
+use InputSlot::*;
+use VarType::*;
+use Variability::*;
+
+macro_rules! param {
+    ($name:literal, $ty:ident, $field:ident, $var:ident, $unit:literal, $range:expr, $desc:literal) => {
+        Var {
+            name: $name,
+            ty: $ty,
+            causality: Parameter,
+            variability: $var,
+            unit: $unit,
+            description: $desc,
+            range: $range,
+            binding: Binding::Param { get: |p| p.$field as f64, set: |p, v| p.$field = v as _ },
+        }
+    };
+}
+
+macro_rules! input {
+    ($name:literal, $slot:ident, $start:expr, $unit:literal, $desc:literal) => {
+        Var {
+            name: $name,
+            ty: Real,
+            causality: Input,
+            variability: Continuous,
+            unit: $unit,
+            description: $desc,
+            range: Range::ANY,
+            binding: Binding::Input { slot: $slot, start: $start },
+        }
+    };
+}
+
+macro_rules! output {
+    ($name:literal, $field:ident, $unit:literal, [$($dep:ident),*], $desc:literal) => {
+        Var {
+            name: $name,
+            ty: Real,
+            causality: Output,
+            variability: Continuous,
+            unit: $unit,
+            description: $desc,
+            range: Range::ANY,
+            binding: Binding::Output { get: |o| o.$field, depends_on: &[$($dep),*] },
+        }
+    };
+}
+
+/// Every variable, in value-reference order. Names are the contract of physics.md §10.
+pub static VARIABLES: &[Var] = &[
+    // ---- inputs (physics.md §2, §4)
+    input!("crank.angle", CrankAngle, 0.0, "rad",
+        "Crank angle theta_in; model angle = crank.angle + crank.angle_offset. Crank-slider: 0 = crank along the stroke axis toward the crosshead (outer dead centre for zero offset). Increases in the direction of rotation."),
+    input!("crank.speed", CrankSpeed, DEFAULT_CRANK_SPEED, "rad/s",
+        "Crank angular speed omega = d(theta)/dt"),
+    input!("crank.acceleration", CrankAcceleration, 0.0, "rad/s2",
+        "Crank angular acceleration epsilon; used for a = TF*epsilon + TF'*omega^2 and to extrapolate the crank inside a step. Supply it when the speed varies."),
+    input!("link.external_force", ExternalForce, 0.0, "N",
+        "Process force on the link, positive along +s (toward the crank for the crank-slider); added to the load.profile force"),
+    // ---- outputs (physics.md §2, §3, §4)
+    output!("suspension.position", position, "m", [CrankAngle],
+        "Stroke coordinate s of the link: 0 at the outer end of the stroke, increasing toward the crank"),
+    output!("suspension.velocity", velocity, "m/s", [CrankAngle, CrankSpeed],
+        "Link velocity v = ds/dt = TF*omega"),
+    output!("suspension.acceleration", acceleration, "m/s2", [CrankAngle, CrankSpeed, CrankAcceleration],
+        "Link acceleration a = TF*epsilon + TF'*omega^2 (exact kinematics)"),
+    output!("kinematics.torque_factor", torque_factor, "m", [CrankAngle],
+        "Torque factor TF = ds/d(theta), per radian"),
+    output!("inertia.force", inertia_force, "N", [CrankAngle, CrankSpeed, CrankAcceleration],
+        "d'Alembert inertia force of the reciprocating mass, Phi = -m*a, positive along +s"),
+    output!("rod.force", rod_force, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+        "Along-stroke force transmitted by the connecting rod, compression positive: P = F_ext + Phi"),
+    output!("crank.torque", crank_torque, "N.m", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+        "Torque the drive supplies to the crank, T = -P*TF (positive when the drive does work)"),
+    output!("rod.angle", rod_angle, "rad", [CrankAngle],
+        "Connecting-rod swing angle beta from the stroke axis (crank-slider: l*sin(beta) = r*sin(theta) - e)"),
+    output!("rod.angular_velocity", rod_angular_velocity, "rad/s", [CrankAngle, CrankSpeed],
+        "Rate of the rod swing angle, d(beta)/dt"),
+    // ---- parameters (physics.md §3.1, §4, §8)
+    param!("mechanism", Integer, mechanism, Fixed, "", Range::closed(1.0, 1.0),
+        "Mechanism kind: 1 = crank-slider (optionally offset)"),
+    param!("crank.angle_offset", Real, crank_angle_offset, Fixed, "rad", Range::ANY,
+        "Added to crank.angle to form the model angle (to match a sensor's zero)"),
+    param!("geometry.crank_radius", Real, crank_radius, Fixed, "m", Range::POSITIVE,
+        "Crank radius r"),
+    param!("geometry.rod_length", Real, rod_length, Fixed, "m", Range::POSITIVE,
+        "Connecting rod length l, centre to centre; must exceed r + |e|"),
+    param!("geometry.slider_offset", Real, slider_offset, Fixed, "m", Range::ANY,
+        "Guide offset e: the stroke axis is the line y = e (y positive on the side of the crank pin at theta = 90 deg)"),
+    param!("mass.reciprocating", Real, mass, Fixed, "kg", Range::NON_NEGATIVE,
+        "Reciprocating mass m reduced to the link"),
+    param!("load.profile", Integer, load_profile, Tunable, "", Range::closed(0.0, 2.0),
+        "Process-force profile: 0 = load.mean + load.amplitude*cos(theta + load.phase); 1 = double-acting pump -load.mean*tanh(v/v_eps); 2 = single-acting pump load.mean*(1 - tanh(v/v_eps))/2"),
+    param!("load.mean", Real, load_mean, Tunable, "N", Range::ANY,
+        "Mean process force (profile 0) or pump force level (profiles 1, 2)"),
+    param!("load.amplitude", Real, load_amplitude, Tunable, "N", Range::ANY,
+        "Amplitude of the cosine process force (profile 0)"),
+    param!("load.phase", Real, load_phase, Tunable, "rad", Range::ANY,
+        "Phase of the cosine process force (profile 0)"),
+    param!("guide.velocity_scale", Real, velocity_scale, Fixed, "m/s", Range::POSITIVE,
+        "Velocity scale v_eps of the regularised sign tanh(v/v_eps) (pump load profiles)"),
+];
+
+/// Units used by the table, with their SI base-unit exponents (kg, m, s, rad) for
+/// `<UnitDefinitions>`.
+pub static UNITS: &[(&str, [i32; 4])] = &[
+    ("m", [0, 1, 0, 0]),
+    ("m/s", [0, 1, -1, 0]),
+    ("m/s2", [0, 1, -2, 0]),
+    ("rad", [0, 0, 0, 1]),
+    ("rad/s", [0, 0, -1, 1]),
+    ("rad/s2", [0, 0, -2, 1]),
+    ("N", [1, 1, -2, 0]),
+    ("N.m", [1, 2, -2, 0]),
+    ("kg", [1, 0, 0, 0]),
+];
+
+/// Value reference of a variable by name (used by tests, the generator and set-up code, never in
+/// the hot path).
+pub fn value_reference(name: &str) -> Option<usize> {
+    VARIABLES.iter().position(|v| v.name == name)
+}
+
+/// Value reference of the input bound to `slot`.
+pub fn input_vr(slot: InputSlot) -> usize {
+    VARIABLES
+        .iter()
+        .position(|v| matches!(v.binding, Binding::Input { slot: s, .. } if s == slot))
+        .unwrap_or(usize::MAX)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_are_unique_and_units_defined() {
+        for (i, v) in VARIABLES.iter().enumerate() {
+            assert_eq!(value_reference(v.name), Some(i), "duplicate name {}", v.name);
+            assert!(v.unit.is_empty() || UNITS.iter().any(|u| u.0 == v.unit), "unit {}", v.unit);
+            if let Some(s) = v.start() {
+                assert!(v.range.contains(s), "start of {} outside its range", v.name);
+            }
+        }
+        for slot in [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce] {
+            assert!(input_vr(slot) < VARIABLES.len());
+        }
+    }
+
+    #[test]
+    fn setters_and_getters_address_the_same_field() {
+        // Each parameter's set followed by get returns the value, and touches no other parameter.
+        for v in VARIABLES {
+            if let Binding::Param { get, set } = v.binding {
+                let mut p = Params::default();
+                let x = if v.ty == Real { 0.123 } else { 2.0 };
+                set(&mut p, x);
+                assert_eq!(get(&p), x, "{}", v.name);
+                for w in VARIABLES {
+                    if let Binding::Param { get: g2, .. } = w.binding {
+                        if w.name != v.name {
+                            assert_eq!(g2(&p), g2(&Params::default()), "{} changed {}", v.name, w.name);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,187 @@
+//! The whole drive: validated parameters + crank motion + inputs → every output.
+//! Data flows one way (architecture.md): crank → kinematics → loads → outputs.
+
+use crate::model::crank::CrankState;
+use crate::model::crank_slider::CrankSlider;
+use crate::model::error::{require_finite, ModelError};
+use crate::model::kinematics::Kinematics;
+use crate::model::loads;
+use crate::model::params::{Params, MECHANISM_CRANK_SLIDER};
+
+/// Inputs of one evaluation besides the crank motion.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Inputs {
+    /// `link.external_force` [N], positive along +s.
+    pub external_force: f64,
+}
+
+/// Every output of physics.md §10 implemented so far.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Outputs {
+    pub position: f64,
+    pub velocity: f64,
+    pub acceleration: f64,
+    pub torque_factor: f64,
+    pub inertia_force: f64,
+    pub rod_force: f64,
+    pub crank_torque: f64,
+    pub rod_angle: f64,
+    pub rod_angular_velocity: f64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Mechanism {
+    CrankSlider(CrankSlider),
+}
+
+/// A validated machine. Built once at the end of initialization (and again when a tunable
+/// parameter changes); immutable while stepping.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Model {
+    params: Params,
+    mechanism: Mechanism,
+}
+
+impl Model {
+    /// Checks everything a single-variable range cannot (assembly, finiteness) and precomputes.
+    pub fn new(params: &Params) -> Result<Model, ModelError> {
+        let p = params;
+        for (name, v) in [
+            ("crank.angle_offset", p.crank_angle_offset),
+            ("load.mean", p.load_mean),
+            ("load.amplitude", p.load_amplitude),
+            ("load.phase", p.load_phase),
+        ] {
+            require_finite(name, v)?;
+        }
+        if !(p.mass >= 0.0 && p.mass.is_finite()) {
+            return Err(ModelError::out_of_range("mass.reciprocating", p.mass, "[0, inf) kg"));
+        }
+        if !(p.velocity_scale > 0.0 && p.velocity_scale.is_finite()) {
+            return Err(ModelError::out_of_range(
+                "guide.velocity_scale",
+                p.velocity_scale,
+                "(0, inf) m/s",
+            ));
+        }
+        if !(0..=2).contains(&p.load_profile) {
+            return Err(ModelError::out_of_range("load.profile", p.load_profile as f64, "0, 1 or 2"));
+        }
+        let mechanism = match p.mechanism {
+            MECHANISM_CRANK_SLIDER => {
+                Mechanism::CrankSlider(CrankSlider::new(p.crank_radius, p.rod_length, p.slider_offset)?)
+            }
+            other => return Err(ModelError::out_of_range("mechanism", other as f64, "1 (crank-slider)")),
+        };
+        Ok(Model { params: params.clone(), mechanism })
+    }
+
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    /// Stroke S of the link [m].
+    pub fn stroke(&self) -> f64 {
+        match &self.mechanism {
+            Mechanism::CrankSlider(m) => m.stroke(),
+        }
+    }
+
+    /// Position-level kinematics at the model angle θ = θ_in + offset (§2).
+    #[inline]
+    pub fn kinematics(&self, crank: &CrankState) -> Kinematics {
+        let theta = crank.angle + self.params.crank_angle_offset;
+        match &self.mechanism {
+            Mechanism::CrankSlider(m) => m.kinematics(theta),
+        }
+    }
+
+    /// All outputs at one instant. Inputs must be finite (checked here, so a NaN never reaches
+    /// an output).
+    #[inline]
+    pub fn evaluate(&self, crank: &CrankState, inputs: &Inputs) -> Result<Outputs, ModelError> {
+        require_finite("crank.angle", crank.angle)?;
+        require_finite("crank.speed", crank.speed)?;
+        require_finite("crank.acceleration", crank.acceleration)?;
+        require_finite("link.external_force", inputs.external_force)?;
+        let p = &self.params;
+        let (w, eps) = (crank.speed, crank.acceleration);
+        let k = self.kinematics(crank);
+        let velocity = k.velocity(w);
+        let acceleration = k.acceleration(w, eps);
+        let inertia_force = loads::inertia_force(p.mass, acceleration);
+        let theta = crank.angle + p.crank_angle_offset;
+        let f_ext = inputs.external_force
+            + loads::process_force_profile(
+                p.load_profile,
+                p.load_mean,
+                p.load_amplitude,
+                p.load_phase,
+                theta,
+                velocity,
+                p.velocity_scale,
+            );
+        // §4: P = F_ext + Φ (+ F_fr + F_bal once those features exist).
+        let rod_force = f_ext + inertia_force;
+        Ok(Outputs {
+            position: k.s,
+            velocity,
+            acceleration,
+            torque_factor: k.tf,
+            inertia_force,
+            rod_force,
+            crank_torque: loads::crank_torque_rigid(rod_force, k.tf),
+            rod_angle: k.rod_angle,
+            rod_angular_velocity: k.rod_angle_rate * w,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::params::DEFAULT_CRANK_SPEED;
+
+    #[test]
+    fn default_machine_dead_centres() {
+        // §3.1 closed forms through the whole evaluation: Φ(0) = −m·rω²(1+λ).
+        let m = Model::new(&Params::default()).unwrap();
+        let w = DEFAULT_CRANK_SPEED;
+        let o = m.evaluate(&CrankState { angle: 0.0, speed: w, acceleration: 0.0 }, &Inputs::default()).unwrap();
+        let expect = -300.0 * 0.2 * w * w * (1.0 + 0.2 / 1.19);
+        assert!((o.inertia_force - expect).abs() < 1e-9 * expect.abs());
+        assert_eq!(o.rod_force, o.inertia_force);
+        assert!(o.crank_torque.abs() < 1e-9);
+    }
+
+    #[test]
+    fn angle_offset_shifts_the_model_angle() {
+        let p = Params { crank_angle_offset: 0.7, ..Params::default() };
+        let m = Model::new(&p).unwrap();
+        let m0 = Model::new(&Params::default()).unwrap();
+        let c = CrankState { angle: 0.3, speed: 5.0, acceleration: 1.0 };
+        let c0 = CrankState { angle: 1.0, ..c };
+        let (a, b) = (m.evaluate(&c, &Inputs::default()).unwrap(), m0.evaluate(&c0, &Inputs::default()).unwrap());
+        assert!((a.position - b.position).abs() < 1e-15 && (a.acceleration - b.acceleration).abs() < 1e-12);
+    }
+
+    #[test]
+    fn rejects_bad_parameters_and_inputs() {
+        for (p, name) in [
+            (Params { mass: -1.0, ..Params::default() }, "mass.reciprocating"),
+            (Params { mass: f64::NAN, ..Params::default() }, "mass.reciprocating"),
+            (Params { rod_length: 0.1, ..Params::default() }, "geometry.rod_length"),
+            (Params { load_profile: 3, ..Params::default() }, "load.profile"),
+            (Params { mechanism: 7, ..Params::default() }, "mechanism"),
+        ] {
+            let e = Model::new(&p).unwrap_err().to_string();
+            assert!(e.contains(name), "{e}");
+        }
+        let m = Model::new(&Params::default()).unwrap();
+        let e = m
+            .evaluate(&CrankState { angle: f64::NAN, speed: 1.0, acceleration: 0.0 }, &Inputs::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("crank.angle") && e.contains("NaN"), "{e}");
+    }
+}

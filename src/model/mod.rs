@@ -1,0 +1,11 @@
+//! The pure physics of ReciprocatingDrive: plain structs and functions mapping parameters and
+//! inputs to outputs. No FFI, no global state, no logging (the FMI layer in `crate::fmi2` owns
+//! those). Each file cites the section of `shared/docs/physics.md` it implements.
+
+pub mod crank;
+pub mod crank_slider;
+pub mod drive;
+pub mod error;
+pub mod kinematics;
+pub mod loads;
+pub mod params;

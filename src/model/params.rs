@@ -1,0 +1,52 @@
+//! Model parameters with the defaults of the default machine (physics.md §8: a UNB-600A-like
+//! drilling mud pump), and the checks that no single-variable range can express.
+
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+
+/// `load.profile` (physics.md §4).
+pub const LOAD_PROFILE_COSINE: i32 = 0;
+pub const LOAD_PROFILE_DOUBLE_ACTING: i32 = 1;
+pub const LOAD_PROFILE_SINGLE_ACTING: i32 = 2;
+
+/// `mechanism` (physics.md §1).
+pub const MECHANISM_CRANK_SLIDER: i32 = 1;
+
+/// All parameters, in SI units and radians. Field names follow the variable names of
+/// physics.md §10 (`geometry.crank_radius` → `crank_radius`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Params {
+    pub mechanism: i32,
+    pub crank_angle_offset: f64,
+    pub crank_radius: f64,
+    pub rod_length: f64,
+    pub slider_offset: f64,
+    pub mass: f64,
+    pub load_profile: i32,
+    pub load_mean: f64,
+    pub load_amplitude: f64,
+    pub load_phase: f64,
+    /// v_ε of the regularised sign tanh(v/v_ε) (§4 load profiles 1 and 2, §5.3 friction).
+    pub velocity_scale: f64,
+}
+
+/// Default crank speed: 65 strokes per minute (§8).
+pub const DEFAULT_CRANK_SPEED: f64 = 2.0 * PI * 65.0 / 60.0;
+
+impl Default for Params {
+    fn default() -> Self {
+        Params {
+            mechanism: MECHANISM_CRANK_SLIDER,
+            crank_angle_offset: 0.0,
+            crank_radius: 0.2,
+            rod_length: 1.19,
+            slider_offset: 0.0,
+            mass: 300.0,
+            load_profile: LOAD_PROFILE_COSINE,
+            load_mean: 0.0,
+            load_amplitude: 0.0,
+            load_phase: 0.0,
+            velocity_scale: 0.02,
+        }
+    }
+}
