@@ -1,1 +1,92 @@
-fn main() {}
+//! Native host-loop benchmark through the C ABI (loaded with libloading, as an importer does):
+//! per step `fmi2SetReal` of the 3 crank inputs, `fmi2DoStep` (h = 1 ms) and `fmi2GetReal` of 8
+//! outputs. Reports ns per step, the median of several runs.
+//!
+//! Run: `cargo bench --bench host_loop` (optionally a scenario name filter as argument).
+
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+use common::*;
+use std::time::Instant;
+
+struct Scenario {
+    name: &'static str,
+    /// (name, value) parameters set in initialization mode.
+    reals: &'static [(&'static str, f64)],
+    ints: &'static [(&'static str, i32)],
+    speed: f64,
+}
+
+const SCENARIOS: &[Scenario] = &[Scenario {
+    name: "crank-slider (default machine)",
+    reals: &[],
+    ints: &[],
+    speed: 2.0 * std::f64::consts::PI * 65.0 / 60.0,
+}];
+
+const OUTPUTS: [&str; 8] = [
+    "suspension.position",
+    "suspension.velocity",
+    "suspension.acceleration",
+    "kinematics.torque_factor",
+    "inertia.force",
+    "rod.force",
+    "crank.torque",
+    "rod.angle",
+];
+
+fn run(api: &Api, sc: &Scenario, steps: usize) -> f64 {
+    let f = Inst::with(api, "bench", None, false);
+    assert_eq!(f.setup(0.0), OK);
+    assert_eq!(f.enter(), OK);
+    for (n, v) in sc.reals {
+        assert_eq!(f.set(n, *v), OK);
+    }
+    for (n, v) in sc.ints {
+        assert_eq!(f.set_int(n, *v), OK);
+    }
+    assert_eq!(f.exit(), OK, "{}", f.log.last());
+    let in_vr = [vr("crank.angle"), vr("crank.speed"), vr("crank.acceleration")];
+    let out_vr: Vec<u32> = OUTPUTS.iter().map(|n| vr(n)).collect();
+    let mut out = [0.0f64; 8];
+    let h = 1e-3;
+    let mut sink = 0.0;
+    let t0 = Instant::now();
+    for k in 0..steps {
+        let t = k as f64 * h;
+        let inputs = [sc.speed * t, sc.speed, 0.0];
+        unsafe {
+            let s1 = (api.fmi2SetReal)(f.c, in_vr.as_ptr(), 3, inputs.as_ptr());
+            let s2 = (api.fmi2DoStep)(f.c, t, h, 1);
+            let s3 = (api.fmi2GetReal)(f.c, out_vr.as_ptr(), 8, out.as_mut_ptr());
+            if (s1 | s2 | s3) != OK {
+                panic!("step {k} failed: {}", f.log.last());
+            }
+        }
+        sink += out[2];
+    }
+    let ns = t0.elapsed().as_nanos() as f64 / steps as f64;
+    std::hint::black_box(sink);
+    ns
+}
+
+fn main() {
+    let filter: Option<String> = std::env::args().skip(1).find(|a| !a.starts_with('-'));
+    let api = Api::load();
+    println!("library: {}", library_path().display());
+    for sc in SCENARIOS {
+        if filter.as_ref().is_some_and(|f| !sc.name.contains(f.as_str())) {
+            continue;
+        }
+        // BENCH_STEPS shortens the runs (e.g. under valgrind --tool=callgrind).
+        let steps = std::env::var("BENCH_STEPS").ok().and_then(|s| s.parse().ok()).unwrap_or(200_000);
+        run(&api, sc, steps / 10); // warm-up
+        let mut runs: Vec<f64> = (0..9).map(|_| run(&api, sc, steps)).collect();
+        runs.sort_by(f64::total_cmp);
+        println!(
+            "{:<40} median {:>8.1} ns/step  (min {:.1}, max {:.1}; 9 runs x {steps} steps, h = 1 ms)",
+            sc.name, runs[4], runs[0], runs[8]
+        );
+    }
+}

@@ -124,13 +124,27 @@ impl Core {
     }
 
     fn write_outputs(&mut self, out: &Outputs) {
-        for (vr, var) in VARIABLES.iter().enumerate() {
-            if let Binding::Output { get, .. } = var.binding {
-                self.values[vr] = get(out);
-            }
+        for &(vr, get) in output_getters() {
+            self.values[vr] = get(out);
         }
         self.outputs_valid = true;
     }
+}
+
+/// (value reference, getter) of every output, collected once from the table so that writing
+/// the outputs after each evaluation does not rescan all variables.
+fn output_getters() -> &'static [(usize, fn(&Outputs) -> f64)] {
+    static GETTERS: std::sync::OnceLock<Vec<(usize, fn(&Outputs) -> f64)>> = std::sync::OnceLock::new();
+    GETTERS.get_or_init(|| {
+        VARIABLES
+            .iter()
+            .enumerate()
+            .filter_map(|(vr, v)| match v.binding {
+                Binding::Output { get, .. } => Some((vr, get)),
+                _ => None,
+            })
+            .collect()
+    })
 }
 
 /// A saved FMU state (fmi2GetFMUstate). The magic number lets fmi2SetFMUstate refuse a pointer
@@ -236,6 +250,7 @@ impl Instance {
         Ok(())
     }
 
+    #[inline]
     fn lookup(&self, function: &str, vr: u32, ty: VarType) -> Result<usize, Failure> {
         let i = vr as usize;
         match VARIABLES.get(i) {
@@ -266,17 +281,18 @@ impl Instance {
     }
 
     /// fmi2GetReal/Integer/Boolean: `out(i, value)` receives the i-th requested value.
+    /// Outputs are evaluated at most once per change of time, inputs or parameters.
     pub fn get(&mut self, function: &str, ty: VarType, vrs: &[u32], mut out: impl FnMut(usize, f64)) -> Result<(), Failure> {
-        let needs_outputs = match self.core.mode {
+        let outputs_available = match self.core.mode {
             Mode::InitializationMode | Mode::StepComplete | Mode::Terminated => true,
             // Parameters and inputs can be read right after instantiation (some importers do).
             Mode::Instantiated => false,
             Mode::Fatal => return Err(Failure::illegal(function, self.core.mode)),
         };
-        for &vr in vrs {
+        for (k, &vr) in vrs.iter().enumerate() {
             let i = self.lookup(function, vr, ty)?;
-            if VARIABLES[i].causality == Causality::Output {
-                if !needs_outputs {
+            if !self.core.outputs_valid && VARIABLES[i].causality == Causality::Output {
+                if !outputs_available {
                     return Err(Failure::error(format!(
                         "{function}: output \"{}\" is not available before fmi2EnterInitializationMode",
                         VARIABLES[i].name
@@ -284,9 +300,7 @@ impl Instance {
                 }
                 self.refresh_outputs()?;
             }
-        }
-        for (k, &vr) in vrs.iter().enumerate() {
-            out(k, self.core.values[vr as usize]);
+            out(k, self.core.values[i]);
         }
         Ok(())
     }
@@ -422,6 +436,7 @@ impl Instance {
         Ok(Snapshot { magic: SNAPSHOT_MAGIC, core, model })
     }
 
+    #[inline]
     pub fn log(&self, status: fmi_sys::fmi2::fmi2Status, category: Category, message: &str) {
         self.logger.log(status, category, message);
     }

@@ -60,15 +60,21 @@ impl Logger {
         Ok(())
     }
 
+    #[inline]
     fn wants(&self, category: Category) -> bool {
         category == Category::Error
             || (self.debug_logging && (self.enabled[category as usize] || self.enabled[Category::All as usize]))
     }
 
+    #[inline]
     pub fn log(&self, status: fmi2Status, category: Category, message: &str) {
-        if !self.wants(category) {
-            return;
+        if self.wants(category) {
+            self.emit(status, category, message);
         }
+    }
+
+    #[cold]
+    fn emit(&self, status: fmi2Status, category: Category, message: &str) {
         let Some(callback) = self.callback else { return };
         // Interior NULs cannot cross a C string; replace them rather than drop the message.
         let msg = CString::new(message.replace('\0', " ")).unwrap_or_default();

@@ -26,6 +26,8 @@ pub fn process_force_profile(
     match profile {
         LOAD_PROFILE_DOUBLE_ACTING => -mean * (velocity / velocity_scale).tanh(),
         LOAD_PROFILE_SINGLE_ACTING => 0.5 * mean * (1.0 - (velocity / velocity_scale).tanh()),
+        // The cosine costs as much as the rest of the kinematics: skip it when it contributes 0.
+        _ if amplitude == 0.0 => mean,
         _ => mean + amplitude * (theta + phase).cos(),
     }
 }
