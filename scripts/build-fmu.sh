@@ -20,7 +20,7 @@ rm -rf "$stage" && mkdir -p "$stage/binaries/linux64" "$stage/documentation" "$s
 cp modelDescription/modelDescription.xml "$stage/"
 # cargo names the library lib<crate>.so; the FMU's binary must be named <modelIdentifier>.so.
 cp target/release/libreciprocating_drive.so "$stage/binaries/linux64/ReciprocatingDrive.so"
-cp docs/index.html "$stage/documentation/index.html"
+cargo run --release --quiet --bin gen-model-description -- --doc > "$stage/documentation/index.html"
 if compgen -G "resources/*" > /dev/null; then cp -r resources/. "$stage/resources/"; fi
 rm -f target/fmu/ReciprocatingDrive.fmu
 python3 - "$stage" target/fmu/ReciprocatingDrive.fmu <<'PY'

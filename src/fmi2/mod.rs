@@ -2,6 +2,7 @@
 //! references, FMU state snapshots, logging and the C ABI, and calls into [`crate::model`].
 
 pub mod abi;
+pub mod documentation;
 pub mod fmu_state;
 pub mod instance;
 pub mod logging;
