@@ -72,6 +72,7 @@ pub fn generate() -> String {
         let causality = match (v.causality, v.variability) {
             (Causality::Parameter, Variability::Tunable) => "parameter (tunable)",
             (Causality::Parameter, _) => "parameter",
+            (Causality::CalculatedParameter, _) => "calculated parameter",
             (Causality::Input, _) => "input",
             (Causality::Output, _) => "output",
         };

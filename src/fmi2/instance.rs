@@ -291,7 +291,7 @@ impl Instance {
         };
         for (k, &vr) in vrs.iter().enumerate() {
             let i = self.lookup(function, vr, ty)?;
-            if !self.core.outputs_valid && VARIABLES[i].causality == Causality::Output {
+            if !self.core.outputs_valid && matches!(VARIABLES[i].causality, Causality::Output | Causality::CalculatedParameter) {
                 if !outputs_available {
                     return Err(Failure::error(format!(
                         "{function}: output \"{}\" is not available before fmi2EnterInitializationMode",
@@ -321,8 +321,8 @@ impl Instance {
             let var = &VARIABLES[i];
             let v = value(k);
             match var.causality {
-                Causality::Output => {
-                    return Err(Failure::error(format!("{function}: \"{}\" is an output and cannot be set", var.name)))
+                Causality::Output | Causality::CalculatedParameter => {
+                    return Err(Failure::error(format!("{function}: \"{}\" is computed by the FMU and cannot be set", var.name)))
                 }
                 Causality::Input if !v.is_finite() => {
                     return Err(ModelError::out_of_range(var.name, v, var.range.describe(var.unit)).into())

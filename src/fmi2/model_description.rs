@@ -40,7 +40,7 @@ fn body() -> String {
     let _ = writeln!(w, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
     let _ = writeln!(
         w,
-        r#"<fmiModelDescription fmiVersion="2.0" modelName="{MODEL_NAME}" guid="{GUID_PLACEHOLDER}" description="Crank-driven reciprocating mechanism: exact kinematics, inertia load and crank torque of a crank-slider (drilling mud pump)" version="{}" generationTool="reciprocating_drive {}" variableNamingConvention="structured" numberOfEventIndicators="0">"#,
+        r#"<fmiModelDescription fmiVersion="2.0" modelName="{MODEL_NAME}" guid="{GUID_PLACEHOLDER}" description="Crank-driven reciprocating mechanism: exact kinematics, inertia load and crank torque of a crank-slider (drilling mud pump) or a beam pumping unit (API class I and III), torsion-bar balancer" version="{}" generationTool="reciprocating_drive {}" variableNamingConvention="structured" numberOfEventIndicators="0">"#,
         env!("CARGO_PKG_VERSION"),
         env!("CARGO_PKG_VERSION")
     );
@@ -69,6 +69,7 @@ fn body() -> String {
     for (vr, v) in VARIABLES.iter().enumerate() {
         let causality = match v.causality {
             Causality::Parameter => "parameter",
+            Causality::CalculatedParameter => "calculatedParameter",
             Causality::Input => "input",
             Causality::Output => "output",
         };
@@ -112,7 +113,7 @@ fn body() -> String {
     let _ = writeln!(w, "  <ModelStructure>");
     let _ = writeln!(w, "    <Outputs>");
     for (vr, v) in VARIABLES.iter().enumerate() {
-        if let Binding::Output { depends_on, .. } = v.binding {
+        if let (Causality::Output, Binding::Output { depends_on, .. }) = (v.causality, v.binding) {
             let deps: Vec<String> = depends_on.iter().map(|s| input_index(*s).to_string()).collect();
             let kinds: Vec<&str> = depends_on.iter().map(|_| "dependent").collect();
             let _ = writeln!(
@@ -125,11 +126,11 @@ fn body() -> String {
         }
     }
     let _ = writeln!(w, "    </Outputs>");
-    // Outputs are computed at initialization from all knowns (inputs and parameters): no
-    // `dependencies` attribute means exactly that.
+    // Outputs and calculated parameters are computed at initialization from all knowns (inputs
+    // and parameters): no `dependencies` attribute means exactly that.
     let _ = writeln!(w, "    <InitialUnknowns>");
     for (vr, v) in VARIABLES.iter().enumerate() {
-        if v.causality == Causality::Output {
+        if matches!(v.causality, Causality::Output | Causality::CalculatedParameter) {
             let _ = writeln!(w, r#"      <Unknown index="{}"/>"#, vr + 1);
         }
     }

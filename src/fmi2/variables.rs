@@ -19,6 +19,8 @@ pub enum VarType {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Causality {
     Parameter,
+    /// Computed by the FMU at initialization from the parameters (e.g. the balancer stiffness).
+    CalculatedParameter,
     Input,
     Output,
 }
@@ -140,6 +142,21 @@ macro_rules! param {
     };
 }
 
+macro_rules! param_bool {
+    ($name:literal, $field:ident, $var:ident, $desc:literal) => {
+        Var {
+            name: $name,
+            ty: Boolean,
+            causality: Parameter,
+            variability: $var,
+            unit: "",
+            description: $desc,
+            range: Range::closed(0.0, 1.0),
+            binding: Binding::Param { get: |p| p.$field as i32 as f64, set: |p, v| p.$field = v != 0.0 },
+        }
+    };
+}
+
 macro_rules! input {
     ($name:literal, $slot:ident, $start:expr, $unit:literal, $desc:literal) => {
         Var {
@@ -157,11 +174,14 @@ macro_rules! input {
 
 macro_rules! output {
     ($name:literal, $field:ident, $unit:literal, [$($dep:ident),*], $desc:literal) => {
+        output!(Output, Continuous, $name, $field, $unit, [$($dep),*], $desc)
+    };
+    ($causality:ident, $variability:ident, $name:literal, $field:ident, $unit:literal, [$($dep:ident),*], $desc:literal) => {
         Var {
             name: $name,
             ty: Real,
-            causality: Output,
-            variability: Continuous,
+            causality: $causality,
+            variability: $variability,
             unit: $unit,
             description: $desc,
             range: Range::ANY,
@@ -197,20 +217,34 @@ pub static VARIABLES: &[Var] = &[
     output!("crank.torque", crank_torque, "N.m", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
         "Torque the drive supplies to the crank, T = -P*TF (positive when the drive does work)"),
     output!("rod.angle", rod_angle, "rad", [CrankAngle],
-        "Connecting-rod swing angle beta from the stroke axis (crank-slider: l*sin(beta) = r*sin(theta) - e)"),
+        "Connecting-rod swing: crank-slider rod angle beta from the stroke axis (l*sin(beta) = r*sin(theta) - e); beam units: pitman inclination from the vertical, positive when its crank-pin end is nearer the well"),
     output!("rod.angular_velocity", rod_angular_velocity, "rad/s", [CrankAngle, CrankSpeed],
-        "Rate of the rod swing angle, d(beta)/dt"),
-    // ---- parameters (physics.md §3.1, §4, §8)
-    param!("mechanism", Integer, mechanism, Fixed, "", Range::closed(1.0, 1.0),
-        "Mechanism kind: 1 = crank-slider (optionally offset)"),
+        "Rate of rod.angle"),
+    output!("balancer.force", balancer_force, "N", [CrankAngle],
+        "Torsion-bar balancer force on the link, F_bal = -k_b*(s - s_0); 0 when balancer.enabled is false"),
+    output!("balancer.residual", balancer_residual, "N", [CrankAngle, CrankSpeed, CrankAcceleration],
+        "Inertia force left after balancing, Phi + F_bal"),
+    // ---- parameters (physics.md §3, §4, §7, §8)
+    param!("mechanism", Integer, mechanism, Fixed, "", Range::closed(1.0, 3.0),
+        "Mechanism kind: 1 = crank-slider (optionally offset); 2 = beam pumping unit, conventional (API class I); 3 = beam pumping unit, class III (Mark II / air balanced)"),
+    param!("rotation", Integer, rotation, Fixed, "", Range::closed(-1.0, 1.0),
+        "Beam units: +1 clockwise, -1 counter-clockwise, viewed with the well on the right (API 11E); 0 is not allowed. Ignored by the crank-slider."),
     param!("crank.angle_offset", Real, crank_angle_offset, Fixed, "rad", Range::ANY,
         "Added to crank.angle to form the model angle (to match a sensor's zero)"),
     param!("geometry.crank_radius", Real, crank_radius, Fixed, "m", Range::POSITIVE,
         "Crank radius r"),
     param!("geometry.rod_length", Real, rod_length, Fixed, "m", Range::POSITIVE,
-        "Connecting rod length l, centre to centre; must exceed r + |e|"),
+        "Connecting rod length l, centre to centre (crank-slider: must exceed r + |e|); beam units: pitman length P"),
     param!("geometry.slider_offset", Real, slider_offset, Fixed, "m", Range::ANY,
-        "Guide offset e: the stroke axis is the line y = e (y positive on the side of the crank pin at theta = 90 deg)"),
+        "Crank-slider guide offset e: the stroke axis is the line y = e (y positive on the side of the crank pin at theta = 90 deg)"),
+    param!("geometry.beam_front_arm", Real, beam_front_arm, Fixed, "m", Range::POSITIVE,
+        "Beam units: A, centre bearing to horsehead arc (polished rod)"),
+    param!("geometry.beam_rear_arm", Real, beam_rear_arm, Fixed, "m", Range::POSITIVE,
+        "Beam units: C, centre bearing to equalizer bearing"),
+    param!("geometry.pivot_dx", Real, pivot_dx, Fixed, "m", Range::POSITIVE,
+        "Beam units: I, horizontal distance crankshaft to centre bearing"),
+    param!("geometry.pivot_dy", Real, pivot_dy, Fixed, "m", Range::POSITIVE,
+        "Beam units: H-G, vertical distance crankshaft to centre bearing"),
     param!("mass.reciprocating", Real, mass, Fixed, "kg", Range::NON_NEGATIVE,
         "Reciprocating mass m reduced to the link"),
     param!("load.profile", Integer, load_profile, Tunable, "", Range::closed(0.0, 2.0),
@@ -223,6 +257,18 @@ pub static VARIABLES: &[Var] = &[
         "Phase of the cosine process force (profile 0)"),
     param!("guide.velocity_scale", Real, velocity_scale, Fixed, "m/s", Range::POSITIVE,
         "Velocity scale v_eps of the regularised sign tanh(v/v_eps) (pump load profiles)"),
+    param_bool!("balancer.enabled", balancer_enabled, Fixed,
+        "Torsion-bar balancer on the link: F_bal = -k_b*(s - s_0)"),
+    param!("balancer.tuning", Integer, balancer_tuning, Fixed, "", Range::closed(0.0, 2.0),
+        "Balancer stiffness: 0 = balancer.stiffness as given; 1 = energy rule k_b = m*B^2*omega_d^2, B = v_max/(r*omega), s_0 at mid-stroke; 2 = exact cancellation at both dead centres of a central crank-slider, k_b = m*omega_d^2, s_0 = r*(1 + r/l)"),
+    param!("balancer.stiffness", Real, balancer_stiffness, Fixed, "N/m", Range::NON_NEGATIVE,
+        "Balancer stiffness k_b for balancer.tuning = 0"),
+    param!("balancer.design_speed", Real, balancer_design_speed, Fixed, "rad/s", Range::NON_NEGATIVE,
+        "Design crank speed omega_d of balancer tunings 1 and 2"),
+    param!("balancer.neutral_position", Real, balancer_neutral_position, Fixed, "m", Range::ANY,
+        "Stroke position s_0 where the balancer force is zero (tuning 0); a negative value means mid-stroke"),
+    output!(CalculatedParameter, Fixed, "balancer.stiffness_used", balancer_stiffness_used, "N/m", [],
+        "Balancer stiffness k_b in use (from balancer.tuning); 0 when the balancer is off"),
 ];
 
 /// Units used by the table, with their SI base-unit exponents (kg, m, s, rad) for
@@ -237,6 +283,7 @@ pub static UNITS: &[(&str, [i32; 4])] = &[
     ("N", [1, 1, -2, 0]),
     ("N.m", [1, 2, -2, 0]),
     ("kg", [1, 0, 0, 0]),
+    ("N/m", [1, 0, -2, 0]),
 ];
 
 /// Value reference of a variable by name (used by tests, the generator and set-up code, never in
@@ -277,7 +324,7 @@ mod tests {
         for v in VARIABLES {
             if let Binding::Param { get, set } = v.binding {
                 let mut p = Params::default();
-                let x = if v.ty == Real { 0.123 } else { 2.0 };
+                let x = match v.ty { Real => 0.123, Integer => 2.0, Boolean => 1.0 };
                 set(&mut p, x);
                 assert_eq!(get(&p), x, "{}", v.name);
                 for w in VARIABLES {

@@ -1,12 +1,14 @@
 //! The whole drive: validated parameters + crank motion + inputs → every output.
 //! Data flows one way (architecture.md): crank → kinematics → loads → outputs.
 
+use crate::model::balancer::{Balancer, BalancerSpec, MachineFacts};
+use crate::model::beam_unit::{BeamClass, BeamUnit, BeamUnitGeometry};
 use crate::model::crank::CrankState;
 use crate::model::crank_slider::CrankSlider;
 use crate::model::error::{require_finite, ModelError};
-use crate::model::kinematics::Kinematics;
+use crate::model::kinematics::{max_abs_torque_factor, Kinematics};
 use crate::model::loads;
-use crate::model::params::{Params, MECHANISM_CRANK_SLIDER};
+use crate::model::params::{Params, MECHANISM_BEAM_CLASS_I, MECHANISM_BEAM_CLASS_III, MECHANISM_CRANK_SLIDER};
 
 /// Inputs of one evaluation besides the crank motion.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -27,11 +29,17 @@ pub struct Outputs {
     pub crank_torque: f64,
     pub rod_angle: f64,
     pub rod_angular_velocity: f64,
+    pub balancer_force: f64,
+    /// Φ + F_bal: what the balancer leaves of the inertia force (§7).
+    pub balancer_residual: f64,
+    /// The calculated parameter `balancer.stiffness_used` (0 when the balancer is off).
+    pub balancer_stiffness_used: f64,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Mechanism {
     CrankSlider(CrankSlider),
+    BeamUnit(BeamUnit),
 }
 
 /// A validated machine. Built once at the end of initialization (and again when a tunable
@@ -40,6 +48,7 @@ enum Mechanism {
 pub struct Model {
     params: Params,
     mechanism: Mechanism,
+    balancer: Option<Balancer>,
 }
 
 impl Model {
@@ -67,13 +76,66 @@ impl Model {
         if !(0..=2).contains(&p.load_profile) {
             return Err(ModelError::out_of_range("load.profile", p.load_profile as f64, "0, 1 or 2"));
         }
+        if p.rotation != 1 && p.rotation != -1 {
+            return Err(ModelError::out_of_range("rotation", p.rotation as f64, "-1 or +1"));
+        }
+        let beam = |class| -> Result<Mechanism, ModelError> {
+            Ok(Mechanism::BeamUnit(BeamUnit::new(&BeamUnitGeometry {
+                class,
+                rotation: p.rotation as f64,
+                front_arm: p.beam_front_arm,
+                rear_arm: p.beam_rear_arm,
+                pivot_dx: p.pivot_dx,
+                pivot_dy: p.pivot_dy,
+                pitman: p.rod_length,
+                crank: p.crank_radius,
+            })?))
+        };
         let mechanism = match p.mechanism {
             MECHANISM_CRANK_SLIDER => {
                 Mechanism::CrankSlider(CrankSlider::new(p.crank_radius, p.rod_length, p.slider_offset)?)
             }
-            other => return Err(ModelError::out_of_range("mechanism", other as f64, "1 (crank-slider)")),
+            MECHANISM_BEAM_CLASS_I => beam(BeamClass::Conventional)?,
+            MECHANISM_BEAM_CLASS_III => beam(BeamClass::Class3)?,
+            other => {
+                return Err(ModelError::out_of_range(
+                    "mechanism",
+                    other as f64,
+                    "1 (crank-slider), 2 (beam unit, class I) or 3 (beam unit, class III)",
+                ))
+            }
         };
-        Ok(Model { params: params.clone(), mechanism })
+        let mut model = Model { params: params.clone(), mechanism, balancer: None };
+        if p.balancer_enabled {
+            for (name, v) in [
+                ("balancer.stiffness", p.balancer_stiffness),
+                ("balancer.design_speed", p.balancer_design_speed),
+            ] {
+                if !(v >= 0.0 && v.is_finite()) {
+                    return Err(ModelError::out_of_range(name, v, "[0, inf)"));
+                }
+            }
+            require_finite("balancer.neutral_position", p.balancer_neutral_position)?;
+            let central = match model.mechanism {
+                Mechanism::CrankSlider(_) if p.slider_offset == 0.0 => Some(p.crank_radius / p.rod_length),
+                _ => None,
+            };
+            let facts = MachineFacts {
+                mass: p.mass,
+                stroke: model.stroke(),
+                crank_radius: p.crank_radius,
+                max_torque_factor: max_abs_torque_factor(|t| model.kinematics_at(t)),
+                central_slider_lambda: central,
+            };
+            let spec = BalancerSpec {
+                tuning: p.balancer_tuning,
+                stiffness: p.balancer_stiffness,
+                design_speed: p.balancer_design_speed,
+                neutral_position: p.balancer_neutral_position,
+            };
+            model.balancer = Some(Balancer::new(&spec, &facts)?);
+        }
+        Ok(model)
     }
 
     pub fn params(&self) -> &Params {
@@ -84,16 +146,28 @@ impl Model {
     pub fn stroke(&self) -> f64 {
         match &self.mechanism {
             Mechanism::CrankSlider(m) => m.stroke(),
+            Mechanism::BeamUnit(m) => m.stroke(),
+        }
+    }
+
+    /// The balancer in use, if enabled.
+    pub fn balancer(&self) -> Option<&Balancer> {
+        self.balancer.as_ref()
+    }
+
+    /// Position-level kinematics at the model angle θ (offset already applied).
+    #[inline]
+    pub fn kinematics_at(&self, theta: f64) -> Kinematics {
+        match &self.mechanism {
+            Mechanism::CrankSlider(m) => m.kinematics(theta),
+            Mechanism::BeamUnit(m) => m.kinematics(theta),
         }
     }
 
     /// Position-level kinematics at the model angle θ = θ_in + offset (§2).
     #[inline]
     pub fn kinematics(&self, crank: &CrankState) -> Kinematics {
-        let theta = crank.angle + self.params.crank_angle_offset;
-        match &self.mechanism {
-            Mechanism::CrankSlider(m) => m.kinematics(theta),
-        }
+        self.kinematics_at(crank.angle + self.params.crank_angle_offset)
     }
 
     /// All outputs at one instant. Inputs must be finite (checked here, so a NaN never reaches
@@ -121,8 +195,9 @@ impl Model {
                 velocity,
                 p.velocity_scale,
             );
-        // §4: P = F_ext + Φ (+ F_fr + F_bal once those features exist).
-        let rod_force = f_ext + inertia_force;
+        let balancer_force = self.balancer.as_ref().map_or(0.0, |b| b.force(k.s));
+        // §4: P = F_ext + Φ + F_bal (+ F_fr once guide friction exists).
+        let rod_force = f_ext + inertia_force + balancer_force;
         Ok(Outputs {
             position: k.s,
             velocity,
@@ -133,6 +208,9 @@ impl Model {
             crank_torque: loads::crank_torque_rigid(rod_force, k.tf),
             rod_angle: k.rod_angle,
             rod_angular_velocity: k.rod_angle_rate * w,
+            balancer_force,
+            balancer_residual: inertia_force + balancer_force,
+            balancer_stiffness_used: self.balancer.as_ref().map_or(0.0, |b| b.stiffness),
         })
     }
 }

@@ -28,3 +28,35 @@ impl Kinematics {
         self.tf * epsilon + self.tfp * omega * omega
     }
 }
+
+/// Largest |TF| over a revolution, exactly: |TF| is extreme where TF' = 0, so bracket the sign
+/// changes of TF' on a fine grid and bisect each to machine precision (physics.md §7: the
+/// zero-acceleration angle is a root of TF' = 0, not the first-harmonic formula).
+pub fn max_abs_torque_factor(kin: impl Fn(f64) -> Kinematics) -> f64 {
+    const N: usize = 1440;
+    let step = std::f64::consts::TAU / N as f64;
+    let mut best = 0.0f64;
+    let mut prev = kin(0.0);
+    for i in 1..=N {
+        let (a, b) = ((i - 1) as f64 * step, i as f64 * step);
+        let cur = kin(b);
+        best = best.max(cur.tf.abs());
+        if prev.tfp.signum() != cur.tfp.signum() {
+            let (mut lo, mut hi, lo_sign) = (a, b, prev.tfp.signum());
+            for _ in 0..80 {
+                let mid = 0.5 * (lo + hi);
+                if mid <= lo || mid >= hi {
+                    break;
+                }
+                if kin(mid).tfp.signum() == lo_sign {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            best = best.max(kin(0.5 * (lo + hi)).tf.abs());
+        }
+        prev = cur;
+    }
+    best
+}

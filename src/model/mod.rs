@@ -2,6 +2,8 @@
 //! inputs to outputs. No FFI, no global state, no logging (the FMI layer in `crate::fmi2` owns
 //! those). Each file cites the section of `shared/docs/physics.md` it implements.
 
+pub mod balancer;
+pub mod beam_unit;
 pub mod crank;
 pub mod crank_slider;
 pub mod drive;

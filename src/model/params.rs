@@ -11,16 +11,25 @@ pub const LOAD_PROFILE_SINGLE_ACTING: i32 = 2;
 
 /// `mechanism` (physics.md §1).
 pub const MECHANISM_CRANK_SLIDER: i32 = 1;
+pub const MECHANISM_BEAM_CLASS_I: i32 = 2;
+pub const MECHANISM_BEAM_CLASS_III: i32 = 3;
 
 /// All parameters, in SI units and radians. Field names follow the variable names of
 /// physics.md §10 (`geometry.crank_radius` → `crank_radius`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Params {
     pub mechanism: i32,
+    /// +1 clockwise, −1 counter-clockwise (beam units, API 11E view with the well on the right).
+    pub rotation: i32,
     pub crank_angle_offset: f64,
     pub crank_radius: f64,
     pub rod_length: f64,
     pub slider_offset: f64,
+    /// Beam units (§3.2): A, C, I, H−G.
+    pub beam_front_arm: f64,
+    pub beam_rear_arm: f64,
+    pub pivot_dx: f64,
+    pub pivot_dy: f64,
     pub mass: f64,
     pub load_profile: i32,
     pub load_mean: f64,
@@ -28,6 +37,12 @@ pub struct Params {
     pub load_phase: f64,
     /// v_ε of the regularised sign tanh(v/v_ε) (§4 load profiles 1 and 2, §5.3 friction).
     pub velocity_scale: f64,
+    /// Torsion-bar balancer (§7).
+    pub balancer_enabled: bool,
+    pub balancer_tuning: i32,
+    pub balancer_stiffness: f64,
+    pub balancer_design_speed: f64,
+    pub balancer_neutral_position: f64,
 }
 
 /// Default crank speed: 65 strokes per minute (§8).
@@ -37,16 +52,28 @@ impl Default for Params {
     fn default() -> Self {
         Params {
             mechanism: MECHANISM_CRANK_SLIDER,
+            rotation: 1,
             crank_angle_offset: 0.0,
             crank_radius: 0.2,
             rod_length: 1.19,
             slider_offset: 0.0,
+            // The beam geometry of the SK8-3.5-4000 unit (§8), so that a beam unit only needs
+            // its crank, pitman and mechanism set (or the preset).
+            beam_front_arm: 3.5,
+            beam_rear_arm: 2.5,
+            pivot_dx: 2.195,
+            pivot_dy: 3.0,
             mass: 300.0,
             load_profile: LOAD_PROFILE_COSINE,
             load_mean: 0.0,
             load_amplitude: 0.0,
             load_phase: 0.0,
             velocity_scale: 0.02,
+            balancer_enabled: false,
+            balancer_tuning: 0,
+            balancer_stiffness: 0.0,
+            balancer_design_speed: DEFAULT_CRANK_SPEED,
+            balancer_neutral_position: -1.0,
         }
     }
 }
