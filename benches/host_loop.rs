@@ -18,12 +18,29 @@ struct Scenario {
     speed: f64,
 }
 
-const SCENARIOS: &[Scenario] = &[Scenario {
-    name: "crank-slider (default machine)",
-    reals: &[],
-    ints: &[],
-    speed: 2.0 * std::f64::consts::PI * 65.0 / 60.0,
-}];
+const SCENARIOS: &[Scenario] = &[
+    Scenario {
+        name: "crank-slider (default machine)",
+        reals: &[],
+        ints: &[],
+        speed: 2.0 * std::f64::consts::PI * 65.0 / 60.0,
+    },
+    Scenario {
+        name: "beam unit (sk8-3.5-4000)",
+        reals: &[
+            ("geometry.beam_front_arm", 3.5),
+            ("geometry.beam_rear_arm", 2.5),
+            ("geometry.pivot_dx", 2.195),
+            ("geometry.pivot_dy", 3.0),
+            ("geometry.rod_length", 3.0),
+            ("geometry.crank_radius", 1.01),
+            ("mass.reciprocating", 3000.0),
+            ("load.mean", -40e3),
+        ],
+        ints: &[("mechanism", 2), ("rotation", -1)],
+        speed: 2.0 * std::f64::consts::PI * 10.9 / 60.0,
+    },
+];
 
 const OUTPUTS: [&str; 8] = [
     "suspension.position",

@@ -10,7 +10,7 @@ use std::ffi::CString;
 use std::path::PathBuf;
 
 use crate::fmi2::logging::{Category, Logger};
-use crate::fmi2::variables::{Binding, Causality, InputSlot, VarType, Variability, VARIABLES};
+use crate::fmi2::variables::{var_info, Binding, Causality, InputSlot, VarType, Variability, VARIABLES};
 use crate::model::crank::CrankState;
 use crate::model::drive::{Inputs, Model, Outputs};
 use crate::model::error::ModelError;
@@ -253,16 +253,23 @@ impl Instance {
     #[inline]
     fn lookup(&self, function: &str, vr: u32, ty: VarType) -> Result<usize, Failure> {
         let i = vr as usize;
-        match VARIABLES.get(i) {
+        match var_info().get(i) {
             Some(v) if v.ty == ty => Ok(i),
-            Some(v) => Err(Failure::error(format!(
+            _ => Err(Self::lookup_failure(function, vr, ty)),
+        }
+    }
+
+    #[cold]
+    fn lookup_failure(function: &str, vr: u32, ty: VarType) -> Failure {
+        match VARIABLES.get(vr as usize) {
+            Some(v) => Failure::error(format!(
                 "{function}: value reference {vr} is \"{}\" of type {:?}, not {ty:?}",
                 v.name, v.ty
-            ))),
-            None => Err(Failure::error(format!(
+            )),
+            None => Failure::error(format!(
                 "{function}: unknown value reference {vr} (valid: 0..{})",
                 VARIABLES.len() - 1
-            ))),
+            )),
         }
     }
 
@@ -291,7 +298,7 @@ impl Instance {
         };
         for (k, &vr) in vrs.iter().enumerate() {
             let i = self.lookup(function, vr, ty)?;
-            if !self.core.outputs_valid && matches!(VARIABLES[i].causality, Causality::Output | Causality::CalculatedParameter) {
+            if !self.core.outputs_valid && matches!(var_info()[i].causality, Causality::Output | Causality::CalculatedParameter) {
                 if !outputs_available {
                     return Err(Failure::error(format!(
                         "{function}: output \"{}\" is not available before fmi2EnterInitializationMode",
@@ -315,6 +322,18 @@ impl Instance {
             Mode::StepComplete => true,
             _ => return Err(Failure::illegal(function, self.core.mode)),
         };
+        // Fast path, taken at every step by every master: finite values for inputs only.
+        let info = var_info();
+        let inputs_only = vrs.iter().enumerate().all(|(k, &vr)| {
+            matches!(info.get(vr as usize), Some(v) if v.ty == ty && v.slot.is_some()) && value(k).is_finite()
+        });
+        if inputs_only {
+            for (k, &vr) in vrs.iter().enumerate() {
+                self.store_value(vr as usize, value(k));
+            }
+            self.core.outputs_valid = false;
+            return Ok(());
+        }
         let mut tunable_changed = false;
         for (k, &vr) in vrs.iter().enumerate() {
             let i = self.lookup(function, vr, ty)?;
@@ -344,16 +363,7 @@ impl Instance {
         }
         let saved = tunable_changed.then(|| self.core.values.clone());
         for (k, &vr) in vrs.iter().enumerate() {
-            self.core.values[vr as usize] = value(k);
-            if let Binding::Input { slot, .. } = VARIABLES[vr as usize].binding {
-                let v = value(k);
-                match slot {
-                    InputSlot::CrankAngle => self.core.crank.angle = v,
-                    InputSlot::CrankSpeed => self.core.crank.speed = v,
-                    InputSlot::CrankAcceleration => self.core.crank.acceleration = v,
-                    InputSlot::ExternalForce => {}
-                }
-            }
+            self.store_value(vr as usize, value(k));
         }
         if let Some(saved) = saved {
             match self.core.params().and_then(|p| Model::new(&p).map_err(Failure::from)) {
@@ -366,6 +376,18 @@ impl Instance {
         }
         self.core.outputs_valid = false;
         Ok(())
+    }
+
+    /// Stores a value; for a crank input also updates the crank state the model uses.
+    #[inline]
+    fn store_value(&mut self, vr: usize, v: f64) {
+        self.core.values[vr] = v;
+        match var_info()[vr].slot {
+            Some(InputSlot::CrankAngle) => self.core.crank.angle = v,
+            Some(InputSlot::CrankSpeed) => self.core.crank.speed = v,
+            Some(InputSlot::CrankAcceleration) => self.core.crank.acceleration = v,
+            _ => {}
+        }
     }
 
     /// fmi2DoStep: advances the crank by the in-step extrapolation of physics.md §2 and evaluates

@@ -286,6 +286,33 @@ pub static UNITS: &[(&str, [i32; 4])] = &[
     ("N/m", [1, 0, -2, 0]),
 ];
 
+/// What get/set need to know about a value reference, packed small so the per-call checks touch
+/// one cache line instead of the full [`Var`] records. Derived once from [`VARIABLES`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct VarInfo {
+    pub ty: VarType,
+    pub causality: Causality,
+    /// The input slot, for inputs.
+    pub slot: Option<InputSlot>,
+}
+
+pub fn var_info() -> &'static [VarInfo] {
+    static INFO: std::sync::OnceLock<Vec<VarInfo>> = std::sync::OnceLock::new();
+    INFO.get_or_init(|| {
+        VARIABLES
+            .iter()
+            .map(|v| VarInfo {
+                ty: v.ty,
+                causality: v.causality,
+                slot: match v.binding {
+                    Binding::Input { slot, .. } => Some(slot),
+                    _ => None,
+                },
+            })
+            .collect()
+    })
+}
+
 /// Value reference of a variable by name (used by tests, the generator and set-up code, never in
 /// the hot path).
 pub fn value_reference(name: &str) -> Option<usize> {
