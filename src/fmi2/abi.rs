@@ -65,7 +65,12 @@ unsafe fn call(c: fmi2Component, function: &str, f: impl FnOnce(&mut Instance) -
         Ok(Err(failure)) => {
             let status = status_of(failure.severity);
             let category = if failure.severity == Severity::Discard { Category::Warning } else { Category::Error };
-            (*inst).log(status, category, &failure.message);
+            // Every message names the function that failed.
+            if failure.message.starts_with(function) {
+                (*inst).log(status, category, &failure.message);
+            } else {
+                (*inst).log(status, category, &format!("{function}: {}", failure.message));
+            }
             status
         }
         Err(_) => {
@@ -188,9 +193,7 @@ pub unsafe extern "C" fn fmi2EnterInitializationMode(c: fmi2Component) -> fmi2St
 
 #[no_mangle]
 pub unsafe extern "C" fn fmi2ExitInitializationMode(c: fmi2Component) -> fmi2Status {
-    call(c, "fmi2ExitInitializationMode", |inst| {
-        inst.exit_initialization_mode().map_err(|f| Failure { message: format!("fmi2ExitInitializationMode: {}", f.message), ..f })
-    })
+    call(c, "fmi2ExitInitializationMode", |inst| inst.exit_initialization_mode())
 }
 
 #[no_mangle]

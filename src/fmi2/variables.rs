@@ -127,8 +127,9 @@ use InputSlot::*;
 use VarType::*;
 use Variability::*;
 
+/// A parameter bound to a field (or field path, e.g. `supports[1].z`) of `Params`.
 macro_rules! param {
-    ($name:literal, $ty:ident, $field:ident, $var:ident, $unit:literal, $range:expr, $desc:literal) => {
+    ($name:literal, $ty:ident, $field:ident $([$i:literal].$sub:ident)?, $var:ident, $unit:literal, $range:expr, $desc:literal) => {
         Var {
             name: $name,
             ty: $ty,
@@ -137,7 +138,26 @@ macro_rules! param {
             unit: $unit,
             description: $desc,
             range: $range,
-            binding: Binding::Param { get: |p| p.$field as f64, set: |p, v| p.$field = v as _ },
+            binding: Binding::Param {
+                get: |p| p.$field $([$i].$sub)? as f64,
+                set: |p, v| p.$field $([$i].$sub)? = v as _,
+            },
+        }
+    };
+}
+
+/// An element of an array field of `Params` (e.g. `link_lengths[2]`).
+macro_rules! param_at {
+    ($name:literal, $field:ident[$i:literal], $unit:literal, $range:expr, $desc:literal) => {
+        Var {
+            name: $name,
+            ty: Real,
+            causality: Parameter,
+            variability: Fixed,
+            unit: $unit,
+            description: $desc,
+            range: $range,
+            binding: Binding::Param { get: |p| p.$field[$i], set: |p, v| p.$field[$i] = v },
         }
     };
 }

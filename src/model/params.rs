@@ -14,6 +14,21 @@ pub const MECHANISM_CRANK_SLIDER: i32 = 1;
 pub const MECHANISM_BEAM_CLASS_I: i32 = 2;
 pub const MECHANISM_BEAM_CLASS_III: i32 = 3;
 
+/// One support of the link (physics.md §5.2), as the user sets it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SupportParams {
+    /// 0 none, 1 pin, 2 clamp, 3 two-edge guide.
+    pub kind: i32,
+    /// 0 moves with the link, 1 fixed in the frame.
+    pub attached: i32,
+    pub z: f64,
+    pub offset: f64,
+    pub tilt: f64,
+    pub length: f64,
+    pub stiffness: f64,
+    pub friction: f64,
+}
+
 /// All parameters, in SI units and radians. Field names follow the variable names of
 /// physics.md §10 (`geometry.crank_radius` → `crank_radius`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -37,6 +52,14 @@ pub struct Params {
     pub load_phase: f64,
     /// v_ε of the regularised sign tanh(v/v_ε) (§4 load profiles 1 and 2, §5.3 friction).
     pub velocity_scale: f64,
+    /// The link as a stepped beam (§5.1): `link.l1..l4`, `link.d1..d4`, `link.E`.
+    pub link_lengths: [f64; 4],
+    pub link_diameters: [f64; 4],
+    pub link_e_modulus: f64,
+    pub link_lateral_load: f64,
+    /// Supports A, B, C (§5.2); B's friction is `guide.friction_coefficient`.
+    pub supports: [SupportParams; 3],
+    pub rod_side_force: bool,
     /// Torsion-bar balancer (§7).
     pub balancer_enabled: bool,
     pub balancer_tuning: i32,
@@ -69,6 +92,20 @@ impl Default for Params {
             load_amplitude: 0.0,
             load_phase: 0.0,
             velocity_scale: 0.02,
+            // §8: assumed link of the UNB-600A-like pump and its three supports.
+            link_lengths: [0.55, 0.15, 1.00, 0.40],
+            link_diameters: [0.070, 0.130, 0.100, 0.300],
+            link_e_modulus: 2.1e11,
+            link_lateral_load: 0.0,
+            supports: [
+                // A: piston in its liner (clamp moving with the link), the reference axis.
+                SupportParams { kind: 2, attached: 0, z: 0.125, offset: 0.0, tilt: 0.0, length: 0.25, stiffness: 0.0, friction: 0.0 },
+                // B: crosshead in its guide (two-edge guide), slightly misaligned.
+                SupportParams { kind: 3, attached: 0, z: 1.90, offset: 0.3e-3, tilt: 1e-4, length: 0.40, stiffness: 0.0, friction: 0.10 },
+                // C: diaphragm gland (pin fixed in the frame), elastic.
+                SupportParams { kind: 1, attached: 1, z: 1.60, offset: 0.1e-3, tilt: 0.0, length: 0.0, stiffness: 2e6, friction: 0.0 },
+            ],
+            rod_side_force: true,
             balancer_enabled: false,
             balancer_tuning: 0,
             balancer_stiffness: 0.0,

@@ -1,0 +1,79 @@
+# Sourced by the scripts: creates or refreshes the project-local Python environment .venv from
+# requirements.txt (fmpy, libcosimpy, pytest, matplotlib, numpy, scipy, mpmath).
+#
+#   source scripts/lib/venv.sh; ensure_venv      # then use "$VENV_PYTHON"
+#
+# Idempotent and quick: a stamp file in .venv holds a hash of requirements.txt and of the
+# interpreter; when it matches and the venv's python runs, nothing is done. Works on a fresh
+# Debian machine as root (installs python3-venv and the C++ runtime libcosimpy's binary needs when
+# they are missing), and as a user with sudo.
+
+_venv_root() { (cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd); }
+
+_venv_apt_install() {
+    local sudo=""
+    [ "$(id -u)" -ne 0 ] && sudo="sudo"
+    echo "venv.sh: installing Debian packages: $*" >&2
+    if [ -z "${_VENV_APT_UPDATED:-}" ]; then
+        $sudo apt-get update -qq
+        _VENV_APT_UPDATED=1
+    fi
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "$@" >/dev/null
+}
+
+# libcosimpy ships libcosimc.so (libcosim, the FMI Library, boost, statically linked) that needs
+# only the C/C++ runtime: libstdc++6, libgcc-s1 and libatomic1. The last is not on a minimal
+# Debian.
+_venv_system_libs() {
+    local missing=()
+    for lib in libatomic.so.1 libstdc++.so.6 libgcc_s.so.1; do
+        ldconfig -p 2>/dev/null | grep -q "$lib" || missing+=("$lib")
+    done
+    [ ${#missing[@]} -eq 0 ] && return 0
+    local pkgs=()
+    for lib in "${missing[@]}"; do
+        case "$lib" in
+            libatomic.so.1) pkgs+=(libatomic1) ;;
+            libstdc++.so.6) pkgs+=(libstdc++6) ;;
+            libgcc_s.so.1) pkgs+=(libgcc-s1) ;;
+        esac
+    done
+    _venv_apt_install "${pkgs[@]}"
+}
+
+ensure_venv() {
+    local root venv req py
+    root="$(_venv_root)"
+    venv="$root/.venv"
+    req="$root/requirements.txt"
+    py="${PYTHON:-python3}"
+    if ! command -v "$py" >/dev/null 2>&1; then
+        _venv_apt_install python3 python3-venv
+    fi
+    local pyver
+    pyver="$("$py" -c 'import sys; print(sys.version_info[:2] >= (3, 11), sys.version)')"
+    case "$pyver" in
+        True*) ;;
+        *) echo "venv.sh: $py is too old (need Python >= 3.11): $pyver" >&2; return 1 ;;
+    esac
+    local want
+    want="$( { cat "$req"; echo "$pyver"; "$py" -c 'import sys; print(sys.executable)'; } | sha256sum | cut -d' ' -f1)"
+    VENV_PYTHON="$venv/bin/python"
+    export VENV_PYTHON
+    if [ -f "$venv/.requirements.sha256" ] && [ "$(cat "$venv/.requirements.sha256")" = "$want" ] \
+        && "$VENV_PYTHON" -c 'import fmpy, libcosimpy, pytest, matplotlib, numpy, scipy, mpmath' 2>/dev/null; then
+        return 0
+    fi
+    _venv_system_libs
+    echo "venv.sh: creating $venv from requirements.txt" >&2
+    rm -rf "$venv"
+    if ! "$py" -m venv "$venv" 2>/dev/null; then
+        # Debian's python3 needs python3-venv (ensurepip) to create a venv.
+        rm -rf "$venv"
+        _venv_apt_install python3-venv
+        "$py" -m venv "$venv"
+    fi
+    "$VENV_PYTHON" -m pip install --quiet --disable-pip-version-check --no-input -r "$req"
+    "$VENV_PYTHON" -c 'import fmpy, libcosimpy, pytest, matplotlib, numpy, scipy, mpmath'
+    echo "$want" > "$venv/.requirements.sha256"
+}

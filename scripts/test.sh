@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Runs every test of the project: the Rust unit and integration tests (release), then builds the
+# FMU and runs the Python tests (fmpy, libcosim) against target/fmu/ReciprocatingDrive.fmu.
+# Exits non-zero on any failure. Used by .ci/run.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+source scripts/lib/ensure-build-deps.sh
+ensure_build_deps
+source scripts/lib/venv.sh
+
+echo "== cargo test --release"
+cargo test --release
+
+echo "== scripts/build-fmu.sh"
+bash scripts/build-fmu.sh
+
+echo "== Python environment (.venv)"
+ensure_venv
+
+echo "== pytest tests/python"
+# RD_REQUIRE_FMU: a missing FMU fails the run instead of skipping the tests.
+# (pytest's summary stays the last line of the run.)
+RD_REQUIRE_FMU=1 "$VENV_PYTHON" -m pytest tests/python -q -p no:cacheprovider

@@ -1,0 +1,53 @@
+"""Fixtures shared by the Python tests of the FMU.
+
+The FMU is target/fmu/ReciprocatingDrive.fmu, built by scripts/build-fmu.sh (scripts/test.sh builds
+it before running pytest). Run by hand without it, the tests are skipped with a message; with CI or
+RD_REQUIRE_FMU set (scripts/test.sh sets it) a missing FMU is a failure, never a skip.
+RD_FMU=/path/to/X.fmu tests another build.
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+import sys
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+
+
+def _fmu_path() -> pathlib.Path:
+    return pathlib.Path(os.environ.get("RD_FMU", ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
+
+
+@pytest.fixture(scope="session")
+def fmu_path() -> str:
+    p = _fmu_path()
+    if not p.is_file():
+        msg = f"{p} not found: build it with scripts/build-fmu.sh (scripts/test.sh does)"
+        if os.environ.get("CI") or os.environ.get("RD_REQUIRE_FMU"):
+            pytest.fail(msg)
+        pytest.skip(msg)
+    return str(p)
+
+
+@pytest.fixture(scope="session")
+def model_description(fmu_path):
+    from fmpy import read_model_description
+
+    return read_model_description(fmu_path)
+
+
+@pytest.fixture(scope="session")
+def vr(model_description) -> dict:
+    """Value reference by variable name."""
+    return {v.name: v.valueReference for v in model_description.modelVariables}
+
+
+@pytest.fixture(scope="session")
+def unzipdir(fmu_path, tmp_path_factory) -> str:
+    from fmpy import extract
+
+    return extract(fmu_path, unzipdir=str(tmp_path_factory.mktemp("fmu")))

@@ -1,0 +1,90 @@
+"""Static checks of the archive: fmpy's validator, and the interface contract of physics.md §10."""
+
+from fmpy.validation import validate_fmu
+
+# physics.md §10, copied from the spec (not from the code): name -> unit.
+SPEC_INPUTS = {
+    "crank.angle": "rad",
+    "crank.speed": "rad/s",
+    "crank.acceleration": "rad/s2",
+    "link.external_force": "N",
+}
+SPEC_OUTPUTS = {
+    "suspension.position": "m",
+    "suspension.velocity": "m/s",
+    "suspension.acceleration": "m/s2",
+    "kinematics.torque_factor": "m",
+    "inertia.force": "N",
+    "rod.force": "N",
+    "crank.torque": "N.m",
+    "rod.angle": "rad",
+    "rod.angular_velocity": "rad/s",
+    "guide.friction": "N",
+    "guide.reaction": "N",
+    "guide.moment": "N.m",
+    "guide.edge_force_1": "N",
+    "guide.edge_force_2": "N",
+    "support_A.reaction": "N",
+    "support_C.reaction": "N",
+    "link.friction_total": "N",
+    "rod.stress_max": "Pa",
+    "rod.axial_deflection": "m",
+    "balancer.force": "N",
+    "balancer.residual": "N",
+}
+# The outputs the crank-slider kinematics and loads (§2, §3.1, §4) need; later features add more.
+REQUIRED_OUTPUTS = list(SPEC_OUTPUTS)[:9]
+
+
+def test_fmpy_validate_reports_no_problems(fmu_path):
+    problems = validate_fmu(fmu_path)
+    assert problems == [], "\n".join(problems)
+
+
+def test_interface_matches_physics_md_section_10(model_description):
+    md = model_description
+    assert md.fmiVersion == "2.0"
+    assert md.coSimulation is not None and md.coSimulation.modelIdentifier == "ReciprocatingDrive"
+    assert md.variableNamingConvention == "structured"
+    by_name = {v.name: v for v in md.modelVariables}
+    inputs = {v.name: v for v in md.modelVariables if v.causality == "input"}
+    outputs = {v.name: v for v in md.modelVariables if v.causality == "output"}
+    # Exactly the four inputs of §2, with their units.
+    assert {n: v.unit for n, v in inputs.items()} == SPEC_INPUTS
+    # Every output is one of §10 with the unit of §10, and the crank-slider set is complete.
+    for n, v in outputs.items():
+        assert n in SPEC_OUTPUTS, f"output {n} is not in physics.md §10"
+        assert v.unit == SPEC_OUTPUTS[n], f"{n}: unit {v.unit}, spec {SPEC_OUTPUTS[n]}"
+    for n in REQUIRED_OUTPUTS:
+        assert n in outputs, f"missing output {n}"
+    # Every variable has a description (fmi.md / §10).
+    for v in md.modelVariables:
+        assert v.description, f"{v.name} has no description"
+    # Start values of the default machine (§8): 65 strokes/min, r = 0.2 m, l = 1.19 m, 300 kg.
+    assert abs(float(by_name["crank.speed"].start) - 2 * 3.141592653589793 * 65 / 60) < 1e-12
+    assert float(by_name["geometry.crank_radius"].start) == 0.2
+    assert float(by_name["geometry.rod_length"].start) == 1.19
+    assert float(by_name["geometry.slider_offset"].start) == 0.0
+    assert float(by_name["mass.reciprocating"].start) == 300.0
+    assert int(by_name["mechanism"].start) == 1
+
+
+def test_output_dependencies_are_the_true_feedthrough(model_description):
+    """<ModelStructure><Outputs>: each output depends on exactly the inputs its formula uses
+    (§2-§4): s, TF, β on θ; v, β' on θ, ω; a, Φ on θ, ω, ε; P, T on all four."""
+    md = model_description
+    theta, omega, eps, f = "crank.angle", "crank.speed", "crank.acceleration", "link.external_force"
+    expected = {
+        "suspension.position": {theta},
+        "kinematics.torque_factor": {theta},
+        "rod.angle": {theta},
+        "suspension.velocity": {theta, omega},
+        "rod.angular_velocity": {theta, omega},
+        "suspension.acceleration": {theta, omega, eps},
+        "inertia.force": {theta, omega, eps},
+        "rod.force": {theta, omega, eps, f},
+        "crank.torque": {theta, omega, eps, f},
+    }
+    got = {u.variable.name: {d.name for d in (u.dependencies or [])} for u in md.outputs}
+    for name, deps in expected.items():
+        assert got.get(name) == deps, f"{name}: declared {got.get(name)}, expected {deps}"
