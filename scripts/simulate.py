@@ -33,6 +33,8 @@ OUTPUTS = [
     ("crank.torque", "N.m"),
     ("rod.angle", "rad"),
     ("rod.angular_velocity", "rad/s"),
+    ("guide.friction", "N"),
+    ("link.friction_total", "N"),
 ]
 
 

@@ -20,6 +20,7 @@ fn beam_unit<'a>(api: &'a Api, mechanism: i32, rotation: i32, reals: &[(&str, f6
     assert_eq!(f.enter(), OK);
     assert_eq!(f.set_int("mechanism", mechanism), OK);
     assert_eq!(f.set_int("rotation", rotation), OK);
+    f.single_clamp();
     for (n, v) in SK8.iter().chain(reals) {
         assert_eq!(f.set(n, *v), OK);
     }
@@ -99,6 +100,7 @@ fn invalid_beam_geometries_are_rejected_through_the_c_abi() {
         let f = Inst::new(&api, "bad beam");
         assert_eq!(f.enter(), OK);
         assert_eq!(f.set_int("mechanism", *mech), OK);
+        f.single_clamp();
         for (n, v) in SK8.iter().chain(reals.iter()) {
             assert_eq!(f.set(n, *v), OK);
         }
@@ -117,8 +119,9 @@ fn invalid_beam_geometries_are_rejected_through_the_c_abi() {
 
 #[test]
 fn virtual_power_identity_for_every_mechanism_and_rotation() {
-    // T·ω = −(F_ext + Φ + F_bal)·v at every sample (§4), with F_ext from the input plus a cosine
-    // profile, and a balancer of given stiffness.
+    // T·ω = −(F_ext + Φ + F_fr + F_bal)·v at every sample (§4), with F_ext from the input plus
+    // a cosine profile, a balancer of given stiffness, and guide friction where the supports
+    // allow (the crank-slider's default supports; a single clamp for the beam units).
     let api = Api::load();
     let machines: Vec<(i32, i32, Vec<(&str, f64)>)> = vec![
         (1, 1, vec![]),
@@ -133,6 +136,9 @@ fn virtual_power_identity_for_every_mechanism_and_rotation() {
         assert_eq!(f.enter(), OK);
         assert_eq!(f.set_int("mechanism", mech), OK);
         assert_eq!(f.set_int("rotation", rot), OK);
+        if mech != 1 {
+            f.single_clamp();
+        }
         for (n, v) in &reals {
             assert_eq!(f.set(n, *v), OK);
         }
@@ -147,10 +153,10 @@ fn virtual_power_identity_for_every_mechanism_and_rotation() {
             let theta = k as f64 * PI / 180.0;
             at(&f, theta, 1.3, -0.4);
             assert_eq!(f.set("link.external_force", 1.0e3 * theta.sin()), OK);
-            let o = f.get_many(&["crank.torque", "suspension.velocity", "inertia.force", "balancer.force", "rod.force"]);
+            let o = f.get_many(&["crank.torque", "suspension.velocity", "inertia.force", "balancer.force", "rod.force", "link.friction_total"]);
             let theta_model = theta; // crank.angle_offset = 0
             let f_ext = 1.0e3 * theta.sin() - 4.0e4 + 5.0e3 * (theta_model + 0.3).cos();
-            let p = f_ext + o[2] + o[3];
+            let p = f_ext + o[2] + o[3] + o[5];
             assert!((o[4] - p).abs() < 1e-9 * 4.0e4, "rod.force");
             assert!((o[0] * 1.3 + p * o[1]).abs() < 1e-9 * 4.0e4 * 1.3, "mech {mech} rot {rot} θ {k}°");
             assert!(o[3] != 0.0 || k == 0, "the balancer acts");
@@ -204,6 +210,7 @@ fn balancer_tunings_through_the_fmu() {
     let f = Inst::new(&api, "beam t2");
     assert_eq!(f.enter(), OK);
     assert_eq!(f.set_int("mechanism", 2), OK);
+    f.single_clamp();
     for (n, v) in SK8 {
         assert_eq!(f.set(n, *v), OK);
     }

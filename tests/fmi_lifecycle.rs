@@ -38,6 +38,8 @@ fn full_lifecycle_matches_closed_form_and_extrapolates_the_crank() {
     let f = Inst::new(&api, "pump");
     assert_eq!(f.setup(0.0), OK);
     assert_eq!(f.enter(), OK);
+    // Kinematics and loads alone: the guide-friction model (tests/guide_friction.rs) is off.
+    f.frictionless();
     // libcosim reads outputs in initialization mode.
     let s0 = f.get("suspension.position");
     assert!(s0.abs() < 1e-15);

@@ -193,10 +193,10 @@ macro_rules! input {
 }
 
 macro_rules! output {
-    ($name:literal, $field:ident, $unit:literal, [$($dep:ident),*], $desc:literal) => {
-        output!(Output, Continuous, $name, $field, $unit, [$($dep),*], $desc)
+    ($name:literal, $($field:ident).+, $unit:literal, [$($dep:ident),*], $desc:literal) => {
+        output!(Output, Continuous, $name, $($field).+, $unit, [$($dep),*], $desc)
     };
-    ($causality:ident, $variability:ident, $name:literal, $field:ident, $unit:literal, [$($dep:ident),*], $desc:literal) => {
+    ($causality:ident, $variability:ident, $name:literal, $($field:ident).+, $unit:literal, [$($dep:ident),*], $desc:literal) => {
         Var {
             name: $name,
             ty: Real,
@@ -205,7 +205,7 @@ macro_rules! output {
             unit: $unit,
             description: $desc,
             range: Range::ANY,
-            binding: Binding::Output { get: |o| o.$field, depends_on: &[$($dep),*] },
+            binding: Binding::Output { get: |o| o.$($field).+, depends_on: &[$($dep),*] },
         }
     };
 }
@@ -244,6 +244,22 @@ pub static VARIABLES: &[Var] = &[
         "Torsion-bar balancer force on the link, F_bal = -k_b*(s - s_0); 0 when balancer.enabled is false"),
     output!("balancer.residual", balancer_residual, "N", [CrankAngle, CrankSpeed, CrankAcceleration],
         "Inertia force left after balancing, Phi + F_bal"),
+    output!("guide.friction", guide.friction_b, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+        "Signed friction force of support B (the guide) on the link along +s, -|F|*tanh(v/v_eps), |F| = f*(|N1| + |N2|)"),
+    output!("guide.reaction", guide.reaction_b, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+        "Net lateral reaction R_B of support B on the link, along +y"),
+    output!("guide.moment", guide.moment_b, "N.m", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+        "Net moment M_B of support B on the link about B's centre (positive turning +z toward +y)"),
+    output!("guide.edge_force_1", guide.edge_force_1, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+        "Force of B's crank-side edge on the link, N1 = R_B/2 + M_B/l_n"),
+    output!("guide.edge_force_2", guide.edge_force_2, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+        "Force of B's piston-side edge on the link, N2 = R_B/2 - M_B/l_n"),
+    output!("support_A.reaction", guide.reaction_a, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+        "Net lateral reaction of support A on the link, along +y"),
+    output!("support_C.reaction", guide.reaction_c, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+        "Net lateral reaction of support C on the link, along +y"),
+    output!("link.friction_total", guide.friction_total, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+        "Friction F_fr of supports A, B and C on the link along +s; part of rod.force and crank.torque"),
     // ---- parameters (physics.md §3, §4, §7, §8)
     param!("mechanism", Integer, mechanism, Fixed, "", Range::closed(1.0, 3.0),
         "Mechanism kind: 1 = crank-slider (optionally offset); 2 = beam pumping unit, conventional (API class I); 3 = beam pumping unit, class III (Mark II / air balanced)"),
@@ -287,6 +303,45 @@ pub static VARIABLES: &[Var] = &[
         "Design crank speed omega_d of balancer tunings 1 and 2"),
     param!("balancer.neutral_position", Real, balancer_neutral_position, Fixed, "m", Range::ANY,
         "Stroke position s_0 where the balancer force is zero (tuning 0); a negative value means mid-stroke"),
+    // ---- guide friction from the link's redundant supports (physics.md §5)
+    param_at!("link.l1", link_lengths[0], "m", Range::NON_NEGATIVE, "Length of link section 1 (from the piston end, z = 0); 0 = absent"),
+    param_at!("link.l2", link_lengths[1], "m", Range::NON_NEGATIVE, "Length of link section 2; 0 = absent"),
+    param_at!("link.l3", link_lengths[2], "m", Range::NON_NEGATIVE, "Length of link section 3; 0 = absent"),
+    param_at!("link.l4", link_lengths[3], "m", Range::NON_NEGATIVE, "Length of link section 4 (crank end); 0 = absent"),
+    param_at!("link.d1", link_diameters[0], "m", Range::NON_NEGATIVE, "(Equivalent) diameter of link section 1, J = pi*d^4/64"),
+    param_at!("link.d2", link_diameters[1], "m", Range::NON_NEGATIVE, "(Equivalent) diameter of link section 2"),
+    param_at!("link.d3", link_diameters[2], "m", Range::NON_NEGATIVE, "(Equivalent) diameter of link section 3"),
+    param_at!("link.d4", link_diameters[3], "m", Range::NON_NEGATIVE, "(Equivalent) diameter of link section 4"),
+    param!("link.E", Real, link_e_modulus, Fixed, "Pa", Range::POSITIVE, "Young's modulus of the link"),
+    param!("link.lateral_load", Real, link_lateral_load, Fixed, "N", Range::ANY,
+        "Constant lateral force on the link along +y at support B's centre (z = L without B), e.g. the weight of crosshead and link of a horizontal machine"),
+    param!("support_A.kind", Integer, supports[0].kind, Fixed, "", Range::closed(0.0, 3.0), "Support A: 0 none, 1 pin (lateral force), 2 clamp (lateral force + moment), 3 two-edge guide of length support_A.length"),
+    param!("support_A.attached", Integer, supports[0].attached, Fixed, "", Range::closed(0.0, 1.0), "Support A: 0 moves with the link (fixed link coordinate support_A.z), 1 fixed in the frame (the link slides through it; support_A.z is its link coordinate at s = 0)"),
+    param!("support_A.z", Real, supports[0].z, Fixed, "m", Range::ANY, "Support A: link coordinate of its centre (at s = 0 when fixed in the frame); z = 0 at the piston end"),
+    param!("support_A.offset", Real, supports[0].offset, Fixed, "m", Range::ANY, "Support A: lateral offset delta of its axis from the reference axis (support A's)"),
+    param!("support_A.tilt", Real, supports[0].tilt, Fixed, "rad", Range::ANY, "Support A: tilt alpha of its axis, y = delta + alpha*(Z - Z_ref), Z_ref its frame position at mid-stroke"),
+    param!("support_A.length", Real, supports[0].length, Fixed, "m", Range::NON_NEGATIVE, "Support A: length l_n (edge distance of a two-edge guide; a clamp's length for its friction)"),
+    param!("support_A.stiffness", Real, supports[0].stiffness, Fixed, "N/m", Range::NON_NEGATIVE, "Support A: stiffness of each lateral contact; 0 = rigid"),
+    param!("support_A.friction", Real, supports[0].friction, Fixed, "", Range::NON_NEGATIVE, "Support A: friction coefficient"),
+    param!("support_B.kind", Integer, supports[1].kind, Fixed, "", Range::closed(0.0, 3.0), "Support B: 0 none, 1 pin (lateral force), 2 clamp (lateral force + moment), 3 two-edge guide of length support_B.length"),
+    param!("support_B.attached", Integer, supports[1].attached, Fixed, "", Range::closed(0.0, 1.0), "Support B: 0 moves with the link (fixed link coordinate support_B.z), 1 fixed in the frame (the link slides through it; support_B.z is its link coordinate at s = 0)"),
+    param!("support_B.z", Real, supports[1].z, Fixed, "m", Range::ANY, "Support B: link coordinate of its centre (at s = 0 when fixed in the frame); z = 0 at the piston end"),
+    param!("support_B.offset", Real, supports[1].offset, Fixed, "m", Range::ANY, "Support B: lateral offset delta of its axis from the reference axis (support A's)"),
+    param!("support_B.tilt", Real, supports[1].tilt, Fixed, "rad", Range::ANY, "Support B: tilt alpha of its axis, y = delta + alpha*(Z - Z_ref), Z_ref its frame position at mid-stroke"),
+    param!("support_B.length", Real, supports[1].length, Fixed, "m", Range::NON_NEGATIVE, "Support B: length l_n (edge distance of a two-edge guide; a clamp's length for its friction)"),
+    param!("support_B.stiffness", Real, supports[1].stiffness, Fixed, "N/m", Range::NON_NEGATIVE, "Support B: stiffness of each lateral contact; 0 = rigid"),
+    param!("support_C.kind", Integer, supports[2].kind, Fixed, "", Range::closed(0.0, 3.0), "Support C: 0 none, 1 pin (lateral force), 2 clamp (lateral force + moment), 3 two-edge guide of length support_C.length"),
+    param!("support_C.attached", Integer, supports[2].attached, Fixed, "", Range::closed(0.0, 1.0), "Support C: 0 moves with the link (fixed link coordinate support_C.z), 1 fixed in the frame (the link slides through it; support_C.z is its link coordinate at s = 0)"),
+    param!("support_C.z", Real, supports[2].z, Fixed, "m", Range::ANY, "Support C: link coordinate of its centre (at s = 0 when fixed in the frame); z = 0 at the piston end"),
+    param!("support_C.offset", Real, supports[2].offset, Fixed, "m", Range::ANY, "Support C: lateral offset delta of its axis from the reference axis (support A's)"),
+    param!("support_C.tilt", Real, supports[2].tilt, Fixed, "rad", Range::ANY, "Support C: tilt alpha of its axis, y = delta + alpha*(Z - Z_ref), Z_ref its frame position at mid-stroke"),
+    param!("support_C.length", Real, supports[2].length, Fixed, "m", Range::NON_NEGATIVE, "Support C: length l_n (edge distance of a two-edge guide; a clamp's length for its friction)"),
+    param!("support_C.stiffness", Real, supports[2].stiffness, Fixed, "N/m", Range::NON_NEGATIVE, "Support C: stiffness of each lateral contact; 0 = rigid"),
+    param!("support_C.friction", Real, supports[2].friction, Fixed, "", Range::NON_NEGATIVE, "Support C: friction coefficient"),
+    param!("guide.friction_coefficient", Real, supports[1].friction, Fixed, "", Range::NON_NEGATIVE,
+        "Friction coefficient f of support B (the guide)"),
+    param_bool!("guide.rod_side_force", rod_side_force, Fixed,
+        "Rigid rod: its side load -P*tan(beta) acts on the link at B's centre (physics.md 5.4)"),
     output!(CalculatedParameter, Fixed, "balancer.stiffness_used", balancer_stiffness_used, "N/m", [],
         "Balancer stiffness k_b in use (from balancer.tuning); 0 when the balancer is off"),
 ];
@@ -304,6 +359,7 @@ pub static UNITS: &[(&str, [i32; 4])] = &[
     ("N.m", [1, 2, -2, 0]),
     ("kg", [1, 0, 0, 0]),
     ("N/m", [1, 0, -2, 0]),
+    ("Pa", [1, -1, -2, 0]),
 ];
 
 /// What get/set need to know about a value reference, packed small so the per-call checks touch

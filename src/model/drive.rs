@@ -6,6 +6,7 @@ use crate::model::beam_unit::{BeamClass, BeamUnit, BeamUnitGeometry};
 use crate::model::crank::CrankState;
 use crate::model::crank_slider::CrankSlider;
 use crate::model::error::{require_finite, ModelError};
+use crate::model::guide::{Guide, GuideOutputs};
 use crate::model::kinematics::{max_abs_torque_factor, Kinematics};
 use crate::model::loads;
 use crate::model::params::{Params, MECHANISM_BEAM_CLASS_I, MECHANISM_BEAM_CLASS_III, MECHANISM_CRANK_SLIDER};
@@ -34,6 +35,8 @@ pub struct Outputs {
     pub balancer_residual: f64,
     /// The calculated parameter `balancer.stiffness_used` (0 when the balancer is off).
     pub balancer_stiffness_used: f64,
+    /// Guide friction and support reactions (§5.3); all 0 when every support kind is 0.
+    pub guide: GuideOutputs,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -44,11 +47,12 @@ enum Mechanism {
 
 /// A validated machine. Built once at the end of initialization (and again when a tunable
 /// parameter changes); immutable while stepping.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct Model {
     params: Params,
     mechanism: Mechanism,
     balancer: Option<Balancer>,
+    guide: Option<Guide>,
 }
 
 impl Model {
@@ -105,7 +109,8 @@ impl Model {
                 ))
             }
         };
-        let mut model = Model { params: params.clone(), mechanism, balancer: None };
+        let mut model = Model { params: params.clone(), mechanism, balancer: None, guide: None };
+        model.guide = Guide::new(&p.guide_spec()?, model.stroke())?;
         if p.balancer_enabled {
             for (name, v) in [
                 ("balancer.stiffness", p.balancer_stiffness),
@@ -196,8 +201,22 @@ impl Model {
                 p.velocity_scale,
             );
         let balancer_force = self.balancer.as_ref().map_or(0.0, |b| b.force(k.s));
-        // §4: P = F_ext + Φ + F_bal (+ F_fr once guide friction exists).
-        let rod_force = f_ext + inertia_force + balancer_force;
+        // §4: P = F_ext + Φ + F_fr + F_bal, implicit in P through the friction (the rod's side
+        // load moves the reactions), solved exactly by the guide (§5.3, §5.4).
+        let p_base = f_ext + inertia_force + balancer_force;
+        let guide = match &self.guide {
+            Some(g) => {
+                // The rigid slider rod pushes the crosshead sideways with −P·tanβ; a beam unit's
+                // polished rod hangs from the horsehead arc and has no side force (§5.4).
+                let tan_beta = match &self.mechanism {
+                    Mechanism::CrankSlider(m) => m.tan_beta(theta),
+                    Mechanism::BeamUnit(_) => 0.0,
+                };
+                g.solve_rigid(k.s, velocity, p_base, tan_beta)?
+            }
+            None => GuideOutputs { rod_force: p_base, ..GuideOutputs::default() },
+        };
+        let rod_force = guide.rod_force;
         Ok(Outputs {
             position: k.s,
             velocity,
@@ -211,6 +230,7 @@ impl Model {
             balancer_force,
             balancer_residual: inertia_force + balancer_force,
             balancer_stiffness_used: self.balancer.as_ref().map_or(0.0, |b| b.stiffness),
+            guide,
         })
     }
 }
@@ -228,6 +248,7 @@ mod tests {
         let o = m.evaluate(&CrankState { angle: 0.0, speed: w, acceleration: 0.0 }, &Inputs::default()).unwrap();
         let expect = -300.0 * 0.2 * w * w * (1.0 + 0.2 / 1.19);
         assert!((o.inertia_force - expect).abs() < 1e-9 * expect.abs());
+        // At the dead centre v = 0, so tanh(v/v_ε) = 0 and the guide adds no friction.
         assert_eq!(o.rod_force, o.inertia_force);
         assert!(o.crank_torque.abs() < 1e-9);
     }

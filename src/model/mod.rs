@@ -8,6 +8,7 @@ pub mod crank;
 pub mod crank_slider;
 pub mod drive;
 pub mod error;
+pub mod guide;
 pub mod kinematics;
 pub mod loads;
 pub mod params;

@@ -4,6 +4,9 @@
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
+use crate::model::error::ModelError;
+use crate::model::guide::{GuideSpec, SupportKind, SupportSpec};
+
 /// `load.profile` (physics.md §4).
 pub const LOAD_PROFILE_COSINE: i32 = 0;
 pub const LOAD_PROFILE_DOUBLE_ACTING: i32 = 1;
@@ -112,5 +115,49 @@ impl Default for Params {
             balancer_design_speed: DEFAULT_CRANK_SPEED,
             balancer_neutral_position: -1.0,
         }
+    }
+}
+
+impl Params {
+    /// The link and its supports as the guide model takes them (§5). Integer codes are checked
+    /// here; lengths, positions and whether the supports hold the link are checked by the guide.
+    pub fn guide_spec(&self) -> Result<GuideSpec, ModelError> {
+        const NAMES: [(&str, &str); 3] = [
+            ("support_A.kind", "support_A.attached"),
+            ("support_B.kind", "support_B.attached"),
+            ("support_C.kind", "support_C.attached"),
+        ];
+        let mut supports = [SupportSpec::NONE; 3];
+        for (x, sp) in self.supports.iter().enumerate() {
+            let kind = SupportKind::from_i32(sp.kind).ok_or_else(|| {
+                ModelError::out_of_range(NAMES[x].0, sp.kind as f64, "0 (none), 1 (pin), 2 (clamp) or 3 (two-edge guide)")
+            })?;
+            if !(sp.attached == 0 || sp.attached == 1) {
+                return Err(ModelError::out_of_range(
+                    NAMES[x].1,
+                    sp.attached as f64,
+                    "0 (moves with the link) or 1 (fixed in the frame)",
+                ));
+            }
+            supports[x] = SupportSpec {
+                kind,
+                frame_fixed: sp.attached == 1,
+                z: sp.z,
+                offset: sp.offset,
+                tilt: sp.tilt,
+                length: sp.length,
+                stiffness: sp.stiffness,
+                friction: sp.friction,
+            };
+        }
+        Ok(GuideSpec {
+            section_lengths: self.link_lengths,
+            section_diameters: self.link_diameters,
+            e_modulus: self.link_e_modulus,
+            supports,
+            lateral_load: self.link_lateral_load,
+            rod_side_force: self.rod_side_force,
+            velocity_scale: self.velocity_scale,
+        })
     }
 }

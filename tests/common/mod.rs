@@ -186,6 +186,20 @@ impl<'a> Inst<'a> {
         let r = vr(name);
         unsafe { (self.api.fmi2SetInteger)(self.c, &r, 1, &v) }
     }
+    /// Turns the guide-friction model off (every support kind 0, physics.md §5.2), for tests of
+    /// the kinematics and loads alone. Only before fmi2ExitInitializationMode.
+    pub fn frictionless(&self) {
+        for x in ["support_A.kind", "support_B.kind", "support_C.kind"] {
+            assert_eq!(self.set_int(x, 0), OK);
+        }
+    }
+    /// Keeps only support A (a clamp at the reference axis): no redundant supports, so no
+    /// friction, as the sk8-3.5-4000 preset.
+    pub fn single_clamp(&self) {
+        for x in ["support_B.kind", "support_C.kind"] {
+            assert_eq!(self.set_int(x, 0), OK);
+        }
+    }
     pub fn get(&self, name: &str) -> f64 {
         self.try_get(name).unwrap_or_else(|s| panic!("fmi2GetReal({name}) = {s}: {}", self.log.last()))
     }

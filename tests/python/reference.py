@@ -47,8 +47,13 @@ class Machine:
     load_phase: float = 0.0
 
     def start_values(self) -> dict:
-        """The same machine as FMU start values (the names of physics.md §10)."""
+        """The same machine as FMU start values (the names of physics.md §10). The reference has
+        no guide friction, so the FMU's friction model is switched off (every support kind 0,
+        physics.md §5.2); friction is tested in test_guide_friction.py."""
         return {
+            "support_A.kind": 0,
+            "support_B.kind": 0,
+            "support_C.kind": 0,
             "geometry.crank_radius": self.r,
             "geometry.rod_length": self.l,
             "geometry.slider_offset": self.e,

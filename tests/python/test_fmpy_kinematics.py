@@ -146,7 +146,7 @@ def test_uneven_step_sizes_are_exact_too(fmu_path):
     sig["crank.angle"] = [theta(x) for x in tt]
     sig["crank.speed"] = OMEGA
     res = simulate_fmu(fmu_path, stop_time=t_stop, output_interval=dt, input=sig,
-                       output=list(OUTPUTS))
+                       start_values=m.start_values(), output=list(OUTPUTS))
     assert abs(res["time"][-1] - t_stop) < 1e-12
     compare(res, m, theta, omega)
 
@@ -156,7 +156,8 @@ def test_fmpy_simulate_without_inputs_uses_start_values(fmu_path):
     ε = 0) and the FMU advances the crank itself by its extrapolation, θ = ω t (physics.md §2)."""
     m = Machine()
     w = 2 * np.pi * 65 / 60
-    res = simulate_fmu(fmu_path, stop_time=1.0, output_interval=0.01, output=list(OUTPUTS))
+    res = simulate_fmu(fmu_path, stop_time=1.0, output_interval=0.01, start_values=m.start_values(),
+                       output=list(OUTPUTS))
     sc = m.scales(w)
     for row in res[::10]:
         ref = m.outputs(w * row["time"], w)

@@ -57,7 +57,7 @@ def cosim_run(fmu_path, machine: Machine, n_steps: int, instance_name: str):
     assert idx >= 0
     vr = {v.name.decode(): v.reference for v in ex.slave_variables(idx)}
     for name, value in machine.start_values().items():
-        if name == "load.profile":
+        if isinstance(value, int):
             assert ex.integer_initial_value(idx, vr[name], int(value))
         else:
             assert ex.real_initial_value(idx, vr[name], float(value)), name
@@ -127,6 +127,8 @@ def test_libcosim_two_instances_in_one_execution(fmu_path):
     for idx, m in ((a, ma), (b, mb)):
         for name in ("geometry.crank_radius", "geometry.rod_length", "mass.reciprocating"):
             assert ex.real_initial_value(idx, vr[name], m.start_values()[name])
+        for name in ("support_A.kind", "support_B.kind", "support_C.kind"):
+            assert ex.integer_initial_value(idx, vr[name], 0)
         assert ex.real_initial_value(idx, vr["crank.speed"], 5.0)
     manip = CosimManipulator.create_override()
     obs = CosimObserver.create_last_value()

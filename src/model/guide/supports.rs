@@ -1,0 +1,839 @@
+//! Support reactions of the link (physics.md §5.2, §5.3): the statically indeterminate beam
+//! problem, solved by the flexibility method on the free link.
+//!
+//! Unknowns: one generalised force λ per contact (lateral force of a pin / clamp / guide edge,
+//! moment of a clamp's slope restraint; forces on the link along +y, moments turning +z toward
+//! +y) and the rigid-body motion `y = a + b·z` of the link. Equations (symmetric, bordered):
+//!
+//! * compatibility at every contact i: `a + b·zᵢ + Σⱼ Gᵢⱼ λⱼ + cᵢ λᵢ = uᵢ − wᵢ(loads)`
+//!   (for a slope contact: `b + …`), where G is the cantilever flexibility of `link_beam.rs`,
+//!   `cᵢ = 1/k` the compliance of an elastic lateral contact (a spring in series: the link point
+//!   sits at `u − λ/k`), `uᵢ` the prescribed frame-axis displacement `δ + α(Z − Z_ref)` (or the
+//!   slope α) and `wᵢ` the cantilever deflection caused by the applied loads;
+//! * equilibrium of the free link: `Σ λ_lateral + Σ F_applied = 0` and
+//!   `Σ λ_lateral·z + Σ λ_slope + Σ F_applied·z + Σ C_applied = 0`.
+//!
+//! The reactions are affine in the applied loads (side load Q at B's centre, clamp loads M0 and
+//! V at z = L) and in the prescribed displacements, so one factorisation per s yields the
+//! reactions as `base + Q·per_q + M0·per_m0 + V·per_v` for every load the friction iteration
+//! will try. When no support is frame-fixed nothing in the matrix depends on s: everything is
+//! precomputed in `new` and `base` is affine in s (a link-fixed support on a tilted axis moves
+//! laterally by α·s). With frame-fixed supports (glands the link slides through) only their
+//! rows change with s: the link-fixed block is inverted once in `new` and eliminated (static
+//! condensation), so per s only a Schur complement of the frame-fixed contacts' size (1×1 for
+//! one gland) is solved. The full bordered system remains as the fallback when the link-fixed
+//! supports alone do not hold the link, and as the reference for the tests.
+// Index loops mirror the matrix formulas above; `!(a > b)` tests deliberately reject NaN.
+#![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
+
+use super::dense_solve::{solve_in_place, Matrix, Rhs, MAX_EQ, MAX_RHS};
+use super::link_beam::{Dof, LinkBeam, Station};
+use super::validation::{contacts, is_rigid, NAMES};
+use super::{GuideSpec, SupportKind};
+use crate::model::error::ModelError;
+
+/// Maximum number of contacts: three supports with two each.
+const MAX_CONTACTS: usize = 6;
+
+/// One contact, in the scaled units of `link_beam.rs`.
+#[derive(Clone, Copy, Debug)]
+struct Constraint {
+    support: usize,
+    /// Link coordinate at s = 0 (scaled).
+    z0: f64,
+    /// Frame-fixed support: the contact sits at `z0 − s̃` on the link.
+    moving: bool,
+    /// Prescribed generalised displacement `u0 + u1·s̃` (deflection/L or slope).
+    u0: f64,
+    u1: f64,
+    /// Scaled compliance 1/k of an elastic lateral contact, 0 when rigid.
+    compliance: f64,
+    /// Offset from the support's centre (scaled), the lever of its force about the centre.
+    arm: f64,
+    /// The station at s = 0 (valid at every s when not moving).
+    station: Station,
+}
+
+/// Net lateral force R [N] and moment M about the support's centre [N·m] (physics.md §5.3).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct ForceMoment {
+    pub r: f64,
+    pub m: f64,
+}
+
+impl ForceMoment {
+    /// `self + k·other`.
+    #[inline]
+    pub fn plus_scaled(self, k: f64, other: ForceMoment) -> ForceMoment {
+        ForceMoment {
+            r: self.r + k * other.r,
+            m: self.m + k * other.m,
+        }
+    }
+}
+
+/// Support reactions at one s as affine functions of the loads (SI units).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct Influence {
+    /// Prescribed support displacements plus `link.lateral_load` at the load point.
+    pub base: [ForceMoment; 3],
+    /// Per newton of side load Q at the load point (B's centre, or z = L without B).
+    pub per_q: [ForceMoment; 3],
+    /// Per newton-metre of the clamp moment M0 at z = L.
+    pub per_m0: [ForceMoment; 3],
+    /// Per newton of the clamp's transverse force V at z = L.
+    pub per_v: [ForceMoment; 3],
+    /// Link coordinates of the support centres at this s [m].
+    pub centres: [f64; 3],
+    /// Link coordinate of the side load at this s [m].
+    pub load_point: f64,
+}
+
+/// Which load cases a caller needs (each is one right-hand side of the same factorisation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum LoadSet {
+    /// Base and Q (rigid slider rod).
+    Rigid,
+    /// Base, M0 and V (elastic rod clamped in the piston).
+    Clamp,
+    /// All four.
+    All,
+}
+
+/// Right-hand-side columns of one solve: column 0 is always the base case.
+#[derive(Clone, Copy, Debug)]
+struct Columns {
+    q: Option<usize>,
+    m0: Option<usize>,
+    v: Option<usize>,
+    count: usize,
+    rate_only: bool,
+}
+
+impl Columns {
+    fn new(set: LoadSet, rate_only: bool) -> Columns {
+        let (q, m0, v) = match (rate_only, set) {
+            (true, _) => (None, None, None),
+            (false, LoadSet::Rigid) => (Some(1), None, None),
+            (false, LoadSet::Clamp) => (None, Some(1), Some(2)),
+            (false, LoadSet::All) => (Some(1), Some(2), Some(3)),
+        };
+        let count = 1 + [q, m0, v].iter().filter(|c| c.is_some()).count();
+        Columns {
+            q,
+            m0,
+            v,
+            count,
+            rate_only,
+        }
+    }
+}
+
+/// Precomputed static condensation onto the frame-fixed contacts (block 1 = link-fixed
+/// contacts followed by the rigid-body unknowns a, b).
+#[derive(Clone, Debug)]
+struct Condensed {
+    k11_inv: Matrix,
+    /// K₁₁⁻¹ times the block-1 right-hand sides (precomputed only for a link-fixed load point):
+    /// base = y_base0 + s̃·y_base1, and the unit loads.
+    y_base0: [f64; MAX_EQ],
+    y_base1: [f64; MAX_EQ],
+    y_q: [f64; MAX_EQ],
+    y_m0: [f64; MAX_EQ],
+    y_v: [f64; MAX_EQ],
+    /// The link-fixed contacts' reactions (scaled R̃, M̃ per support) of those y vectors.
+    g_base0: [ForceMoment; 3],
+    g_base1: [ForceMoment; 3],
+    g_q: [ForceMoment; 3],
+    g_m0: [ForceMoment; 3],
+    g_v: [ForceMoment; 3],
+    /// Station of the (link-fixed) load point.
+    load: Station,
+}
+
+/// Everything about the supports that does not change with s.
+#[derive(Clone, Debug)]
+pub(super) struct SupportSystem {
+    beam: LinkBeam,
+    cons: [Constraint; MAX_CONTACTS],
+    /// Number of contacts; the first `n_fixed` are link-fixed, the rest frame-fixed.
+    n: usize,
+    n_fixed: usize,
+    /// Support centres: scaled link coordinate at s = 0 and whether they move along the link.
+    centre_z0: [f64; 3],
+    centre_moving: [bool; 3],
+    /// Side-load point (B's centre, or z = L when B is absent), scaled, and whether it moves.
+    load_z0: f64,
+    load_moving: bool,
+    /// `link.lateral_load` in scaled force units.
+    lateral: f64,
+    /// Scale factors: L [m] and the force unit EJ_ref/L² [N].
+    length: f64,
+    force_unit: f64,
+    /// Matrix entries among link-fixed contacts and their border entries (constant).
+    fixed_block: Matrix,
+    /// Stations of the clamp loads at z = L (force and moment).
+    end_force: Station,
+    end_moment: Station,
+    /// When nothing moves along the link: influence at s = 0 and d(base)/ds [N/m, N·m/m].
+    precomputed: Option<(Influence, [ForceMoment; 3])>,
+    /// When some contacts are frame-fixed and the link-fixed ones hold the link by themselves.
+    condensed: Option<Condensed>,
+}
+
+impl SupportSystem {
+    /// Builds the contacts of the (already validated) supports. `stroke` is S [m]; the frame
+    /// axis of each support is referred to its centre's frame position at mid-stroke (§5.2).
+    pub fn new(spec: &GuideSpec, beam: LinkBeam, stroke: f64) -> Result<SupportSystem, ModelError> {
+        let length = beam.length;
+        let force_unit = beam.ej_ref / (length * length);
+        let s_half = 0.5 * stroke / length;
+        let placeholder = Constraint {
+            support: 0,
+            z0: 0.0,
+            moving: false,
+            u0: 0.0,
+            u1: 0.0,
+            compliance: 0.0,
+            arm: 0.0,
+            station: beam.station(Dof::Deflection, 0.0),
+        };
+        let mut fixed = [placeholder; MAX_CONTACTS];
+        let mut moving = [placeholder; MAX_CONTACTS];
+        let (mut n_fixed, mut n_moving) = (0usize, 0usize);
+        let mut centre_z0 = [0.0; 3];
+        let mut centre_moving = [false; 3];
+        for (x, sup) in spec.supports.iter().enumerate() {
+            centre_z0[x] = sup.z / length;
+            centre_moving[x] = sup.frame_fixed;
+            let (cs, count) = contacts(sup);
+            for c in cs.iter().take(count) {
+                let e = c.offset / length;
+                let delta = sup.offset / length;
+                let alpha = sup.tilt;
+                // Frame axis y = δ + α(Z − Z_ref), Z = z + s (§5.2):
+                // link-fixed: Z_ref = z_X + S/2, contact at Z = z_X + e + s → δ + α(e + s − S/2);
+                // frame-fixed: Z_ref = z_X, contact at Z = z_X + e      → δ + α·e.
+                let (u0, u1) = match (c.dof, sup.frame_fixed) {
+                    (Dof::Slope, _) => (alpha, 0.0),
+                    (Dof::Deflection, false) => (delta + alpha * (e - s_half), alpha),
+                    (Dof::Deflection, true) => (delta + alpha * e, 0.0),
+                };
+                let compliance = if is_rigid(sup, c) {
+                    0.0
+                } else {
+                    // Scaled compliance: (1/k)·EJ_ref/L³.
+                    beam.ej_ref / (sup.stiffness * length * length * length)
+                };
+                let z0 = (sup.z + c.offset) / length;
+                let con = Constraint {
+                    support: x,
+                    z0,
+                    moving: sup.frame_fixed,
+                    u0,
+                    u1,
+                    compliance,
+                    arm: e,
+                    station: beam.station(c.dof, z0),
+                };
+                if sup.frame_fixed {
+                    moving[n_moving] = con;
+                    n_moving += 1;
+                } else {
+                    fixed[n_fixed] = con;
+                    n_fixed += 1;
+                }
+            }
+        }
+        let mut cons = [placeholder; MAX_CONTACTS];
+        cons[..n_fixed].copy_from_slice(&fixed[..n_fixed]);
+        cons[n_fixed..n_fixed + n_moving].copy_from_slice(&moving[..n_moving]);
+        let n = n_fixed + n_moving;
+
+        let b = &spec.supports[1];
+        let (load_z0, load_moving) = if b.kind == SupportKind::None {
+            (1.0, false)
+        } else {
+            (b.z / length, b.frame_fixed)
+        };
+
+        let mut fixed_block: Matrix = [[0.0; MAX_EQ]; MAX_EQ];
+        for i in 0..n_fixed {
+            for j in 0..n_fixed {
+                fixed_block[i][j] = LinkBeam::flexibility(&cons[i].station, &cons[j].station);
+            }
+            fixed_block[i][i] += cons[i].compliance;
+            let (p, q) = border(&cons[i].station);
+            fixed_block[i][n] = p;
+            fixed_block[i][n + 1] = q;
+            fixed_block[n][i] = p;
+            fixed_block[n + 1][i] = q;
+        }
+
+        let mut system = SupportSystem {
+            end_force: beam.station(Dof::Deflection, 1.0),
+            end_moment: beam.station(Dof::Slope, 1.0),
+            beam,
+            cons,
+            n,
+            n_fixed,
+            centre_z0,
+            centre_moving,
+            load_z0,
+            load_moving,
+            lateral: spec.lateral_load / force_unit,
+            length,
+            force_unit,
+            fixed_block,
+            precomputed: None,
+            condensed: None,
+        };
+        if n_moving == 0 && !load_moving {
+            let at_zero = system.solve_full(0.0, LoadSet::All, false)?;
+            let rate = system.solve_full(0.0, LoadSet::All, true)?;
+            system.precomputed = Some((at_zero, rate.base));
+        } else {
+            system.condensed = system.condense();
+        }
+        Ok(system)
+    }
+
+    /// K₁₁⁻¹ of the link-fixed block and its products with the constant right-hand sides;
+    /// None when the link-fixed contacts alone do not hold the link (K₁₁ singular).
+    fn condense(&self) -> Option<Condensed> {
+        let nf = self.n_fixed;
+        let n = self.n;
+        let n1 = nf + 2;
+        // K₁₁ with the rigid-body unknowns at nf, nf + 1.
+        let mut k11: Matrix = [[0.0; MAX_EQ]; MAX_EQ];
+        for i in 0..nf {
+            for j in 0..nf {
+                k11[i][j] = self.fixed_block[i][j];
+            }
+            k11[i][nf] = self.fixed_block[i][n];
+            k11[i][nf + 1] = self.fixed_block[i][n + 1];
+            k11[nf][i] = self.fixed_block[n][i];
+            k11[nf + 1][i] = self.fixed_block[n + 1][i];
+        }
+        // Inverse column by column (identity right-hand sides, MAX_RHS at a time).
+        let mut k11_inv: Matrix = [[0.0; MAX_EQ]; MAX_EQ];
+        let mut start = 0;
+        while start < n1 {
+            let width = MAX_RHS.min(n1 - start);
+            let mut a = k11;
+            let mut b: Rhs = [[0.0; MAX_RHS]; MAX_EQ];
+            for k in 0..width {
+                b[start + k][k] = 1.0;
+            }
+            solve_in_place(&mut a, &mut b, n1, width).ok()?;
+            for i in 0..n1 {
+                for k in 0..width {
+                    k11_inv[i][start + k] = b[i][k];
+                }
+            }
+            start += width;
+        }
+        // K₁₁ is symmetric, so is its inverse: remove the rounding asymmetry (the per-s product
+        // uses rows for columns).
+        for i in 0..n1 {
+            for j in 0..i {
+                let v = 0.5 * (k11_inv[i][j] + k11_inv[j][i]);
+                k11_inv[i][j] = v;
+                k11_inv[j][i] = v;
+            }
+        }
+        // Condense only when K₁₁ is well conditioned (∞-norm condition number): nearly
+        // coincident link-fixed contacts would make the condensed path lose digits that the
+        // full system, held also by the frame-fixed contacts, keeps.
+        let norm = |m: &Matrix| {
+            (0..n1)
+                .map(|i| (0..n1).map(|j| m[i][j].abs()).sum::<f64>())
+                .fold(0.0, f64::max)
+        };
+        let condition = norm(&k11) * norm(&k11_inv);
+        if !(condition < 1e10) {
+            return None;
+        }
+        let mut c = Condensed {
+            k11_inv,
+            y_base0: [0.0; MAX_EQ],
+            y_base1: [0.0; MAX_EQ],
+            y_q: [0.0; MAX_EQ],
+            y_m0: [0.0; MAX_EQ],
+            y_v: [0.0; MAX_EQ],
+            g_base0: [ForceMoment::default(); 3],
+            g_base1: [ForceMoment::default(); 3],
+            g_q: [ForceMoment::default(); 3],
+            g_m0: [ForceMoment::default(); 3],
+            g_v: [ForceMoment::default(); 3],
+            load: self.beam.station(Dof::Deflection, self.load_z0),
+        };
+        if !self.load_moving {
+            let load_z = self.load_z0;
+            let load = self.beam.station(Dof::Deflection, load_z);
+            let all = Columns::new(LoadSet::All, false);
+            let rate = Columns::new(LoadSet::All, true);
+            let mut r: Rhs = [[0.0; MAX_RHS]; MAX_EQ];
+            let mut r1: Rhs = [[0.0; MAX_RHS]; MAX_EQ];
+            for i in 0..nf {
+                r[i] = self.contact_rhs(i, &self.cons[i].station, &load, 0.0, &all);
+                r1[i] = self.contact_rhs(i, &self.cons[i].station, &load, 0.0, &rate);
+            }
+            let (ef, em) = self.equilibrium_rhs(load_z, &all);
+            r[nf] = ef;
+            r[nf + 1] = em;
+            for i in 0..n1 {
+                let dot =
+                    |col: &Rhs, k: usize| (0..n1).map(|j| c.k11_inv[i][j] * col[j][k]).sum::<f64>();
+                c.y_base0[i] = dot(&r, 0);
+                c.y_base1[i] = dot(&r1, 0);
+                c.y_q[i] = dot(&r, 1);
+                c.y_m0[i] = dot(&r, 2);
+                c.y_v[i] = dot(&r, 3);
+            }
+            c.g_base0 = self.sum_fixed(&c.y_base0);
+            c.g_base1 = self.sum_fixed(&c.y_base1);
+            c.g_q = self.sum_fixed(&c.y_q);
+            c.g_m0 = self.sum_fixed(&c.y_m0);
+            c.g_v = self.sum_fixed(&c.y_v);
+        }
+        Some(c)
+    }
+
+    /// Whether the per-s solve uses static condensation (for tests).
+    #[cfg(test)]
+    pub fn has_condensation(&self) -> bool {
+        self.condensed.is_some()
+    }
+
+    /// L [m].
+    pub fn length(&self) -> f64 {
+        self.length
+    }
+
+    /// Support reactions at stroke coordinate s [m] as affine functions of the loads.
+    #[inline]
+    pub fn influence(&self, s: f64, set: LoadSet) -> Result<Influence, ModelError> {
+        if let Some((at_zero, rate)) = &self.precomputed {
+            let mut infl = *at_zero;
+            for x in 0..3 {
+                infl.base[x] = at_zero.base[x].plus_scaled(s, rate[x]);
+            }
+            return Ok(infl);
+        }
+        self.solve(s / self.length, set, false)
+    }
+
+    /// Reactions at scaled s̃: by static condensation onto the frame-fixed contacts when the
+    /// link-fixed ones hold the link by themselves (precomputed inverse), else by the full
+    /// bordered system. With `rate_only` the only right-hand side is d(u)/ds̃ (no loads), giving
+    /// d(base)/ds in SI units per metre (precomputation when nothing moves along the link).
+    pub(super) fn solve(
+        &self,
+        s_scaled: f64,
+        set: LoadSet,
+        rate_only: bool,
+    ) -> Result<Influence, ModelError> {
+        match &self.condensed {
+            Some(c) if !rate_only => self.solve_condensed(c, s_scaled, &Columns::new(set, false)),
+            _ => self.solve_full(s_scaled, set, rate_only),
+        }
+    }
+
+    /// The full bordered system, one Gaussian elimination (the reference path).
+    pub(super) fn solve_full(
+        &self,
+        s_scaled: f64,
+        set: LoadSet,
+        rate_only: bool,
+    ) -> Result<Influence, ModelError> {
+        let cols = Columns::new(set, rate_only);
+        let n = self.n;
+        let mut a = self.fixed_block;
+        let mut stations = [self.cons[0].station; MAX_CONTACTS];
+        for i in 0..n {
+            stations[i] = self.station_at(i, s_scaled);
+        }
+        for i in self.n_fixed..n {
+            for j in 0..n {
+                let g = LinkBeam::flexibility(&stations[i], &stations[j]);
+                a[i][j] = g;
+                a[j][i] = g;
+            }
+            a[i][i] += self.cons[i].compliance;
+            let (p, q) = border(&stations[i]);
+            a[i][n] = p;
+            a[i][n + 1] = q;
+            a[n][i] = p;
+            a[n + 1][i] = q;
+        }
+        let load_z = self.load_z(s_scaled);
+        let load = self.beam.station(Dof::Deflection, load_z);
+        let mut rhs: Rhs = [[0.0; MAX_RHS]; MAX_EQ];
+        for i in 0..n {
+            rhs[i] = self.contact_rhs(i, &stations[i], &load, s_scaled, &cols);
+        }
+        let (eq_f, eq_m) = self.equilibrium_rhs(load_z, &cols);
+        rhs[n] = eq_f;
+        rhs[n + 1] = eq_m;
+        if solve_in_place(&mut a, &mut rhs, n + 2, cols.count).is_err() {
+            return Err(self.singular_error(s_scaled));
+        }
+        Ok(self.gather(&rhs, load_z, s_scaled, &cols, rate_only))
+    }
+
+    /// Static condensation onto the frame-fixed contacts: with K₁₁ (link-fixed contacts and the
+    /// rigid-body unknowns) inverted once in `new`, per s only the frame-fixed contacts'
+    /// coupling columns `K₁₂`, `X = K₁₁⁻¹K₁₂` and a Schur complement of their size (usually 1×1)
+    /// are formed. With a link-fixed load point (the usual case: only glands are frame-fixed)
+    /// the block-1 load solutions `y₁ = K₁₁⁻¹rhs₁` and their reactions are precomputed too.
+    fn solve_condensed(
+        &self,
+        c: &Condensed,
+        s_scaled: f64,
+        cols: &Columns,
+    ) -> Result<Influence, ModelError> {
+        let nf = self.n_fixed;
+        let n1 = nf + 2;
+        let n2 = self.n - nf;
+        let mut st2 = [self.cons[0].station; MAX_CONTACTS];
+        let mut k12 = [[0.0; MAX_EQ]; MAX_CONTACTS];
+        let mut x = [[0.0; MAX_EQ]; MAX_CONTACTS];
+        let mut gx = [[ForceMoment::default(); 3]; MAX_CONTACTS];
+        let mut b2: Rhs = [[0.0; MAX_RHS]; MAX_EQ];
+        // Block-1 solutions of the load columns (column-major) and their link-fixed reactions.
+        let mut ycols = [[0.0; MAX_EQ]; MAX_RHS];
+        let mut pre = [[ForceMoment::default(); 3]; MAX_RHS];
+        let load_z = self.load_z(s_scaled);
+        let load = if self.load_moving {
+            let load = self.beam.station(Dof::Deflection, load_z);
+            let mut rhs1: Rhs = [[0.0; MAX_RHS]; MAX_EQ];
+            for i in 0..nf {
+                rhs1[i] = self.contact_rhs(i, &self.cons[i].station, &load, s_scaled, cols);
+            }
+            let (eq_f, eq_m) = self.equilibrium_rhs(load_z, cols);
+            rhs1[nf] = eq_f;
+            rhs1[nf + 1] = eq_m;
+            // y = K₁₁⁻¹·rhs₁ (K₁₁⁻¹ symmetric: accumulate rows).
+            for j in 0..n1 {
+                let row = &c.k11_inv[j];
+                for k in 0..cols.count {
+                    let r = rhs1[j][k];
+                    let y = &mut ycols[k];
+                    for i in 0..n1 {
+                        y[i] += row[i] * r;
+                    }
+                }
+            }
+            for k in 0..cols.count {
+                pre[k] = self.sum_fixed(&ycols[k]);
+            }
+            load
+        } else {
+            ycols[0] = c.y_base0;
+            for i in 0..n1 {
+                ycols[0][i] += s_scaled * c.y_base1[i];
+            }
+            pre[0] = c.g_base0;
+            for sup in 0..3 {
+                pre[0][sup] = pre[0][sup].plus_scaled(s_scaled, c.g_base1[sup]);
+            }
+            if let Some(k) = cols.q {
+                ycols[k] = c.y_q;
+                pre[k] = c.g_q;
+            }
+            if let Some(k) = cols.m0 {
+                ycols[k] = c.y_m0;
+                pre[k] = c.g_m0;
+            }
+            if let Some(k) = cols.v {
+                ycols[k] = c.y_v;
+                pre[k] = c.g_v;
+            }
+            c.load
+        };
+        let load = &load;
+        for m in 0..n2 {
+            st2[m] = self.station_at(nf + m, s_scaled);
+            let st = &st2[m];
+            let col = &mut k12[m];
+            for i in 0..nf {
+                col[i] = LinkBeam::flexibility(&self.cons[i].station, st);
+            }
+            let (p, q) = border(st);
+            col[nf] = p;
+            col[nf + 1] = q;
+            // X = K₁₁⁻¹·col as a sum of K₁₁⁻¹'s rows (it is symmetric): scalar reads of the
+            // freshly written column (cheaper than vector reads across separate stores).
+            let xm = &mut x[m];
+            for j in 0..n1 {
+                let cj = col[j];
+                let row = &c.k11_inv[j];
+                for i in 0..n1 {
+                    xm[i] += row[i] * cj;
+                }
+            }
+            gx[m] = self.sum_fixed(&x[m]);
+            b2[m] = self.contact_rhs(nf + m, st, load, s_scaled, cols);
+            for k in 0..cols.count {
+                let y = &ycols[k];
+                let mut acc = b2[m][k];
+                for i in 0..n1 {
+                    acc -= col[i] * y[i];
+                }
+                b2[m][k] = acc;
+            }
+        }
+        // Schur complement S = K₂₂ − K₁₂ᵀX: the flexibility of the link held by the link-fixed
+        // contacts at the frame-fixed ones; compared with K₂₂'s scale to detect coincidences.
+        let mut schur: Matrix = [[0.0; MAX_EQ]; MAX_EQ];
+        let mut scale = 0.0f64;
+        for m in 0..n2 {
+            for mm in 0..n2 {
+                let mut acc = LinkBeam::flexibility(&st2[m], &st2[mm]);
+                if m == mm {
+                    acc += self.cons[nf + m].compliance;
+                    scale = scale.max(acc.abs());
+                }
+                for i in 0..n1 {
+                    acc -= k12[m][i] * x[mm][i];
+                }
+                schur[m][mm] = acc;
+            }
+        }
+        if n2 == 1 {
+            if !(schur[0][0].abs() > 1e-13 * scale) {
+                return Err(self.singular_error(s_scaled));
+            }
+            let inv = 1.0 / schur[0][0];
+            for k in 0..cols.count {
+                b2[0][k] *= inv;
+            }
+        } else if solve_in_place(&mut schur, &mut b2, n2, cols.count).is_err() {
+            return Err(self.singular_error(s_scaled));
+        }
+        // Reactions per column: link-fixed contacts y₁ − X·x₂ (gathered), plus the frame-fixed
+        // contacts' own forces x₂.
+        let mut per_col = [[ForceMoment::default(); 3]; MAX_RHS];
+        for k in 0..cols.count {
+            let mut out = pre[k];
+            for m in 0..n2 {
+                let lam = b2[m][k];
+                for sup in 0..3 {
+                    out[sup] = out[sup].plus_scaled(-lam, gx[m][sup]);
+                }
+                let con = &self.cons[nf + m];
+                let fm = &mut out[con.support];
+                match con.station.dof {
+                    Dof::Deflection => {
+                        fm.r += lam;
+                        fm.m += lam * con.arm;
+                    }
+                    Dof::Slope => fm.m += lam,
+                }
+            }
+            per_col[k] = out;
+        }
+        Ok(self.to_influence(&per_col, load_z, s_scaled, cols, false))
+    }
+
+    /// Per support R̃ = Σ lateral λ and M̃ = Σ slope λ + Σ lateral λ·arm over the link-fixed
+    /// contacts, for a block-1 vector (scaled units).
+    #[inline]
+    fn sum_fixed(&self, lam: &[f64; MAX_EQ]) -> [ForceMoment; 3] {
+        let mut out = [ForceMoment::default(); 3];
+        for i in 0..self.n_fixed {
+            let c = &self.cons[i];
+            let v = lam[i];
+            let fm = &mut out[c.support];
+            match c.station.dof {
+                Dof::Deflection => {
+                    fm.r += v;
+                    fm.m += v * c.arm;
+                }
+                Dof::Slope => fm.m += v,
+            }
+        }
+        out
+    }
+
+    #[inline]
+    fn station_at(&self, i: usize, s_scaled: f64) -> Station {
+        let c = &self.cons[i];
+        if c.moving {
+            self.beam.station(c.station.dof, c.z0 - s_scaled)
+        } else {
+            c.station
+        }
+    }
+
+    #[inline]
+    fn load_z(&self, s_scaled: f64) -> f64 {
+        if self.load_moving {
+            self.load_z0 - s_scaled
+        } else {
+            self.load_z0
+        }
+    }
+
+    /// Right-hand side of contact i's compatibility equation for every column: prescribed
+    /// displacement minus the cantilever deflection under the lateral load (column 0), minus the
+    /// deflection under a unit Q, M0, V.
+    #[inline]
+    fn contact_rhs(
+        &self,
+        i: usize,
+        st: &Station,
+        load: &Station,
+        s_scaled: f64,
+        cols: &Columns,
+    ) -> [f64; MAX_RHS] {
+        let c = &self.cons[i];
+        let mut row = [0.0; MAX_RHS];
+        if cols.rate_only {
+            row[0] = c.u1;
+            return row;
+        }
+        let w_q = LinkBeam::flexibility(st, load);
+        row[0] = c.u0 + c.u1 * s_scaled - self.lateral * w_q;
+        if let Some(k) = cols.q {
+            row[k] = -w_q;
+        }
+        if let Some(k) = cols.m0 {
+            row[k] = -LinkBeam::flexibility(st, &self.end_moment);
+        }
+        if let Some(k) = cols.v {
+            row[k] = -LinkBeam::flexibility(st, &self.end_force);
+        }
+        row
+    }
+
+    /// Right-hand sides of the two equilibrium equations (forces, moments about z = 0): minus
+    /// the applied loads' resultant and moment.
+    #[inline]
+    fn equilibrium_rhs(&self, load_z: f64, cols: &Columns) -> ([f64; MAX_RHS], [f64; MAX_RHS]) {
+        let mut f = [0.0; MAX_RHS];
+        let mut m = [0.0; MAX_RHS];
+        if !cols.rate_only {
+            f[0] = -self.lateral;
+            m[0] = -self.lateral * load_z;
+        }
+        if let Some(k) = cols.q {
+            f[k] = -1.0;
+            m[k] = -load_z;
+        }
+        if let Some(k) = cols.m0 {
+            m[k] = -1.0;
+        }
+        if let Some(k) = cols.v {
+            f[k] = -1.0;
+            m[k] = -1.0;
+        }
+        (f, m)
+    }
+
+    /// Per support: R = Σ lateral λ, M about the centre = Σ slope λ + Σ lateral λ·arm.
+    fn gather(
+        &self,
+        lam: &Rhs,
+        load_z: f64,
+        s_scaled: f64,
+        cols: &Columns,
+        rate_only: bool,
+    ) -> Influence {
+        let mut per_col = [[ForceMoment::default(); 3]; MAX_RHS];
+        for (k, out) in per_col.iter_mut().enumerate().take(cols.count) {
+            for i in 0..self.n {
+                let c = &self.cons[i];
+                let v = lam[i][k];
+                let fm = &mut out[c.support];
+                match c.station.dof {
+                    Dof::Deflection => {
+                        fm.r += v;
+                        fm.m += v * c.arm;
+                    }
+                    Dof::Slope => fm.m += v,
+                }
+            }
+        }
+        self.to_influence(&per_col, load_z, s_scaled, cols, rate_only)
+    }
+
+    /// Scaled per-column support reactions → SI influence (units: see link_beam.rs): the base
+    /// column in force units EJ_ref/L², the unit-load columns per newton (Q, V) or per N·m (M0).
+    #[inline]
+    fn to_influence(
+        &self,
+        per_col: &[[ForceMoment; 3]; MAX_RHS],
+        load_z: f64,
+        s_scaled: f64,
+        cols: &Columns,
+        rate_only: bool,
+    ) -> Influence {
+        let l = self.length;
+        let fu = self.force_unit;
+        let mut infl = Influence::default();
+        for x in 0..3 {
+            infl.centres[x] =
+                (self.centre_z0[x] - if self.centre_moving[x] { s_scaled } else { 0.0 }) * l;
+        }
+        infl.load_point = load_z * l;
+        let base_factor = if rate_only { fu / l } else { fu };
+        for x in 0..3 {
+            let b = per_col[0][x];
+            infl.base[x] = ForceMoment {
+                r: b.r * base_factor,
+                m: b.m * base_factor * l,
+            };
+        }
+        if let Some(k) = cols.q {
+            for x in 0..3 {
+                let g = per_col[k][x];
+                infl.per_q[x] = ForceMoment { r: g.r, m: g.m * l };
+            }
+        }
+        if let Some(k) = cols.m0 {
+            for x in 0..3 {
+                let g = per_col[k][x];
+                infl.per_m0[x] = ForceMoment { r: g.r / l, m: g.m };
+            }
+        }
+        if let Some(k) = cols.v {
+            for x in 0..3 {
+                let g = per_col[k][x];
+                infl.per_v[x] = ForceMoment { r: g.r, m: g.m * l };
+            }
+        }
+        infl
+    }
+
+    fn singular_error(&self, s_scaled: f64) -> ModelError {
+        let positions: Vec<String> = self.cons[..self.n]
+            .iter()
+            .map(|c| {
+                let z = if c.moving { c.z0 - s_scaled } else { c.z0 } * self.length;
+                let what = match c.station.dof {
+                    Dof::Deflection => "lateral contact",
+                    Dof::Slope => "slope restraint",
+                };
+                format!("{} {what} at z = {z} m", NAMES[c.support].label)
+            })
+            .collect();
+        ModelError::evaluation(format!(
+            "the link's support problem is singular at s = {} m (supports nearly coincide or do \
+             not hold the link): {} (physics.md §5.2)",
+            s_scaled * self.length,
+            positions.join(", ")
+        ))
+    }
+}
+
+/// Border entries of a contact: coefficients of the rigid-body unknowns (a, b) in its
+/// compatibility equation, which are also its weights in the two equilibrium equations.
+#[inline]
+fn border(st: &Station) -> (f64, f64) {
+    match st.dof {
+        Dof::Deflection => (1.0, st.z),
+        Dof::Slope => (0.0, 1.0),
+    }
+}
