@@ -20,7 +20,13 @@ struct Scenario {
 
 const SCENARIOS: &[Scenario] = &[
     Scenario {
-        name: "crank-slider (default machine)",
+        name: "crank-slider, friction off",
+        reals: &[],
+        ints: &[("support_A.kind", 0), ("support_B.kind", 0), ("support_C.kind", 0)],
+        speed: 2.0 * std::f64::consts::PI * 65.0 / 60.0,
+    },
+    Scenario {
+        name: "default machine (guide friction on)",
         reals: &[],
         ints: &[],
         speed: 2.0 * std::f64::consts::PI * 65.0 / 60.0,
@@ -37,8 +43,27 @@ const SCENARIOS: &[Scenario] = &[
             ("mass.reciprocating", 3000.0),
             ("load.mean", -40e3),
         ],
-        ints: &[("mechanism", 2), ("rotation", -1)],
+        ints: &[("mechanism", 2), ("rotation", -1), ("support_B.kind", 0), ("support_C.kind", 0)],
         speed: 2.0 * std::f64::consts::PI * 10.9 / 60.0,
+    },
+    Scenario {
+        name: "kvo630 (spring rod, friction on)",
+        reals: &[
+            ("geometry.crank_radius", 0.001),
+            ("mass.reciprocating", 0.02),
+            ("load.mean", 14.7),
+            ("link.l1", 0.010),
+            ("link.l2", 0.0),
+            ("link.l3", 0.0),
+            ("link.l4", 0.0),
+            ("link.d1", 0.008),
+            ("support_B.z", 0.005),
+            ("support_B.length", 0.010),
+            ("support_B.offset", 0.0),
+            ("support_B.tilt", 0.0),
+        ],
+        ints: &[("rod.kind", 2), ("support_A.kind", 0), ("support_C.kind", 0)],
+        speed: 2.0 * std::f64::consts::PI * 1500.0 / 60.0,
     },
 ];
 

@@ -12,7 +12,8 @@ use std::path::PathBuf;
 use crate::fmi2::logging::{Category, Logger};
 use crate::fmi2::variables::{var_info, Binding, Causality, InputSlot, VarType, Variability, VARIABLES};
 use crate::model::crank::CrankState;
-use crate::model::drive::{Inputs, Model, Outputs};
+use crate::model::drive::{Inputs, Model, Outputs, RodState};
+use crate::model::integrator::IntegratorStats;
 use crate::model::error::ModelError;
 use crate::model::params::Params;
 
@@ -72,6 +73,8 @@ pub struct Core {
     /// The crank as the FMU knows it: the inputs after fmi2SetReal, their extrapolation after a
     /// step (physics.md §2).
     pub crank: CrankState,
+    /// The continuous state of an elastic rod (cage angle and rate) and its integrator's memory.
+    pub rod: RodState,
     /// Whether the outputs in `values` belong to the current time, inputs and parameters.
     pub outputs_valid: bool,
 }
@@ -86,6 +89,7 @@ impl Core {
             stop_time: None,
             values,
             crank: CrankState::default(),
+            rod: RodState::default(),
             outputs_valid: false,
         };
         core.crank = core.crank_from_inputs();
@@ -164,11 +168,16 @@ pub struct Instance {
     core: Core,
     /// The validated machine; Some from fmi2ExitInitializationMode on.
     model: Option<Model>,
+    /// Work of the cage-equation integrator (diagnostics only, not part of the FMU state).
+    pub stats: IntegratorStats,
 }
+
+/// |ϑ| above which the linear theory of the elastic rod is no longer valid (physics.md §6).
+const ROD_ANGLE_VALIDITY: f64 = 0.2;
 
 impl Instance {
     pub fn new(logger: Logger, resource_dir: Option<PathBuf>) -> Instance {
-        Instance { logger, resource_dir, core: Core::fresh(), model: None }
+        Instance { logger, resource_dir, core: Core::fresh(), model: None, stats: IntegratorStats::default() }
     }
 
     pub fn mode(&self) -> Mode {
@@ -227,7 +236,9 @@ impl Instance {
     pub fn exit_initialization_mode(&mut self) -> Result<(), Failure> {
         self.require("fmi2ExitInitializationMode", &[Mode::InitializationMode])?;
         let model = Model::new(&self.core.params()?)?;
-        let out = model.evaluate(&self.core.crank, &self.core.inputs())?;
+        let rod = model.initial_rod_state(&self.core.crank, &self.core.inputs())?;
+        let out = model.evaluate(&self.core.crank, &self.core.inputs(), &rod)?;
+        self.core.rod = rod;
         self.core.write_outputs(&out);
         self.model = Some(model);
         self.core.mode = Mode::StepComplete;
@@ -280,8 +291,13 @@ impl Instance {
             return Ok(());
         }
         let out = match &self.model {
-            Some(m) => m.evaluate(&self.core.crank, &self.core.inputs())?,
-            None => Model::new(&self.core.params()?)?.evaluate(&self.core.crank, &self.core.inputs())?,
+            Some(m) => m.evaluate(&self.core.crank, &self.core.inputs(), &self.core.rod)?,
+            None => {
+                // Initialization mode: the state the FMU would start from with these values.
+                let m = Model::new(&self.core.params()?)?;
+                let rod = m.initial_rod_state(&self.core.crank, &self.core.inputs())?;
+                m.evaluate(&self.core.crank, &self.core.inputs(), &rod)?
+            }
         };
         self.core.write_outputs(&out);
         Ok(())
@@ -410,13 +426,37 @@ impl Instance {
             )));
         }
         let model = self.model.as_ref().ok_or_else(|| Failure::illegal("fmi2DoStep", self.core.mode))?;
+        let fail = |e: ModelError| Failure::error(format!("fmi2DoStep from t = {current} s with h = {h} s failed: {e}"));
+        let inputs = self.core.inputs();
+        // The master's tolerance (fmi2SetupExperiment) wins over solver.tolerance (§6).
+        let tol = self.core.tolerance.unwrap_or_else(|| model.default_tolerance());
+        let mut stats = self.stats;
+        let rod = if model.has_state() {
+            model.step(&self.core.crank, &inputs, &self.core.rod, h, tol, &mut stats).map_err(fail)?
+        } else {
+            self.core.rod
+        };
         let crank = self.core.crank.extrapolate(h);
-        let out = model.evaluate(&crank, &self.core.inputs()).map_err(|e| {
-            Failure::error(format!("fmi2DoStep from t = {current} s with h = {h} s failed: {e}"))
-        })?;
+        let out = model.evaluate(&crank, &inputs, &rod).map_err(fail)?;
+        let warn = model.has_state()
+            && rod.cage.theta.abs() > ROD_ANGLE_VALIDITY
+            && self.core.rod.cage.theta.abs() <= ROD_ANGLE_VALIDITY;
         self.core.crank = crank;
+        self.core.rod = rod;
         self.core.time = current + h;
         self.core.write_outputs(&out);
+        self.stats = stats;
+        if warn {
+            self.logger.log(
+                fmi_sys::fmi2::fmi2Status_fmi2Warning,
+                Category::Warning,
+                &format!(
+                    "fmi2DoStep: at t = {} s the cage angle rod.angle = {} rad exceeds {ROD_ANGLE_VALIDITY} rad: \
+                     the linear theory of the elastic rod (physics.md §6) is no longer valid",
+                    self.core.time, rod.cage.theta
+                ),
+            );
+        }
         Ok(())
     }
 
@@ -444,6 +484,10 @@ impl Instance {
         }
         if !core.time.is_finite() || core.mode == Mode::Fatal {
             return Err(bad("time or mode"));
+        }
+        let r = &core.rod;
+        if ![r.cage.theta, r.cage.rate, r.integrator.h_next, r.integrator.err_prev].iter().all(|v| v.is_finite()) {
+            return Err(bad("elastic-rod state"));
         }
         for (v, var) in core.values.iter().zip(VARIABLES) {
             let integral = matches!(var.ty, VarType::Integer | VarType::Boolean);
