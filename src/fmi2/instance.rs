@@ -68,14 +68,18 @@ pub struct Core {
     pub time: f64,
     pub tolerance: Option<f64>,
     pub stop_time: Option<f64>,
-    /// Values of all variables indexed by value reference (outputs: the last evaluation).
+    /// Values of parameters and inputs indexed by value reference (output slots unused: the
+    /// outputs live in `outputs`).
     pub values: Vec<f64>,
     /// The crank as the FMU knows it: the inputs after fmi2SetReal, their extrapolation after a
     /// step (physics.md §2).
     pub crank: CrankState,
     /// The continuous state of an elastic rod (cage angle and rate) and its integrator's memory.
     pub rod: RodState,
-    /// Whether the outputs in `values` belong to the current time, inputs and parameters.
+    /// The last evaluation. Not serialized: a deserialized state recomputes it on demand.
+    #[serde(skip)]
+    pub outputs: Outputs,
+    /// Whether `outputs` belongs to the current time, inputs, parameters and state.
     pub outputs_valid: bool,
 }
 
@@ -90,6 +94,7 @@ impl Core {
             values,
             crank: CrankState::default(),
             rod: RodState::default(),
+            outputs: Outputs::default(),
             outputs_valid: false,
         };
         core.crank = core.crank_from_inputs();
@@ -128,27 +133,9 @@ impl Core {
     }
 
     fn write_outputs(&mut self, out: &Outputs) {
-        for &(vr, get) in output_getters() {
-            self.values[vr] = get(out);
-        }
+        self.outputs = *out;
         self.outputs_valid = true;
     }
-}
-
-/// (value reference, getter) of every output, collected once from the table so that writing
-/// the outputs after each evaluation does not rescan all variables.
-fn output_getters() -> &'static [(usize, fn(&Outputs) -> f64)] {
-    static GETTERS: std::sync::OnceLock<Vec<(usize, fn(&Outputs) -> f64)>> = std::sync::OnceLock::new();
-    GETTERS.get_or_init(|| {
-        VARIABLES
-            .iter()
-            .enumerate()
-            .filter_map(|(vr, v)| match v.binding {
-                Binding::Output { get, .. } => Some((vr, get)),
-                _ => None,
-            })
-            .collect()
-    })
 }
 
 /// A saved FMU state (fmi2GetFMUstate). The magic number lets fmi2SetFMUstate refuse a pointer
@@ -170,6 +157,9 @@ pub struct Instance {
     model: Option<Model>,
     /// Work of the cage-equation integrator (diagnostics only, not part of the FMU state).
     pub stats: IntegratorStats,
+    /// Where a step evaluates its outputs before they replace the current ones (a failed step
+    /// must leave the current ones as they were).
+    scratch: Outputs,
 }
 
 /// |ϑ| above which the linear theory of the elastic rod is no longer valid (physics.md §6).
@@ -177,7 +167,14 @@ const ROD_ANGLE_VALIDITY: f64 = 0.2;
 
 impl Instance {
     pub fn new(logger: Logger, resource_dir: Option<PathBuf>) -> Instance {
-        Instance { logger, resource_dir, core: Core::fresh(), model: None, stats: IntegratorStats::default() }
+        Instance {
+            logger,
+            resource_dir,
+            core: Core::fresh(),
+            model: None,
+            stats: IntegratorStats::default(),
+            scratch: Outputs::default(),
+        }
     }
 
     pub fn mode(&self) -> Mode {
@@ -312,18 +309,24 @@ impl Instance {
             Mode::Instantiated => false,
             Mode::Fatal => return Err(Failure::illegal(function, self.core.mode)),
         };
+        let info = var_info();
         for (k, &vr) in vrs.iter().enumerate() {
             let i = self.lookup(function, vr, ty)?;
-            if !self.core.outputs_valid && matches!(var_info()[i].causality, Causality::Output | Causality::CalculatedParameter) {
-                if !outputs_available {
-                    return Err(Failure::error(format!(
-                        "{function}: output \"{}\" is not available before fmi2EnterInitializationMode",
-                        VARIABLES[i].name
-                    )));
+            match info[i].output {
+                Some(get) => {
+                    if !self.core.outputs_valid {
+                        if !outputs_available {
+                            return Err(Failure::error(format!(
+                                "{function}: output \"{}\" is not available before fmi2EnterInitializationMode",
+                                VARIABLES[i].name
+                            )));
+                        }
+                        self.refresh_outputs()?;
+                    }
+                    out(k, get(&self.core.outputs));
                 }
-                self.refresh_outputs()?;
+                None => out(k, self.core.values[i]),
             }
-            out(k, self.core.values[i]);
         }
         Ok(())
     }
@@ -437,14 +440,15 @@ impl Instance {
             self.core.rod
         };
         let crank = self.core.crank.extrapolate(h);
-        let out = model.evaluate(&crank, &inputs, &rod).map_err(fail)?;
+        model.evaluate_into(&crank, &inputs, &rod, &mut self.scratch).map_err(fail)?;
         let warn = model.has_state()
             && rod.cage.theta.abs() > ROD_ANGLE_VALIDITY
             && self.core.rod.cage.theta.abs() <= ROD_ANGLE_VALIDITY;
         self.core.crank = crank;
         self.core.rod = rod;
         self.core.time = current + h;
-        self.core.write_outputs(&out);
+        std::mem::swap(&mut self.core.outputs, &mut self.scratch);
+        self.core.outputs_valid = true;
         self.stats = stats;
         if warn {
             self.logger.log(
@@ -489,6 +493,8 @@ impl Instance {
         if ![r.cage.theta, r.cage.rate, r.integrator.h_next, r.integrator.err_prev].iter().all(|v| v.is_finite()) {
             return Err(bad("elastic-rod state"));
         }
+        // The outputs are not part of the serialized form: recompute them when asked.
+        let core = Core { outputs_valid: false, ..core };
         for (v, var) in core.values.iter().zip(VARIABLES) {
             let integral = matches!(var.ty, VarType::Integer | VarType::Boolean);
             if integral && !(v.fract() == 0.0 && v.abs() <= i32::MAX as f64) {

@@ -402,12 +402,14 @@ pub static UNITS: &[(&str, [i32; 4])] = &[
 
 /// What get/set need to know about a value reference, packed small so the per-call checks touch
 /// one cache line instead of the full [`Var`] records. Derived once from [`VARIABLES`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug)]
 pub struct VarInfo {
     pub ty: VarType,
     pub causality: Causality,
     /// The input slot, for inputs.
     pub slot: Option<InputSlot>,
+    /// The getter, for outputs and calculated parameters (read from the last evaluation).
+    pub output: Option<fn(&Outputs) -> f64>,
 }
 
 pub fn var_info() -> &'static [VarInfo] {
@@ -420,6 +422,10 @@ pub fn var_info() -> &'static [VarInfo] {
                 causality: v.causality,
                 slot: match v.binding {
                     Binding::Input { slot, .. } => Some(slot),
+                    _ => None,
+                },
+                output: match v.binding {
+                    Binding::Output { get, .. } => Some(get),
                     _ => None,
                 },
             })

@@ -283,7 +283,9 @@ impl Model {
     /// Kinematics, loads and the rod force at one instant (§2–§6). P is implicit through the
     /// friction: exactly (piecewise linear) for a rigid rod, by the guide's contracting
     /// iteration for an elastic rod, whose clamp loads depend on P and ϑ.
-    #[inline]
+    // Always inlined: `Instant` is large (it carries the beam column of an elastic rod), and
+    // returning it through a `Result` otherwise costs a memcpy per evaluation.
+    #[inline(always)]
     fn instant(&self, crank: &CrankState, inputs: &Inputs, cage: &CageState) -> Result<Instant, ModelError> {
         let p = &self.params;
         let (w, eps) = (crank.speed, crank.acceleration);
@@ -373,12 +375,20 @@ impl Model {
 
     /// All outputs at one instant. Inputs must be finite (checked here, so a NaN never reaches
     /// an output). `rod` is the cage state (ignored for a rigid rod).
-    #[inline]
     pub fn evaluate(&self, crank: &CrankState, inputs: &Inputs, rod: &RodState) -> Result<Outputs, ModelError> {
+        let mut out = Outputs::default();
+        self.evaluate_into(crank, inputs, rod, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`Model::evaluate`] writing into `out` (the FMU's per-step path: no large moves). On error
+    /// `out` is unspecified.
+    #[inline]
+    pub fn evaluate_into(&self, crank: &CrankState, inputs: &Inputs, rod: &RodState, out: &mut Outputs) -> Result<(), ModelError> {
         Self::check_inputs(crank, inputs)?;
         let i = self.instant(crank, inputs, &rod.cage)?;
         let rod_force = i.guide.rod_force;
-        let mut out = Outputs {
+        *out = Outputs {
             position: i.k.s,
             velocity: i.velocity,
             acceleration: i.acceleration,
@@ -403,7 +413,7 @@ impl Model {
             out.rod_stress_max = elastic.stress_max(bc, loads.delta, rod.cage.theta, rod_force);
             out.rod_axial_deflection = elastic.axial_deflection(rod_force);
         }
-        Ok(out)
+        Ok(())
     }
 
     /// The cage state at the start (§6 "Initial state"): quasi-static (ϑ solves the static cage
