@@ -40,7 +40,7 @@ fn body() -> String {
     let _ = writeln!(w, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
     let _ = writeln!(
         w,
-        r#"<fmiModelDescription fmiVersion="2.0" modelName="{MODEL_NAME}" guid="{GUID_PLACEHOLDER}" description="Crank-driven reciprocating mechanism: exact kinematics, inertia load and crank torque of a crank-slider (drilling mud pump) or a beam pumping unit (API class I and III), torsion-bar balancer" version="{}" generationTool="reciprocating_drive {}" variableNamingConvention="structured" numberOfEventIndicators="0">"#,
+        r#"<fmiModelDescription fmiVersion="2.0" modelName="{MODEL_NAME}" guid="{GUID_PLACEHOLDER}" description="Crank-driven reciprocating mechanism (crank-slider of a drilling mud pump, beam pumping units API class I and III, elastic connecting rod clamped in the piston): exact kinematics, inertia load, guide friction from redundant supports, rod angular oscillation, crank torque" version="{}" generationTool="reciprocating_drive {}" variableNamingConvention="structured" numberOfEventIndicators="0">"#,
         env!("CARGO_PKG_VERSION"),
         env!("CARGO_PKG_VERSION")
     );
