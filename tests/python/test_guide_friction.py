@@ -641,3 +641,31 @@ def test_friction_work_per_revolution(fmu_path, params, case):
         drive = np.trapezoid(res["crank.torque"] * w, t)
         inertia_power = np.abs(res["inertia.force"] * res["suspension.velocity"])
         assert abs(drive + work_fmu) <= 1e-9 * np.trapezoid(inertia_power, t), (drive, work_fmu)
+
+
+@pytest.mark.parametrize("case", ["default", "unb600a"])
+def test_friction_report_figures_agree_with_the_independent_model(fmu_path, params, case):
+    """scripts/friction_report.py (the closing-note figures, computed from the FMU alone): its
+    extremes of guide.friction are extremes of the independent model too (same value to RTOL at
+    the reported angle; the reference's own golden-section search finds the same angle to 1e-4°),
+    and its 0.1°-grid friction work equals the reference's trapezoid on the same grid."""
+    import friction_report
+
+    rep = friction_report.report(fmu_path, case)
+    values = params | (unb600a_values() if case == "unb600a" else {})
+    ref = Reference(values)
+    w = rep["omega"]
+    print(f"{case}: max {rep['max']}, min {rep['min']}, work {rep['work']:.9g} J")
+    for key, sign in (("max", 1.0), ("min", -1.0)):
+        th, val = rep[key]
+        f = lambda deg: sign * ref.at(math.radians(deg), w)["guide.friction"]  # noqa: E731
+        assert abs(sign * f(th) - val) <= RTOL * abs(val), (key, th, val, sign * f(th))
+        th_ref, _ = friction_report.golden_max(f, th - 0.1, th + 0.1, 1e-7)
+        assert abs(th_ref - th) <= 1e-4, (key, th, th_ref)
+    assert rep["max"][1] > 0 > rep["min"][1]
+    th = np.linspace(0.0, 2 * math.pi, 3601)
+    rows = [ref.at(x, w) for x in th]
+    work_ref = np.trapezoid([r["link.friction_total"] * r["v"] / w for r in rows], th)
+    assert abs(rep["work_coarse"] - work_ref) <= RTOL * abs(work_ref)
+    # The 0.01° value is converged: it differs from the 0.1° one by the trapezoid error only.
+    assert rep["work"] < 0 and abs(rep["work"] - rep["work_coarse"]) <= 1e-6 * abs(rep["work"])
