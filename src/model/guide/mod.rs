@@ -106,6 +106,7 @@ pub struct GuideSpec {
     pub velocity_scale: f64,
 }
 
+#[cfg(test)]
 impl GuideSpec {
     /// The default machine of physics.md §8, from the one place its defaults live (`Params`).
     pub fn default_machine() -> GuideSpec {
