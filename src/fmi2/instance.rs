@@ -208,7 +208,7 @@ impl Instance {
             }
         }
         if let Some(s) = stop {
-            if !(s >= start) {
+            if s.is_nan() || s < start {
                 return Err(Failure::error(format!(
                     "fmi2SetupExperiment: stopTime = {s} must be finite and >= startTime = {start}"
                 )));
