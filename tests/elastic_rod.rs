@@ -499,8 +499,6 @@ fn cage_angle_above_validity_limit_is_warned_through_the_logger() {
 }
 
 #[test]
-#[ignore = "PRODUCTION GAP (reported): a run that starts above 0.2 rad (quasi-static start) never warns; \
-            Instance::do_step only warns when |ϑ| crosses 0.2 during a step, and initialization does not check"]
 fn cage_angle_above_validity_limit_from_the_start_is_warned() {
     let api = Api::load();
     let o = [("rod.load_eccentricity", V::R(LARGE_ECCENTRICITY)), ("rod.initial_state", V::I(1)), ("support_B.kind", V::I(0))];

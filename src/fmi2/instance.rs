@@ -235,6 +235,9 @@ impl Instance {
         let model = Model::new(&self.core.params()?)?;
         let rod = model.initial_rod_state(&self.core.crank, &self.core.inputs())?;
         let out = model.evaluate(&self.core.crank, &self.core.inputs(), &rod)?;
+        if model.has_state() && rod.cage.theta.abs() > ROD_ANGLE_VALIDITY {
+            self.warn_rod_angle("fmi2ExitInitializationMode", rod.cage.theta);
+        }
         self.core.rod = rod;
         self.core.write_outputs(&out);
         self.model = Some(model);
@@ -451,17 +454,23 @@ impl Instance {
         self.core.outputs_valid = true;
         self.stats = stats;
         if warn {
-            self.logger.log(
-                fmi_sys::fmi2::fmi2Status_fmi2Warning,
-                Category::Warning,
-                &format!(
-                    "fmi2DoStep: at t = {} s the cage angle rod.angle = {} rad exceeds {ROD_ANGLE_VALIDITY} rad: \
-                     the linear theory of the elastic rod (physics.md §6) is no longer valid",
-                    self.core.time, rod.cage.theta
-                ),
-            );
+            self.warn_rod_angle("fmi2DoStep", rod.cage.theta);
         }
         Ok(())
+    }
+
+    /// The elastic rod's cage angle left the range of the linear theory (§6 "Validity"): warned
+    /// when it starts there and whenever a step crosses the limit.
+    fn warn_rod_angle(&self, function: &str, theta: f64) {
+        self.logger.log(
+            fmi_sys::fmi2::fmi2Status_fmi2Warning,
+            Category::Warning,
+            &format!(
+                "{function}: at t = {} s the cage angle rod.angle = {theta} rad exceeds {ROD_ANGLE_VALIDITY} rad: \
+                 the linear theory of the elastic rod (physics.md §6) is no longer valid",
+                self.core.time
+            ),
+        );
     }
 
     pub fn snapshot(&self) -> Snapshot {
