@@ -54,6 +54,23 @@ struct Constraint {
     station: Station,
 }
 
+impl Constraint {
+    /// Adds this contact's multiplier λ to its support's net force and moment about the
+    /// support's centre: a lateral contact contributes R += λ and M += λ·arm, a slope
+    /// restraint M += λ.
+    #[inline]
+    fn add_to(&self, out: &mut [ForceMoment; 3], lam: f64) {
+        let fm = &mut out[self.support];
+        match self.station.dof {
+            Dof::Deflection => {
+                fm.r += lam;
+                fm.m += lam * self.arm;
+            }
+            Dof::Slope => fm.m += lam,
+        }
+    }
+}
+
 /// Net lateral force R [N] and moment M about the support's centre [N·m] (physics.md §5.3).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(super) struct ForceMoment {
@@ -622,15 +639,7 @@ impl SupportSystem {
                 for sup in 0..3 {
                     out[sup] = out[sup].plus_scaled(-lam, gx[m][sup]);
                 }
-                let con = &self.cons[nf + m];
-                let fm = &mut out[con.support];
-                match con.station.dof {
-                    Dof::Deflection => {
-                        fm.r += lam;
-                        fm.m += lam * con.arm;
-                    }
-                    Dof::Slope => fm.m += lam,
-                }
+                self.cons[nf + m].add_to(&mut out, lam);
             }
             per_col[k] = out;
         }
@@ -643,16 +652,7 @@ impl SupportSystem {
     fn sum_fixed(&self, lam: &[f64; MAX_EQ]) -> [ForceMoment; 3] {
         let mut out = [ForceMoment::default(); 3];
         for i in 0..self.n_fixed {
-            let c = &self.cons[i];
-            let v = lam[i];
-            let fm = &mut out[c.support];
-            match c.station.dof {
-                Dof::Deflection => {
-                    fm.r += v;
-                    fm.m += v * c.arm;
-                }
-                Dof::Slope => fm.m += v,
-            }
+            self.cons[i].add_to(&mut out, lam[i]);
         }
         out
     }
@@ -744,16 +744,7 @@ impl SupportSystem {
         let mut per_col = [[ForceMoment::default(); 3]; MAX_RHS];
         for (k, out) in per_col.iter_mut().enumerate().take(cols.count) {
             for i in 0..self.n {
-                let c = &self.cons[i];
-                let v = lam[i][k];
-                let fm = &mut out[c.support];
-                match c.station.dof {
-                    Dof::Deflection => {
-                        fm.r += v;
-                        fm.m += v * c.arm;
-                    }
-                    Dof::Slope => fm.m += v,
-                }
+                self.cons[i].add_to(out, lam[i][k]);
             }
         }
         self.to_influence(&per_col, load_z, s_scaled, cols, rate_only)
