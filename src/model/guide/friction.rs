@@ -54,6 +54,24 @@ impl FrictionLaw {
             FrictionLaw::Edges { f, two_over_l } => f * fm.r.abs().max(two_over_l * fm.m.abs()),
         }
     }
+
+    /// Rate of [`FrictionLaw::magnitude`] when R and M change at rates `d`: the derivative of
+    /// the branch that gives the value (|R| or 2|M|/l_n, the sign of R or M).
+    #[inline]
+    pub fn magnitude_rate(&self, fm: ForceMoment, d: ForceMoment) -> f64 {
+        let signed = |x: f64, dx: f64| if x < 0.0 { -dx } else { dx };
+        match *self {
+            FrictionLaw::None => 0.0,
+            FrictionLaw::Pin { f } => f * signed(fm.r, d.r),
+            FrictionLaw::Edges { f, two_over_l } => {
+                if fm.r.abs() >= two_over_l * fm.m.abs() {
+                    f * signed(fm.r, d.r)
+                } else {
+                    f * two_over_l * signed(fm.m, d.m)
+                }
+            }
+        }
+    }
 }
 
 /// Edge forces of a support with net force R and moment M about its centre (§5.3):
