@@ -29,7 +29,7 @@ mod tests;
 
 use crate::model::error::ModelError;
 use friction::{AffineReaction, FrictionLaw};
-use supports::{ForceMoment, Influence, LoadSet, SupportSystem};
+use supports::{ClampInfluence, ForceMoment, Influence, LoadSet, SupportSystem};
 
 /// `support_X.kind` (physics.md §5.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -144,25 +144,23 @@ pub struct GuideOutputs {
 /// The friction of the elastic-rod machine at one (s, v) as a function of the clamp loads
 /// (M0, V) (physics.md §5.3, §5.4), from [`Guide::clamp_friction`].
 #[derive(Clone, Copy, Debug)]
-pub struct ClampFriction {
-    base: [ForceMoment; 3],
-    per_m0: [ForceMoment; 3],
-    per_v: [ForceMoment; 3],
-    laws: [FrictionLaw; 3],
+pub struct ClampFriction<'a> {
+    infl: ClampInfluence,
+    laws: &'a [FrictionLaw; 3],
     /// tanh(v/v_ε).
     sign: f64,
     s: f64,
     v: f64,
 }
 
-impl ClampFriction {
+impl ClampFriction<'_> {
     /// Reactions of A, B, C and their signed friction for clamp loads (M0, V).
     #[inline]
     fn reactions_and_friction(&self, m0: f64, vc: f64) -> ([ForceMoment; 3], [f64; 3]) {
         let mut at_p = [ForceMoment::default(); 3];
         let mut fr = [0.0; 3];
         for x in 0..3 {
-            at_p[x] = self.base[x].plus_scaled(m0, self.per_m0[x]).plus_scaled(vc, self.per_v[x]);
+            at_p[x] = self.infl.base[x].plus_scaled(m0, self.infl.per_m0[x]).plus_scaled(vc, self.infl.per_v[x]);
             fr[x] = -self.sign * self.laws[x].magnitude(at_p[x]);
         }
         (at_p, fr)
@@ -183,11 +181,11 @@ impl ClampFriction {
         let mut fr = [0.0; 3];
         let mut rate = 0.0;
         for x in 0..3 {
-            let fm = self.base[x].plus_scaled(m0, self.per_m0[x]).plus_scaled(vc, self.per_v[x]);
+            let fm = self.infl.base[x].plus_scaled(m0, self.infl.per_m0[x]).plus_scaled(vc, self.infl.per_v[x]);
             fr[x] = -self.sign * self.laws[x].magnitude(fm);
             let dfm = ForceMoment {
-                r: dm0 * self.per_m0[x].r + dvc * self.per_v[x].r,
-                m: dm0 * self.per_m0[x].m + dvc * self.per_v[x].m,
+                r: dm0 * self.infl.per_m0[x].r + dvc * self.infl.per_v[x].r,
+                m: dm0 * self.infl.per_m0[x].m + dvc * self.infl.per_v[x].m,
             };
             rate -= self.sign * self.laws[x].magnitude_rate(fm, dfm);
         }
@@ -349,14 +347,11 @@ impl Guide {
     /// (§5.3, §5.4): the reactions are affine in (M0, V) at fixed s, so this is everything the
     /// rod-force equation needs besides M0(P), V(P). Checks the inputs like the solvers.
     #[inline]
-    pub fn clamp_friction(&self, s: f64, v: f64, p_base: f64) -> Result<ClampFriction, ModelError> {
+    pub fn clamp_friction(&self, s: f64, v: f64, p_base: f64) -> Result<ClampFriction<'_>, ModelError> {
         self.check_inputs(s, v, p_base)?;
-        let infl = self.system.influence(s, LoadSet::Clamp)?;
         Ok(ClampFriction {
-            base: infl.base,
-            per_m0: infl.per_m0,
-            per_v: infl.per_v,
-            laws: self.laws,
+            infl: self.system.clamp_influence(s)?,
+            laws: &self.laws,
             sign: (v / self.velocity_scale).tanh(),
             s,
             v,
