@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::model::balancer::{Balancer, BalancerSpec, MachineFacts};
 use crate::model::beam_unit::{BeamClass, BeamUnit, BeamUnitGeometry};
-use crate::model::crank::CrankState;
+use crate::model::crank::{sin_cos_shifted, CrankState};
 use crate::model::crank_slider::CrankSlider;
 use crate::model::elastic_rod::cage::{CageLoads, CageState, ElasticRod, PistonLaw, PistonPoint};
 use crate::model::elastic_rod::table::{self, StiffnessTable};
@@ -310,8 +310,9 @@ impl Model {
 
     /// The link's kinematics and the loads on it that do not depend on P (§2–§4, §7); for an
     /// elastic rod also Δ, dΔ/dθ, Δ̈ of the piston law (§6), from the same sin_cos of θ.
+    /// `sin_cos`: sinθ, cosθ when the caller has them (the integrator's stages), else computed.
     #[inline]
-    fn link_loads(&self, crank: &CrankState, inputs: &Inputs) -> LinkLoads {
+    fn link_loads(&self, crank: &CrankState, inputs: &Inputs, sin_cos: Option<(f64, f64)>) -> LinkLoads {
         let p = &self.params;
         let (w, eps) = (crank.speed, crank.acceleration);
         let theta = crank.angle + p.crank_angle_offset;
@@ -319,7 +320,10 @@ impl Model {
             Mechanism::CrankSlider(m) => (m.kinematics(theta), None),
             Mechanism::BeamUnit(m) => (m.kinematics(theta), None),
             Mechanism::ElasticRodSlider(law, _) => {
-                let pp = law.at(theta, w, eps);
+                let pp = match sin_cos {
+                    Some((sin, cos)) => law.at_sin_cos(sin, cos, w, eps),
+                    None => law.at(theta, w, eps),
+                };
                 (pp.k, Some(pp))
             }
         };
@@ -349,7 +353,7 @@ impl Model {
     /// table.rs), so it usually needs a single beam column, which is then reused.
     #[inline]
     fn instant(&self, crank: &CrankState, inputs: &Inputs, cage: &CageState) -> Result<Instant, ModelError> {
-        let ll = self.link_loads(crank, inputs);
+        let ll = self.link_loads(crank, inputs, None);
         let (guide, rod) = match (&self.mechanism, ll.piston) {
             (Mechanism::ElasticRodSlider(_, rod), Some(pp)) => {
                 let (guide, bc) = match &self.guide {
@@ -523,6 +527,7 @@ impl Model {
             p_tolerance: STAGE_P_TOLERANCE_FACTOR * tol,
             friction_guess: 0.0,
             cell_hint: 0,
+            sin_cos0: (crank.angle + self.params.crank_angle_offset).sin_cos(),
         };
         let mut integ = state.integrator;
         let y = integrator::advance(
@@ -653,6 +658,8 @@ struct CageRhs<'a> {
     friction_guess: f64,
     /// Table cell of the previous table stage.
     cell_hint: usize,
+    /// sinθ, cosθ at the start of the step.
+    sin_cos0: (f64, f64),
 }
 
 impl SecondOrderRhs for CageRhs<'_> {
@@ -661,7 +668,10 @@ impl SecondOrderRhs for CageRhs<'_> {
         let cage = CageState { theta, rate };
         let crank = self.crank.extrapolate(tau);
         if let Some(table) = self.table {
-            let ll = self.model.link_loads(&crank, self.inputs);
+            // θ(τ) = θ0 + φ: sin, cos from those at the step's start (crank.rs).
+            let phi = self.crank.speed * tau + 0.5 * self.crank.acceleration * tau * tau;
+            let trig = sin_cos_shifted(self.sin_cos0.0, self.sin_cos0.1, phi);
+            let ll = self.model.link_loads(&crank, self.inputs, trig);
             if let Some(pp) = ll.piston {
                 let friction = match &self.model.guide {
                     Some(g) => Some(g.clamp_friction(ll.k.s, ll.velocity, ll.p_base)?),
@@ -784,6 +794,7 @@ mod tests {
                     p_tolerance: STAGE_P_TOLERANCE_FACTOR * tol,
                     friction_guess: 0.0,
                     cell_hint: 0,
+                    sin_cos0: (crank.angle + params.crank_angle_offset).sin_cos(),
                 };
                 for i in 0..=400 {
                     let tau = i as f64 * 1e-4; // 0.04 s: 1.5 revolutions
@@ -792,7 +803,7 @@ mod tests {
                     let exact = m.instant(&c, &inputs, &cage).unwrap();
                     let (bc, loads, _, _) = exact.rod.unwrap();
                     let a_exact = rod.acceleration(&bc, &loads, &cage);
-                    let ll = m.link_loads(&c, &inputs);
+                    let ll = m.link_loads(&c, &inputs, None);
                     let pp = ll.piston.unwrap();
                     let cf = m.guide.as_ref().map(|g| g.clamp_friction(ll.k.s, ll.velocity, ll.p_base).unwrap());
                     let p_tol = STAGE_P_TOLERANCE_FACTOR * tol;
