@@ -320,7 +320,7 @@ impl Guide {
                 m: dq_dp * infl.per_q[x].m,
             },
         });
-        let sign = (v / self.velocity_scale).tanh();
+        let sign = friction::regularized_sign(v / self.velocity_scale);
         let k = friction::sensitivity(&self.laws, &affine);
         let k_unique = sign.abs() * k;
         // Written so that NaN also fails.
@@ -352,7 +352,7 @@ impl Guide {
         Ok(ClampFriction {
             infl: self.system.clamp_influence(s)?,
             laws: &self.laws,
-            sign: (v / self.velocity_scale).tanh(),
+            sign: friction::regularized_sign(v / self.velocity_scale),
             s,
             v,
         })
