@@ -349,8 +349,9 @@ impl Model {
     /// Kinematics, loads and the rod force at one instant (§2–§6). P is implicit through the
     /// friction: exactly (piecewise linear) for a rigid rod, by the guide's contracting
     /// iteration for an elastic rod, whose clamp loads depend on P and ϑ. The elastic rod's
-    /// iteration starts from P solved on the stiffness table (exact to ~1e-16 relative,
-    /// table.rs), so it usually needs a single beam column, which is then reused.
+    /// iteration starts from P solved on the stiffness table (its error is that of the friction
+    /// from the table, ~1e-13·|F_fr|, far inside the iteration's 1e-14 relative test), so it
+    /// usually needs a single beam column, which is then reused for the outputs.
     #[inline]
     fn instant(&self, crank: &CrankState, inputs: &Inputs, cage: &CageState) -> Result<Instant, ModelError> {
         let ll = self.link_loads(crank, inputs, None);
