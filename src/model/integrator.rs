@@ -52,7 +52,9 @@
 //! Internal steps end exactly at t0 + h: when fewer than four steps remain they are made equal;
 //! a step shortened for that reason does not reduce the suggestion kept in [`IntegratorState`]
 //! unless its own error predicts that the suggested step would fail, so consecutive communication
-//! steps keep the natural step. No allocation on the success path; deterministic (the same
+//! steps keep the natural step; it raises the suggestion when its error supports a longer step
+//! (`h·0.9·err^(−1/6)`, at most 10·h), so a suggestion that once fell (transient, rejection)
+//! grows back instead of fixing the number of steps per call for good. No allocation on the success path; deterministic (the same
 //! inputs and state give bit-identical results; all arithmetic is plain IEEE f64 in a fixed
 //! order).
 
@@ -407,10 +409,15 @@ pub fn advance(
             fac = fac.min(1.0);
         }
         if shortened {
-            // Keep the natural step unless this step's error predicts that it would fail.
+            // Keep the natural step unless this step's error predicts that it would fail, but
+            // let it grow when the error of this (shorter) step allows a longer one: otherwise
+            // a suggestion that once fell (a transient, a rejection) could never recover while
+            // every step is an equal split of the communication step (with h_c = 1 ms and a
+            // suggestion of 0.32 ms the kvo630 run stayed at 4 steps per call for good).
             let predicted =
                 if err > 0.0 { h * SAFETY * err.powf(-EST_EXPONENT) } else { f64::INFINITY };
-            h_try = h_try.min(predicted.max(h * fac));
+            let supported = predicted.min(FAC_MAX * h);
+            h_try = if supported > h_try { supported } else { h_try.min(predicted.max(h * fac)) };
         } else {
             h_try = h * fac;
             err_prev = err_c;
@@ -868,6 +875,29 @@ mod tests {
         assert_eq!(stats2.steps - before.steps, 200, "{stats2:?}");
         assert_eq!(stats2.rhs_evals - before.rhs_evals, 100 * 17);
         assert!(st2.h_next > 5e-4 && st2.h_next < 1e-3, "{st2:?}");
+    }
+
+    #[test]
+    fn a_small_suggestion_recovers_within_equal_split_steps() {
+        // A suggestion far below the natural step (as after a transient or a rejection) makes
+        // every step of a 1 ms call an equal split of it; the error of those steps must still
+        // let the suggestion grow back: after a few calls the steady 2 steps per call of
+        // `suggested_step_survives_communication_points` are reached (it stayed at 5 before).
+        let tol = Kvo::new().tol(1e-8);
+        let mut r = Kvo::new();
+        let mut y = Kvo::new().initial();
+        let mut st = IntegratorState { h_next: 2e-4, err_prev: 0.0 };
+        let mut stats = IntegratorStats::default();
+        for i in 0..400 {
+            y = advance(&mut r, i as f64 * 1e-3, y, 1e-3, &tol, &mut st, &mut stats).unwrap();
+        }
+        let before = stats;
+        for i in 400..500 {
+            y = advance(&mut r, i as f64 * 1e-3, y, 1e-3, &tol, &mut st, &mut stats).unwrap();
+        }
+        assert_eq!(stats.rejected - before.rejected, 0, "{stats:?}");
+        assert_eq!(stats.steps - before.steps, 200, "{stats:?} {st:?}");
+        assert!(st.h_next > 5e-4, "{st:?}");
     }
 
     #[test]

@@ -47,9 +47,46 @@ impl PistonLaw {
         self.r * (epsilon * cos - omega * omega * sin)
     }
 
+    /// Kinematics, Δ, dΔ/dθ and Δ̈ at θ, from one sin_cos (what `kinematics` and `delta_ddot`
+    /// give separately).
+    #[inline]
+    pub fn at(&self, theta: f64, omega: f64, epsilon: f64) -> PistonPoint {
+        let (sin, cos) = theta.sin_cos();
+        self.at_sin_cos(sin, cos, omega, epsilon)
+    }
+
+    /// [`PistonLaw::at`] from sinθ, cosθ.
+    #[inline]
+    pub fn at_sin_cos(&self, sin: f64, cos: f64, omega: f64, epsilon: f64) -> PistonPoint {
+        PistonPoint {
+            k: Kinematics {
+                s: self.r * (1.0 - cos),
+                tf: self.r * sin,
+                tfp: self.r * cos,
+                rod_angle: 0.0,
+                rod_angle_rate: 0.0,
+            },
+            delta: self.r * sin - self.e,
+            delta_rate: self.r * cos,
+            delta_ddot: self.r * (epsilon * cos - omega * omega * sin),
+        }
+    }
+
     pub fn stroke(&self) -> f64 {
         2.0 * self.r
     }
+}
+
+/// The piston law at one instant (§6).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PistonPoint {
+    pub k: Kinematics,
+    /// Δ = r·sinθ − e [m].
+    pub delta: f64,
+    /// dΔ/dθ = r·cosθ [m/rad].
+    pub delta_rate: f64,
+    /// Δ̈ = r(ε·cosθ − ω²·sinθ) [m/s²].
+    pub delta_ddot: f64,
 }
 
 /// The elastic rod and its cage, validated; everything independent of P precomputed.
@@ -120,9 +157,15 @@ impl ElasticRod {
     /// J_m ϑ̈ + B_d ϑ̇ + K_ϑ(P)·ϑ = K_Δ(P)·Δ + e_P·P + m_f f_m·Δ̈.
     #[inline]
     pub fn acceleration(&self, bc: &BeamColumn, l: &CageLoads, x: &CageState) -> f64 {
-        (bc.k_delta * l.delta + self.load_eccentricity * l.rod_force + self.rigid_moment * l.delta_ddot
+        self.acceleration_with(bc.k_theta, bc.k_delta, l, x)
+    }
+
+    /// [`ElasticRod::acceleration`] with K_ϑ(P), K_Δ(P) given (from the stiffness table).
+    #[inline]
+    pub fn acceleration_with(&self, k_theta: f64, k_delta: f64, l: &CageLoads, x: &CageState) -> f64 {
+        (k_delta * l.delta + self.load_eccentricity * l.rod_force + self.rigid_moment * l.delta_ddot
             - self.damping * x.rate
-            - bc.k_theta * x.theta)
+            - k_theta * x.theta)
             / self.cage_inertia
     }
 
@@ -199,5 +242,8 @@ mod tests {
         let (w, eps) = (150.0, 20.0);
         let expect = 0.001 * (eps * 0.7f64.cos() - w * w * 0.7f64.sin());
         assert!((law.delta_ddot(0.7, w, eps) - expect).abs() < 1e-15);
+        let at = law.at(0.7, w, eps);
+        assert_eq!((at.k, at.delta, at.delta_rate), (k, d, dd));
+        assert_eq!(at.delta_ddot, law.delta_ddot(0.7, w, eps));
     }
 }

@@ -24,6 +24,7 @@ pub mod cage;
 pub mod fundamental_functions;
 pub mod stiffness;
 pub mod stress;
+pub mod table;
 
 pub use beam_column::BeamColumn;
 pub use fundamental_functions::{fundamental_functions, FundamentalFunctions};

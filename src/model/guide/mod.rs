@@ -13,6 +13,9 @@
 //! evaluation (none at all when no support is frame-fixed) gives everything the friction
 //! iteration needs, and the rigid-rod equation, piecewise linear in P, is solved exactly.
 
+// Index loops over the three supports mirror the formulas of §5.3.
+#![allow(clippy::needless_range_loop)]
+
 mod dense_solve;
 mod friction;
 mod link_beam;
@@ -26,7 +29,7 @@ mod tests;
 
 use crate::model::error::ModelError;
 use friction::{AffineReaction, FrictionLaw};
-use supports::{ForceMoment, Influence, LoadSet, SupportSystem};
+use supports::{ClampInfluence, ForceMoment, Influence, LoadSet, SupportSystem};
 
 /// `support_X.kind` (physics.md §5.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -137,6 +140,58 @@ pub struct GuideOutputs {
     pub reaction_c: f64,
     /// A's + B's + C's signed friction (`link.friction_total`).
     pub friction_total: f64,
+}
+
+/// The friction of the elastic-rod machine at one (s, v) as a function of the clamp loads
+/// (M0, V) (physics.md §5.3, §5.4), from [`Guide::clamp_friction`].
+#[derive(Clone, Copy, Debug)]
+pub struct ClampFriction<'a> {
+    infl: ClampInfluence,
+    laws: &'a [FrictionLaw; 3],
+    /// tanh(v/v_ε).
+    sign: f64,
+    s: f64,
+    v: f64,
+}
+
+impl ClampFriction<'_> {
+    /// Reactions of A, B, C and their signed friction for clamp loads (M0, V).
+    #[inline]
+    fn reactions_and_friction(&self, m0: f64, vc: f64) -> ([ForceMoment; 3], [f64; 3]) {
+        let mut at_p = [ForceMoment::default(); 3];
+        let mut fr = [0.0; 3];
+        for x in 0..3 {
+            at_p[x] = self.infl.base[x].plus_scaled(m0, self.infl.per_m0[x]).plus_scaled(vc, self.infl.per_v[x]);
+            fr[x] = -self.sign * self.laws[x].magnitude(at_p[x]);
+        }
+        (at_p, fr)
+    }
+
+    /// Total signed friction F_fr for clamp loads (M0, V) [N].
+    #[inline]
+    pub fn total(&self, m0: f64, vc: f64) -> f64 {
+        let (_, fr) = self.reactions_and_friction(m0, vc);
+        fr[0] + fr[1] + fr[2]
+    }
+
+    /// F_fr and its derivative along a direction of the clamp loads: with (M0, V) moving at
+    /// rates (dM0, dV) per unit of some parameter, the rate of F_fr (one-sided at a kink of
+    /// the friction law, where the branch the value takes is differentiated).
+    #[inline]
+    pub fn total_and_rate(&self, m0: f64, vc: f64, dm0: f64, dvc: f64) -> (f64, f64) {
+        let mut fr = [0.0; 3];
+        let mut rate = 0.0;
+        for x in 0..3 {
+            let fm = self.infl.base[x].plus_scaled(m0, self.infl.per_m0[x]).plus_scaled(vc, self.infl.per_v[x]);
+            fr[x] = -self.sign * self.laws[x].magnitude(fm);
+            let dfm = ForceMoment {
+                r: dm0 * self.infl.per_m0[x].r + dvc * self.infl.per_v[x].r,
+                m: dm0 * self.infl.per_m0[x].m + dvc * self.infl.per_v[x].m,
+            };
+            rate -= self.sign * self.laws[x].magnitude_rate(fm, dfm);
+        }
+        (fr[0] + fr[1] + fr[2], rate)
+    }
 }
 
 /// Reaction of one support.
@@ -266,7 +321,7 @@ impl Guide {
                 m: dq_dp * infl.per_q[x].m,
             },
         });
-        let sign = (v / self.velocity_scale).tanh();
+        let sign = friction::regularized_sign(v / self.velocity_scale);
         let k = friction::sensitivity(&self.laws, &affine);
         let k_unique = sign.abs() * k;
         // Written so that NaN also fails.
@@ -289,26 +344,62 @@ impl Guide {
         Ok(self.outputs(p, &at_p, &fr))
     }
 
+    /// The friction of the elastic-rod machine at one (s, v) as a function of the clamp loads
+    /// (§5.3, §5.4): the reactions are affine in (M0, V) at fixed s, so this is everything the
+    /// rod-force equation needs besides M0(P), V(P). Checks the inputs like the solvers.
+    #[inline]
+    pub fn clamp_friction(&self, s: f64, v: f64, p_base: f64) -> Result<ClampFriction<'_>, ModelError> {
+        self.check_inputs(s, v, p_base)?;
+        Ok(ClampFriction {
+            infl: self.system.clamp_influence(s)?,
+            laws: &self.laws,
+            sign: friction::regularized_sign(v / self.velocity_scale),
+            s,
+            v,
+        })
+    }
+
     /// Elastic rod clamped in the piston (§5.4, §6): the rod exerts moment M0 and transverse
     /// force V at z = L, both functions of P through `clamp_loads(P) -> (M0, V)`;
     /// `lateral_load` still acts at B's centre; no −P·tanβ term.
     ///
-    /// Solves `P = p_base + F_fr(P)` by the fixed-point iteration `P ← p_base + F_fr(P)`
-    /// (contracting while friction depends weakly on P) with the relative stopping test
-    /// |ΔP| ≤ 1e-14·max(|P|, |p_base|, |F_fr|); ModelError::Evaluation if it does not converge
-    /// within 200 iterations or `clamp_loads` returns non-finite values.
+    /// Solves `P = p_base + F_fr(P)` starting from P = p_base; see [`Guide::solve_clamp_from`].
     pub fn solve_with_clamp_loads(
         &self,
         s: f64,
         v: f64,
         p_base: f64,
+        clamp_loads: impl FnMut(f64) -> (f64, f64),
+    ) -> Result<GuideOutputs, ModelError> {
+        let cf = self.clamp_friction(s, v, p_base)?;
+        self.solve_clamp_from(&cf, p_base, p_base, clamp_loads)
+    }
+
+    /// Solves `P = g(P) = p_base + F_fr(P)` for the friction `cf` from the first iterate
+    /// `guess` (p_base when not finite) to the relative stopping test
+    /// |g(P) − P| ≤ 1e-14·max(|g(P)|, |p_base|, |F_fr|) (§4: machine precision), and returns
+    /// P = g(P_k) with the reactions and friction at the last iterate P_k, so that
+    /// P = p_base + friction_total holds exactly. ModelError::Evaluation if it does not converge
+    /// within 200 iterations or `clamp_loads` returns non-finite values.
+    ///
+    /// g is a contraction with a small slope (friction depends weakly on P, through the rod's
+    /// side loads), so the plain iteration P ← g(P) gains only the factor |g'| per clamp-loads
+    /// evaluation (each one a beam column, §6). The secant on g(P) − P through the last two
+    /// iterates converges superlinearly (2–3 evaluations from p_base, one from a good guess);
+    /// it is used only while the secant slope of g shows a contraction (|g'| < 1, which also
+    /// holds across the kinks of the friction law: g is Lipschitz), else the plain step is taken,
+    /// so where the plain iteration diverges the error of the contracting iteration is reported.
+    pub fn solve_clamp_from(
+        &self,
+        cf: &ClampFriction,
+        p_base: f64,
+        guess: f64,
         mut clamp_loads: impl FnMut(f64) -> (f64, f64),
     ) -> Result<GuideOutputs, ModelError> {
-        self.check_inputs(s, v, p_base)?;
-        let infl = self.system.influence(s, LoadSet::Clamp)?;
-        let sign = (v / self.velocity_scale).tanh();
-        let mut p = p_base;
+        let mut p = if guess.is_finite() { guess } else { p_base };
         let mut last_step = f64::INFINITY;
+        // (P_k, g(P_k)) of the previous iterate.
+        let mut previous: Option<(f64, f64)> = None;
         for _ in 0..MAX_FIXED_POINT_ITERATIONS {
             let (m0, vc) = clamp_loads(p);
             if !m0.is_finite() || !vc.is_finite() {
@@ -317,30 +408,36 @@ impl Guide {
                      (M0 = {m0} N·m, V = {vc} N)"
                 )));
             }
-            let mut at_p = [ForceMoment::default(); 3];
-            let mut fr = [0.0; 3];
-            for x in 0..3 {
-                at_p[x] = infl.base[x]
-                    .plus_scaled(m0, infl.per_m0[x])
-                    .plus_scaled(vc, infl.per_v[x]);
-                fr[x] = -sign * self.laws[x].magnitude(at_p[x]);
-            }
+            let (at_p, fr) = cf.reactions_and_friction(m0, vc);
             let f_total = fr[0] + fr[1] + fr[2];
             let next = p_base + f_total;
             let step = (next - p).abs();
             if step <= FIXED_POINT_TOLERANCE * next.abs().max(p_base.abs()).max(f_total.abs()) {
-                // Reactions and friction are those at the previous iterate, which differs from
+                // Reactions and friction are those at the last iterate, which differs from
                 // `next` by at most the tolerance; P = p_base + friction_total holds exactly.
                 return Ok(self.outputs(next, &at_p, &fr));
             }
             last_step = step;
-            p = next;
+            let mut candidate = next;
+            if let Some((p0, g0)) = previous {
+                let slope = (next - g0) / (p - p0); // secant slope of g
+                if slope.abs() < 1.0 {
+                    // Root of the secant of g(P) − P.
+                    let secant = p + (next - p) / (1.0 - slope);
+                    if secant.is_finite() {
+                        candidate = secant;
+                    }
+                }
+            }
+            previous = Some((p, next));
+            p = candidate;
         }
         Err(ModelError::evaluation(format!(
             "guide friction with the elastic rod: the fixed-point iteration P = p_base + F_fr(P) did \
-             not converge in {MAX_FIXED_POINT_ITERATIONS} iterations at s = {s} m (v = {v} m/s, \
+             not converge in {MAX_FIXED_POINT_ITERATIONS} iterations at s = {} m (v = {} m/s, \
              p_base = {p_base} N, last P = {p} N, last change {last_step} N): friction depends too \
-             strongly on the rod force (physics.md §4)"
+             strongly on the rod force (physics.md §4)",
+            cf.s, cf.v
         )))
     }
 

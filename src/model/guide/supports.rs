@@ -106,6 +106,14 @@ pub(super) struct Influence {
     pub load_point: f64,
 }
 
+/// The clamp load cases of an [`Influence`]: reactions = base + M0·per_m0 + V·per_v.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct ClampInfluence {
+    pub base: [ForceMoment; 3],
+    pub per_m0: [ForceMoment; 3],
+    pub per_v: [ForceMoment; 3],
+}
+
 /// Which load cases a caller needs (each is one right-hand side of the same factorisation).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum LoadSet {
@@ -439,6 +447,21 @@ impl SupportSystem {
             return Ok(infl);
         }
         self.solve(s / self.length, set, false)
+    }
+
+    /// The clamp load cases of [`SupportSystem::influence`] only (base, per M0, per V): what the
+    /// elastic rod's friction needs at every stage of the integrator, without copying the rest.
+    #[inline]
+    pub fn clamp_influence(&self, s: f64) -> Result<ClampInfluence, ModelError> {
+        if let Some((at_zero, rate)) = &self.precomputed {
+            let mut base = [ForceMoment::default(); 3];
+            for x in 0..3 {
+                base[x] = at_zero.base[x].plus_scaled(s, rate[x]);
+            }
+            return Ok(ClampInfluence { base, per_m0: at_zero.per_m0, per_v: at_zero.per_v });
+        }
+        let infl = self.solve(s / self.length, LoadSet::Clamp, false)?;
+        Ok(ClampInfluence { base: infl.base, per_m0: infl.per_m0, per_v: infl.per_v })
     }
 
     /// Reactions at scaled s̃: by static condensation onto the frame-fixed contacts when the

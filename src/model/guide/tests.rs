@@ -588,6 +588,91 @@ fn solve_with_clamp_loads_matches_brute_force() {
     }
 }
 
+/// The secant acceleration: from p_base the solve needs at most four clamp-load evaluations
+/// for a kvo630-like P dependence (the plain iteration needed ~6), a single one from a guess
+/// within the tolerance, and it returns the same P as from p_base (within the tolerance).
+#[test]
+fn clamp_solve_converges_in_few_evaluations_and_from_a_guess() {
+    let mut spec = kvo630();
+    spec.lateral_load = 0.3;
+    let g = guide(&spec, 0.002);
+    let loads = |p: f64| (2e-4 * p + 1e-3 + 1e-8 * p * p, -0.05 * p + 0.2);
+    for i in 0..=20 {
+        let s = 0.002 * i as f64 / 20.0;
+        for &(pb, v) in &[(14.7, 0.1), (-20.0, -0.05), (5.0, 0.001)] {
+            let cf = g.clamp_friction(s, v, pb).unwrap();
+            let mut n = 0;
+            let out = g.solve_clamp_from(&cf, pb, pb, |p| {
+                n += 1;
+                loads(p)
+            })
+            .unwrap();
+            assert!(n <= 4, "s {s}, p_base {pb}: {n} evaluations");
+            let mut n1 = 0;
+            let again = g.solve_clamp_from(&cf, pb, out.rod_force, |p| {
+                n1 += 1;
+                loads(p)
+            })
+            .unwrap();
+            assert_eq!(n1, 1);
+            assert!((again.rod_force - out.rod_force).abs() <= 1e-14 * out.rod_force.abs());
+        }
+    }
+}
+
+/// `ClampFriction::total_and_rate` against central differences of `total` along the direction
+/// (dM0, dV), away from kinks, and `total` against the friction of `reactions`: for the kvo630
+/// link (influence precomputed) and for the default machine's three supports, whose gland C is
+/// frame-fixed and elastic (influence solved at every s), all three rubbing.
+#[test]
+fn clamp_friction_rate_matches_finite_differences() {
+    let mut spec = kvo630();
+    spec.lateral_load = 0.3;
+    let mut three = GuideSpec::default_machine();
+    three.supports[0].friction = 0.15;
+    three.supports[2].friction = 0.2;
+    let mut checked = 0;
+    for (spec, stroke, scale) in [(spec, 0.002, 1.0), (three, STROKE, 1e3)] {
+        let g = guide(&spec, stroke);
+        for i in 0..=10 {
+            let s = stroke * i as f64 / 10.0;
+            for &v in &[0.1, -0.03, 0.005] {
+                let cf = g.clamp_friction(s, v, 1.0).unwrap();
+                for &(m0, vc) in &[(1e-3, 0.2), (-4e-3, 0.5), (2e-3, -1.0), (0.0, 0.05)] {
+                    let (m0, vc) = (m0 * scale, vc * scale);
+                    let t = (v / spec.velocity_scale).tanh();
+                    let rs = g.reactions(s, 0.0, m0, vc).supports;
+                    let mut brute = 0.0;
+                    for x in 0..3 {
+                        let n = if spec.supports[x].kind == SupportKind::Pin {
+                            rs[x].force.abs()
+                        } else {
+                            rs[x].edge_force_1.abs() + rs[x].edge_force_2.abs()
+                        };
+                        brute += -t * spec.supports[x].friction * n;
+                    }
+                    assert!((cf.total(m0, vc) - brute).abs() <= 1e-13 * brute.abs().max(1e-12), "{} {brute}", cf.total(m0, vc));
+                    let (dm0, dvc) = (3e-4, -0.02);
+                    let (f, rate) = cf.total_and_rate(m0, vc, dm0, dvc);
+                    assert_eq!(f, cf.total(m0, vc));
+                    // Piecewise linear in (M0, V): the difference is exact within a piece, so a long
+                    // step keeps rounding out of it.
+                    let h = 1e-2 * scale;
+                    let (fp, fm) = (cf.total(m0 + h * dm0, vc + h * dvc), cf.total(m0 - h * dm0, vc - h * dvc));
+                    let fd = (fp - fm) / (2.0 * h);
+                    // Skip a kink inside the difference interval (one-sided slopes differ there).
+                    let one_sided = ((fp - f) / h - (f - fm) / h).abs();
+                    if one_sided <= 1e-6 * fd.abs().max(1e-9) {
+                        assert!((rate - fd).abs() <= 1e-6 * fd.abs().max(1e-9), "s {s} v {v}: {rate} vs {fd}");
+                        checked += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert!(checked > 160, "{checked}");
+}
+
 // ---------------------------------------------------------------------------------------------
 // The default machine over a revolution against the independent FE model
 
