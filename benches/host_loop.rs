@@ -113,10 +113,54 @@ fn run(api: &Api, sc: &Scenario, steps: usize) -> f64 {
     ns
 }
 
+/// Work of the cage-equation integrator for kvo630 (the pure model, no FMI layer): right-hand-side
+/// evaluations per simulated second at three communication step sizes, default tolerance.
+fn kvo630_rhs_evaluations() {
+    use reciprocating_drive::model::crank::CrankState;
+    use reciprocating_drive::model::drive::{Inputs, Model};
+    use reciprocating_drive::model::integrator::IntegratorStats;
+    use reciprocating_drive::model::params::Params;
+    let mut p = Params::default();
+    p.crank_radius = 0.001;
+    p.mass = 0.02;
+    p.load_mean = 14.7;
+    p.link_lengths = [0.010, 0.0, 0.0, 0.0];
+    p.link_diameters = [0.008, 0.0, 0.0, 0.0];
+    p.supports[0].kind = 0;
+    p.supports[2].kind = 0;
+    p.supports[1].z = 0.005;
+    p.supports[1].length = 0.010;
+    p.supports[1].offset = 0.0;
+    p.supports[1].tilt = 0.0;
+    p.rod_kind = 2;
+    let Ok(model) = Model::new(&p) else { panic!("kvo630 parameters rejected") };
+    let w = 2.0 * std::f64::consts::PI * 1500.0 / 60.0;
+    let inputs = Inputs::default();
+    for h in [1e-4f64, 1e-3, 1e-2] {
+        let crank0 = CrankState { angle: 0.0, speed: w, acceleration: 0.0 };
+        let mut state = model.initial_rod_state(&crank0, &inputs).unwrap_or_else(|e| panic!("{e}"));
+        let mut stats = IntegratorStats::default();
+        let n = (1.0 / h).round() as usize;
+        for k in 0..n {
+            let crank = CrankState { angle: w * k as f64 * h, speed: w, acceleration: 0.0 };
+            state = model
+                .step(&crank, &inputs, &state, h, model.default_tolerance(), &mut stats)
+                .unwrap_or_else(|e| panic!("{e}"));
+        }
+        println!(
+            "kvo630 cage equation, h = {h:e} s: {} RHS evaluations per simulated second ({} steps, {} rejected)",
+            stats.rhs_evals, stats.steps, stats.rejected
+        );
+    }
+}
+
 fn main() {
     let filter: Option<String> = std::env::args().skip(1).find(|a| !a.starts_with('-'));
     let api = Api::load();
     println!("library: {}", library_path().display());
+    if filter.as_ref().is_none_or(|f| "kvo630".contains(f.as_str())) {
+        kvo630_rhs_evaluations();
+    }
     for sc in SCENARIOS {
         if filter.as_ref().is_some_and(|f| !sc.name.contains(f.as_str())) {
             continue;
