@@ -120,19 +120,21 @@ fn kvo630_rhs_evaluations() {
     use reciprocating_drive::model::drive::{Inputs, Model};
     use reciprocating_drive::model::integrator::IntegratorStats;
     use reciprocating_drive::model::params::Params;
-    let mut p = Params::default();
-    p.crank_radius = 0.001;
-    p.mass = 0.02;
-    p.load_mean = 14.7;
-    p.link_lengths = [0.010, 0.0, 0.0, 0.0];
-    p.link_diameters = [0.008, 0.0, 0.0, 0.0];
+    let mut p = Params {
+        crank_radius: 0.001,
+        mass: 0.02,
+        load_mean: 14.7,
+        link_lengths: [0.010, 0.0, 0.0, 0.0],
+        link_diameters: [0.008, 0.0, 0.0, 0.0],
+        rod_kind: 2,
+        ..Params::default()
+    };
     p.supports[0].kind = 0;
     p.supports[2].kind = 0;
     p.supports[1].z = 0.005;
     p.supports[1].length = 0.010;
     p.supports[1].offset = 0.0;
     p.supports[1].tilt = 0.0;
-    p.rod_kind = 2;
     let Ok(model) = Model::new(&p) else { panic!("kvo630 parameters rejected") };
     let w = 2.0 * std::f64::consts::PI * 1500.0 / 60.0;
     let inputs = Inputs::default();

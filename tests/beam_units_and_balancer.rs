@@ -6,7 +6,10 @@ mod common;
 use common::*;
 use std::f64::consts::PI;
 
-const SK8: &[(&str, f64)] = &[
+/// Parameter settings as (name, value).
+type Settings<'a> = &'a [(&'a str, f64)];
+
+const SK8: Settings = &[
     ("geometry.beam_front_arm", 3.5),
     ("geometry.beam_rear_arm", 2.5),
     ("geometry.pivot_dx", 2.195),
@@ -90,7 +93,7 @@ fn class_1_position_matches_an_independent_loop_solution() {
 #[test]
 fn invalid_beam_geometries_are_rejected_through_the_c_abi() {
     let api = Api::load();
-    let cases: &[(i32, &[(&str, f64)], &[&str])] = &[
+    let cases: &[(i32, Settings, &[&str])] = &[
         (2, &[("geometry.crank_radius", 2.6)], &["shortest", "geometry.crank_radius", "2.6"]),
         (2, &[("geometry.rod_length", 1.2)], &["Grashof", "geometry.rod_length", "1.2"]),
         (3, &[("geometry.pivot_dx", 40.0)], &["does not assemble", "geometry.pivot_dx", "40"]),
@@ -123,13 +126,14 @@ fn virtual_power_identity_for_every_mechanism_and_rotation() {
     // a cosine profile, a balancer of given stiffness, and guide friction where the supports
     // allow (the crank-slider's default supports; a single clamp for the beam units).
     let api = Api::load();
-    let machines: Vec<(i32, i32, Vec<(&str, f64)>)> = vec![
-        (1, 1, vec![]),
-        (1, 1, vec![("geometry.slider_offset", 0.1)]),
-        (2, 1, SK8.to_vec()),
-        (2, -1, SK8.to_vec()),
-        (3, 1, vec![("geometry.beam_front_arm", 3.8), ("geometry.beam_rear_arm", 2.4), ("geometry.pivot_dx", 1.4), ("geometry.pivot_dy", 3.2), ("geometry.rod_length", 3.4), ("geometry.crank_radius", 0.9)]),
-        (3, -1, vec![("geometry.beam_front_arm", 3.8), ("geometry.beam_rear_arm", 2.4), ("geometry.pivot_dx", 1.4), ("geometry.pivot_dy", 3.2), ("geometry.rod_length", 3.4), ("geometry.crank_radius", 0.9)]),
+    let mark2: Settings = &[("geometry.beam_front_arm", 3.8), ("geometry.beam_rear_arm", 2.4), ("geometry.pivot_dx", 1.4), ("geometry.pivot_dy", 3.2), ("geometry.rod_length", 3.4), ("geometry.crank_radius", 0.9)];
+    let machines: Vec<(i32, i32, Settings)> = vec![
+        (1, 1, &[]),
+        (1, 1, &[("geometry.slider_offset", 0.1)]),
+        (2, 1, SK8),
+        (2, -1, SK8),
+        (3, 1, mark2),
+        (3, -1, mark2),
     ];
     for (mech, rot, reals) in machines {
         let f = Inst::new(&api, "vp");
@@ -139,7 +143,7 @@ fn virtual_power_identity_for_every_mechanism_and_rotation() {
         if mech != 1 {
             f.single_clamp();
         }
-        for (n, v) in &reals {
+        for (n, v) in reals {
             assert_eq!(f.set(n, *v), OK);
         }
         assert_eq!(f.set("load.mean", -4.0e4), OK);

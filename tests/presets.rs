@@ -24,7 +24,10 @@ fn parse(text: &str) -> Vec<(String, String, String)> {
     out
 }
 
-fn presets() -> Vec<(String, Vec<(String, String, String)>)> {
+/// (preset name, its (name, type, value) entries).
+type Preset = (String, Vec<(String, String, String)>);
+
+fn presets() -> Vec<Preset> {
     let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/resources/presets");
     let mut v: Vec<_> = std::fs::read_dir(dir)
         .expect("resources/presets")

@@ -193,20 +193,9 @@ impl ElasticRod {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::elastic_rod::RodKind;
 
     fn kvo630() -> ElasticRod {
-        let spec = RodSpec {
-            kind: RodKind::HelicalSpring,
-            flex_length: 0.023,
-            rigid_length: 0.015,
-            wire_diameter: 0.001,
-            coil_diameter: 0.005,
-            coils: 8.0,
-            e_modulus: 2.06e11,
-            poisson: 0.304,
-        };
-        ElasticRod::new(spec, 5e-7, 0.05, 0.0, 0.0, 0.0, 0.0).unwrap()
+        ElasticRod::new(crate::model::elastic_rod::tests::kvo630(), 5e-7, 0.05, 0.0, 0.0, 0.0, 0.0).unwrap()
     }
 
     #[test]

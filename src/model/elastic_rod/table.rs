@@ -313,33 +313,8 @@ fn fit_cell(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::elastic_rod::{RodKind, RodSpec};
-
-    fn kvo630() -> RodSpec {
-        RodSpec {
-            kind: RodKind::HelicalSpring,
-            flex_length: 0.023,
-            rigid_length: 0.015,
-            wire_diameter: 1e-3,
-            coil_diameter: 5e-3,
-            coils: 8.0,
-            e_modulus: 2.06e11,
-            poisson: 0.304,
-        }
-    }
-
-    fn thin_rod() -> RodSpec {
-        RodSpec {
-            kind: RodKind::ThinRod,
-            flex_length: 0.12,
-            rigid_length: 0.03,
-            wire_diameter: 2e-3,
-            coil_diameter: 0.0,
-            coils: 0.0,
-            e_modulus: 2.1e11,
-            poisson: 0.3,
-        }
-    }
+    use crate::model::elastic_rod::tests::{kvo630, thin_rod};
+    use crate::model::elastic_rod::RodSpec;
 
     fn exact(st: &RodStiffness, spec: &RodSpec, p: f64) -> [f64; FUNCTIONS] {
         coefficients(&BeamColumn::new(st, spec.flex_length, spec.rigid_length, p).unwrap())

@@ -293,8 +293,8 @@ fn fundamental_functions_derivatives_by_finite_differences() {
 // Stiffness
 // ---------------------------------------------------------------------------------------------
 
-/// The kvo630 spring of physics.md §8.
-fn kvo630() -> RodSpec {
+/// The kvo630 spring of physics.md §8 (shared by the elastic-rod test modules).
+pub(super) fn kvo630() -> RodSpec {
     RodSpec {
         kind: RodKind::HelicalSpring,
         flex_length: 0.023,
@@ -307,7 +307,8 @@ fn kvo630() -> RodSpec {
     }
 }
 
-fn thin_rod() -> RodSpec {
+/// A thin steel rod (shared by the elastic-rod test modules).
+pub(super) fn thin_rod() -> RodSpec {
     RodSpec {
         kind: RodKind::ThinRod,
         flex_length: 0.12,
