@@ -177,10 +177,6 @@ impl Instance {
         }
     }
 
-    pub fn mode(&self) -> Mode {
-        self.core.mode
-    }
-
     pub fn time(&self) -> f64 {
         self.core.time
     }

@@ -39,10 +39,6 @@ impl Logger {
         Logger { callback, environment, instance_name, debug_logging: logging_on, enabled: [true; 4] }
     }
 
-    pub fn instance_name(&self) -> &str {
-        self.instance_name.to_str().unwrap_or("?")
-    }
-
     /// fmi2SetDebugLogging: no categories given means all of them.
     pub fn set_debug_logging(&mut self, on: bool, categories: &[&str]) -> Result<(), String> {
         let mut enabled = [categories.is_empty(); 4];

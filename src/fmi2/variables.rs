@@ -439,12 +439,18 @@ pub fn value_reference(name: &str) -> Option<usize> {
     VARIABLES.iter().position(|v| v.name == name)
 }
 
-/// Value reference of the input bound to `slot`.
+/// Value reference of the input bound to `slot` (found once, then an array look-up: the step
+/// reads inputs through it).
 pub fn input_vr(slot: InputSlot) -> usize {
-    VARIABLES
-        .iter()
-        .position(|v| matches!(v.binding, Binding::Input { slot: s, .. } if s == slot))
-        .unwrap_or(usize::MAX)
+    static VRS: std::sync::OnceLock<[usize; 4]> = std::sync::OnceLock::new();
+    VRS.get_or_init(|| {
+        [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce].map(|slot| {
+            VARIABLES
+                .iter()
+                .position(|v| matches!(v.binding, Binding::Input { slot: s, .. } if s == slot))
+                .unwrap_or(usize::MAX)
+        })
+    })[slot as usize]
 }
 
 #[cfg(test)]

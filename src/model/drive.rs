@@ -287,11 +287,6 @@ impl Model {
         }
     }
 
-    /// The balancer in use, if enabled.
-    pub fn balancer(&self) -> Option<&Balancer> {
-        self.balancer.as_ref()
-    }
-
     /// Position-level kinematics at the model angle θ (offset already applied).
     #[inline]
     pub fn kinematics_at(&self, theta: f64) -> Kinematics {
