@@ -14,8 +14,8 @@ import pathlib
 import shutil
 import sys
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from presets import preset_values_from_fmu  # noqa: E402
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "python"))
+from reciprocating_drive.presets import preset_values_from_fmu  # noqa: E402
 
 
 def main(fmu="target/fmu/ReciprocatingDrive.fmu", preset="sk8-3.5-4000"):

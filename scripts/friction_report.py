@@ -28,8 +28,8 @@ import tempfile
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "scripts"))
-from presets import preset_values  # noqa: E402
+sys.path.insert(0, str(ROOT / "python"))
+from reciprocating_drive.presets import preset_values  # noqa: E402
 
 GOLDEN = (math.sqrt(5) - 1) / 2
 

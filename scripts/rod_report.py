@@ -26,9 +26,9 @@ import time
 import numpy as np
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "scripts"))
+sys.path.insert(0, str(ROOT / "python"))
 sys.path.insert(0, str(ROOT / "tests" / "python"))
-from presets import preset_values  # noqa: E402
+from reciprocating_drive.presets import preset_values  # noqa: E402
 from rod_reference import Drive, Motion  # noqa: E402
 
 T_END, H, TARGET = 1.0, 1e-3, 1e-7

@@ -19,8 +19,8 @@ import math
 import pathlib
 import sys
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from presets import PRESET_DIR, available_presets, preset_values  # noqa: E402
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "python"))
+from reciprocating_drive.presets import PRESET_DIR, available_presets, preset_values  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 OUTPUTS = [

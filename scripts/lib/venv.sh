@@ -62,6 +62,7 @@ ensure_venv() {
     export VENV_PYTHON
     if [ -f "$venv/.requirements.sha256" ] && [ "$(cat "$venv/.requirements.sha256")" = "$want" ] \
         && "$VENV_PYTHON" -c 'import fmpy, libcosimpy, pytest, matplotlib, numpy, scipy, mpmath' 2>/dev/null; then
+        _venv_link_package "$root"
         return 0
     fi
     _venv_system_libs
@@ -76,4 +77,14 @@ ensure_venv() {
     "$VENV_PYTHON" -m pip install --quiet --disable-pip-version-check --no-input -r "$req"
     "$VENV_PYTHON" -c 'import fmpy, libcosimpy, pytest, matplotlib, numpy, scipy, mpmath'
     echo "$want" > "$venv/.requirements.sha256"
+    _venv_link_package "$root"
+}
+
+# Makes the project's Python package (python/reciprocating_drive) importable in the venv, as an
+# editable install would: a .pth file naming this checkout's python/ folder.
+_venv_link_package() {
+    local root="$1" site
+    site="$("$VENV_PYTHON" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
+    [ "$(cat "$site/reciprocating_drive.pth" 2>/dev/null)" = "$root/python" ] \
+        || echo "$root/python" > "$site/reciprocating_drive.pth"
 }

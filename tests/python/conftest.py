@@ -16,6 +16,8 @@ import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+# The project's Python package (python/reciprocating_drive), ahead of any installed copy.
+sys.path.insert(0, str(ROOT / "python"))
 
 
 def _fmu_path() -> pathlib.Path:

@@ -27,8 +27,8 @@ import numpy as np
 import pytest
 from fmpy.fmi2 import FMU2Slave
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "scripts"))
-from presets import preset_values  # noqa: E402
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "python"))
+from reciprocating_drive.presets import preset_values  # noqa: E402
 from rod_reference import Buckled, Drive, Motion, Rod, fundamental, SERIES_CUT  # noqa: E402
 
 KVO = preset_values("kvo630")

@@ -45,8 +45,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "scripts"))
-from presets import preset_values  # noqa: E402
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "python"))
+from reciprocating_drive.presets import preset_values  # noqa: E402
 
 OMEGA = 2 * math.pi * 65 / 60
 N_REV = 720  # points per revolution (0.5°)

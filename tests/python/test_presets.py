@@ -18,8 +18,8 @@ import zipfile
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "scripts"))
-from presets import preset_values_from_fmu  # noqa: E402
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "python"))
+from reciprocating_drive.presets import preset_values_from_fmu  # noqa: E402
 
 PRESETS = ["unb600a", "sk8-3.5-4000", "kvo630"]
 OUTS = ["suspension.position", "suspension.acceleration", "inertia.force", "rod.force", "crank.torque"]
