@@ -214,11 +214,11 @@ macro_rules! output {
 pub static VARIABLES: &[Var] = &[
     // ---- inputs (physics.md §2, §4)
     input!("crank.angle", CrankAngle, 0.0, "rad",
-        "Crank angle theta_in; model angle = crank.angle + crank.angle_offset. Crank-slider: 0 = crank along the stroke axis toward the crosshead (outer dead centre for zero offset). Increases in the direction of rotation."),
+        "Crank angle theta_in, authoritative at the communication point where it is set; between sets the FMU carries it forward itself (theta_in += omega*h + epsilon*h^2/2 per step), so the angle the outputs belong to is crank.model_angle, not necessarily this value. Crank-slider: 0 = crank along the stroke axis toward the crosshead (outer dead centre for zero offset). Increases in the direction of rotation."),
     input!("crank.speed", CrankSpeed, DEFAULT_CRANK_SPEED, "rad/s",
-        "Crank angular speed omega = d(theta)/dt"),
+        "Crank angular speed omega = d(theta)/dt, authoritative where set; between sets carried forward with crank.acceleration (omega += epsilon*h per step): see crank.model_speed"),
     input!("crank.acceleration", CrankAcceleration, 0.0, "rad/s2",
-        "Crank angular acceleration epsilon; used for a = TF*epsilon + TF'*omega^2 and to extrapolate the crank inside a step. Supply it when the speed varies."),
+        "Crank angular acceleration epsilon; used for a = TF*epsilon + TF'*omega^2 and to carry the crank angle and speed forward inside and between steps (held until set again). Supply it when the speed varies."),
     input!("link.external_force", ExternalForce, 0.0, "N",
         "Process force on the link, positive along +s (toward the crank for the crank-slider); added to the load.profile force"),
     // ---- outputs (physics.md §2, §3, §4)
@@ -380,6 +380,12 @@ pub static VARIABLES: &[Var] = &[
         "Rigid rod: its side load -P*tan(beta) acts on the link at B's centre (physics.md 5.4)"),
     output!(CalculatedParameter, Fixed, "balancer.stiffness_used", balancer_stiffness_used, "N/m", [],
         "Balancer stiffness k_b in use (from balancer.tuning); 0 when the balancer is off"),
+    // ---- the crank state the outputs belong to (§2); appended, so that earlier value
+    // references stay what they were.
+    output!("crank.model_angle", model_angle, "rad", [CrankAngle],
+        "Model angle theta the outputs belong to: crank.angle as last set plus crank.angle_offset, carried forward by every step since (theta += omega*h + epsilon*h^2/2); restored with the FMU state"),
+    output!("crank.model_speed", model_speed, "rad/s", [CrankSpeed],
+        "Crank speed omega the outputs belong to: crank.speed as last set, carried forward by every step since (omega += epsilon*h); restored with the FMU state"),
 ];
 
 /// Units used by the table, with their SI base-unit exponents (kg, m, s, rad) for

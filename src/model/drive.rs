@@ -39,6 +39,11 @@ pub struct RodState {
 /// Every output of physics.md §10.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Outputs {
+    /// The model angle θ the other outputs belong to: the crank angle as last set plus
+    /// `crank.angle_offset`, carried forward through the steps since (§2).
+    pub model_angle: f64,
+    /// The crank speed ω the other outputs belong to (as last set, carried forward with ε).
+    pub model_speed: f64,
     pub position: f64,
     pub velocity: f64,
     pub acceleration: f64,
@@ -297,10 +302,17 @@ impl Model {
         }
     }
 
+    /// The model angle θ = θ_in + `crank.angle_offset` (§2), θ_in being the crank angle as the
+    /// FMU knows it: the value last set, carried forward by the steps since.
+    #[inline]
+    pub fn model_angle(&self, crank: &CrankState) -> f64 {
+        crank.angle + self.params.crank_angle_offset
+    }
+
     /// Position-level kinematics at the model angle θ = θ_in + offset (§2).
     #[inline]
     pub fn kinematics(&self, crank: &CrankState) -> Kinematics {
-        self.kinematics_at(crank.angle + self.params.crank_angle_offset)
+        self.kinematics_at(self.model_angle(crank))
     }
 
     /// The link's kinematics and the loads on it that do not depend on P (§2–§4, §7); for an
@@ -310,7 +322,7 @@ impl Model {
     fn link_loads(&self, crank: &CrankState, inputs: &Inputs, sin_cos: Option<(f64, f64)>) -> LinkLoads {
         let p = &self.params;
         let (w, eps) = (crank.speed, crank.acceleration);
-        let theta = crank.angle + p.crank_angle_offset;
+        let theta = self.model_angle(crank);
         let (k, piston) = match &self.mechanism {
             Mechanism::CrankSlider(m) => (m.kinematics(theta), None),
             Mechanism::BeamUnit(m) => (m.kinematics(theta), None),
@@ -448,6 +460,8 @@ impl Model {
         let i = self.instant(crank, inputs, &rod.cage)?;
         let rod_force = i.guide.rod_force;
         *out = Outputs {
+            model_angle: self.model_angle(crank),
+            model_speed: crank.speed,
             position: i.k.s,
             velocity: i.velocity,
             acceleration: i.acceleration,
@@ -486,7 +500,7 @@ impl Model {
         if self.params.rod_initial_state == 0 {
             return Ok(RodState { cage, ..RodState::default() });
         }
-        let theta = crank.angle + self.params.crank_angle_offset;
+        let theta = self.model_angle(crank);
         let delta_dot = law.kinematics(theta).2 * crank.speed;
         // P depends on ϑ only through the guide friction (weakly): a contracting iteration.
         for _ in 0..100 {
@@ -533,7 +547,7 @@ impl Model {
             p_tolerance: STAGE_P_TOLERANCE_FACTOR * tol,
             friction_guess: 0.0,
             cell_hint: 0,
-            sin_cos0: (crank.angle + self.params.crank_angle_offset).sin_cos(),
+            sin_cos0: self.model_angle(crank).sin_cos(),
         };
         let mut integ = state.integrator;
         let y = integrator::advance(

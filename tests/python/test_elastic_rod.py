@@ -20,14 +20,11 @@ from __future__ import annotations
 
 import functools
 import math
-import pathlib
-import sys
 
 import numpy as np
 import pytest
 from fmpy.fmi2 import FMU2Slave
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "python"))
 from reciprocating_drive.presets import preset_values  # noqa: E402
 from rod_reference import Buckled, Drive, Motion, Rod, fundamental, SERIES_CUT  # noqa: E402
 

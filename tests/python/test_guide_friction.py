@@ -45,7 +45,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "python"))
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "scripts"))
 from reciprocating_drive.presets import preset_values  # noqa: E402
 
 OMEGA = 2 * math.pi * 65 / 60

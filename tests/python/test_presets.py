@@ -11,14 +11,11 @@ few revolutions in fmpy and in libcosim, and both importers agree (same binary, 
 from __future__ import annotations
 
 import math
-import sys
-import pathlib
 import zipfile
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "python"))
 from reciprocating_drive.presets import preset_values_from_fmu  # noqa: E402
 
 PRESETS = ["unb600a", "sk8-3.5-4000", "kvo630"]

@@ -31,6 +31,9 @@ SPEC_OUTPUTS = {
     "rod.axial_deflection": "m",
     "balancer.force": "N",
     "balancer.residual": "N",
+    # Added to the contract: the crank state the outputs belong to (docs/model.md §2).
+    "crank.model_angle": "rad",
+    "crank.model_speed": "rad/s",
 }
 # The outputs the crank-slider kinematics and loads (§2, §3.1, §4) need; later features add more.
 REQUIRED_OUTPUTS = list(SPEC_OUTPUTS)[:9]
@@ -84,6 +87,9 @@ def test_output_dependencies_are_the_true_feedthrough(model_description):
         "inertia.force": {theta, omega, eps},
         "rod.force": {theta, omega, eps, f},
         "crank.torque": {theta, omega, eps, f},
+        # The crank state itself: the angle as set (carried forward), the speed as set.
+        "crank.model_angle": {theta},
+        "crank.model_speed": {omega},
     }
     got = {u.variable.name: {d.name for d in (u.dependencies or [])} for u in md.outputs}
     for name, deps in expected.items():
