@@ -1,29 +1,51 @@
 #!/usr/bin/env bash
-# Builds the FMU in release mode and packages target/fmu/ReciprocatingDrive.fmu:
-#   modelDescription.xml, binaries/linux64/ReciprocatingDrive.so, resources/, documentation/
+# Builds the FMUs in release mode and packages each as target/fmu/<modelIdentifier>.fmu:
+#   modelDescription.xml, binaries/linux64/<modelIdentifier>.so, resources/, documentation/
 # Installs libclang (bindgen, for the fmi-sys FMI 2.0 types) when it is missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/lib/ensure-build-deps.sh
 ensure_build_deps
 
-cargo build --release --lib
-cargo run --release --quiet --bin gen-model-description > target/modelDescription.xml
-if ! cmp -s target/modelDescription.xml modelDescription/modelDescription.xml; then
-    echo "build-fmu.sh: modelDescription/modelDescription.xml is stale; regenerate it with" >&2
-    echo "  cargo run --bin gen-model-description > modelDescription/modelDescription.xml" >&2
-    exit 1
-fi
+# The FMUs this repository builds, by modelIdentifier. Each has a cdylib crate
+# cdylib/<modelIdentifier>/ (cargo names its library lib<modelIdentifier>.so) and a checked-in
+# modelDescription (see model_description_file).
+MODELS=(ReciprocatingDrive)
 
-stage=target/fmu/stage
-rm -rf "$stage" && mkdir -p "$stage/binaries/linux64" "$stage/documentation" "$stage/resources"
-cp modelDescription/modelDescription.xml "$stage/"
-# cargo names the library lib<crate>.so; the FMU's binary must be named <modelIdentifier>.so.
-cp target/release/libreciprocating_drive.so "$stage/binaries/linux64/ReciprocatingDrive.so"
-cargo run --release --quiet --bin gen-model-description -- --doc > "$stage/documentation/index.html"
-if compgen -G "resources/*" > /dev/null; then cp -r resources/. "$stage/resources/"; fi
-rm -f target/fmu/ReciprocatingDrive.fmu
-python3 - "$stage" target/fmu/ReciprocatingDrive.fmu <<'PY'
+# Where the generated modelDescription.xml of a model is checked in.
+model_description_file() {
+    if [ "$1" = ReciprocatingDrive ]; then
+        echo modelDescription/modelDescription.xml
+    else
+        echo "modelDescription/$1.xml"
+    fi
+}
+
+cargo build --release --workspace --lib
+cargo build --release --quiet --bin gen-model-description
+gen=target/release/gen-model-description
+
+for id in "${MODELS[@]}"; do
+    md=$(model_description_file "$id")
+    "$gen" --model "$id" > "target/modelDescription-$id.xml"
+    if ! cmp -s "target/modelDescription-$id.xml" "$md"; then
+        echo "build-fmu.sh: $md is stale; regenerate it with" >&2
+        echo "  cargo run --bin gen-model-description -- --model $id > $md" >&2
+        exit 1
+    fi
+
+    stage=target/fmu/stage-$id
+    rm -rf "$stage" && mkdir -p "$stage/binaries/linux64" "$stage/documentation" "$stage/resources"
+    cp "$md" "$stage/modelDescription.xml"
+    # cargo names the library lib<crate>.so; the FMU's binary must be named <modelIdentifier>.so.
+    cp "target/release/lib$id.so" "$stage/binaries/linux64/$id.so"
+    "$gen" --model "$id" --doc > "$stage/documentation/index.html"
+    # Resources (presets, data) belong to the ReciprocatingDrive FMU.
+    if [ "$id" = ReciprocatingDrive ] && compgen -G "resources/*" > /dev/null; then
+        cp -r resources/. "$stage/resources/"
+    fi
+    rm -f "target/fmu/$id.fmu"
+    python3 - "$stage" "target/fmu/$id.fmu" <<'PY'
 import os, sys, zipfile
 stage, out = sys.argv[1], sys.argv[2]
 with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
@@ -32,4 +54,5 @@ with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as z:
             p = os.path.join(root, f)
             z.write(p, os.path.relpath(p, stage).replace(os.sep, "/"))
 PY
-echo "wrote target/fmu/ReciprocatingDrive.fmu"
+    echo "wrote target/fmu/$id.fmu"
+done

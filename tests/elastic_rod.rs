@@ -275,10 +275,11 @@ fn fmu_state_save_restore_continues_bit_for_bit_with_the_integrator_memory() {
     assert_eq!(f.set_state(s), OK);
     let reference_long = cont_long(&f);
     use reciprocating_drive::fmi2::fmu_state;
-    let mut core = fmu_state::deserialize(&bytes).expect("decode");
-    assert!(core.rod.integrator.h_next > 0.0, "a step-size suggestion is carried: {:?}", core.rod.integrator);
-    core.rod.integrator = Default::default();
-    let wiped = fmu_state::serialize(&core).unwrap();
+    use reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive;
+    let mut core = fmu_state::deserialize::<ReciprocatingDrive>(&bytes).expect("decode");
+    assert!(core.state.rod.integrator.h_next > 0.0, "a step-size suggestion is carried: {:?}", core.state.rod.integrator);
+    core.state.rod.integrator = Default::default();
+    let wiped = fmu_state::serialize::<ReciprocatingDrive>(&core).unwrap();
     let s4 = f.deserialize(&wiped).expect("deserialize wiped");
     assert_eq!(f.set_state(s4), OK);
     assert!(cont_long(&f) != reference_long, "the integrator memory must influence the continuation");

@@ -176,7 +176,7 @@ fn reset_reproduces_a_fresh_run_bit_for_bit() {
 #[test]
 fn instantiate_checks_its_arguments() {
     let api = Api::load();
-    let guid = reciprocating_drive::fmi2::model_description::guid();
+    let guid = reciprocating_drive::fmi2::model_description::guid::<reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive>();
     // Wrong GUID, empty name: NULL with a logged reason.
     let log = Inst::try_with(&api, "x", None, false, "{00000000-0000-0000-0000-000000000000}").err().expect("NULL");
     assert!(log.last().contains("GUID"), "{}", log.last());
@@ -256,7 +256,7 @@ fn bad_parameters_are_rejected_at_initialization_with_precise_messages() {
             assert!(m.contains(e), "message for {name} = {value} lacks {e:?}: {m}");
         }
         // Correcting the parameter lets initialization finish.
-        let default = reciprocating_drive::fmi2::variables::VARIABLES[vr(name) as usize].start().unwrap();
+        let default = reciprocating_drive::fmus::reciprocating_drive::VARIABLES[vr(name) as usize].start().unwrap();
         assert_eq!(f.set(name, default), OK);
         assert_eq!(f.exit(), OK, "{}", f.log.last());
     }

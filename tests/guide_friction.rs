@@ -20,7 +20,8 @@
 
 mod common;
 use common::*;
-use reciprocating_drive::fmi2::variables::{VarType, VARIABLES};
+use reciprocating_drive::fmi2::variables::VarType;
+use reciprocating_drive::fmus::reciprocating_drive::VARIABLES;
 use std::f64::consts::PI;
 
 const W: f64 = 2.0 * PI * 65.0 / 60.0;

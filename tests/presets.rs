@@ -5,7 +5,8 @@
 
 mod common;
 use common::*;
-use reciprocating_drive::fmi2::variables::{Binding, Causality, VarType, VARIABLES};
+use reciprocating_drive::fmi2::variables::{Binding, Causality, VarType};
+use reciprocating_drive::fmus::reciprocating_drive::VARIABLES;
 
 /// (name, type, value) of every `<ssv:Parameter>` in the file.
 fn parse(text: &str) -> Vec<(String, String, String)> {

@@ -1,9 +1,11 @@
-//! Every FMI 2.0 common and co-simulation function (34), exported with C linkage.
+//! Every FMI 2.0 common and co-simulation function (34), generic over the model.
 //!
-//! Each function checks its pointers, catches panics (no unwinding crosses the C boundary, fmi.md
-//! "The C ABI"), delegates to [`Instance`] and turns a [`Failure`] into its status plus one log
-//! line naming the function. The signatures are checked at compile time against the types bindgen
-//! generated from the official FMI 2.0 headers (the `const _: fmi2…TYPE` lines at the end).
+//! Each function checks its pointers, catches panics (no unwinding crosses the C boundary),
+//! delegates to [`Instance`] and turns a [`Failure`] into its status plus one log line naming the
+//! function. [`export_fmu!`](crate::export_fmu) instantiates them for one model as the 34
+//! `#[no_mangle] extern "C"` functions of that FMU's shared object (one cdylib per FMU, each with
+//! its own exports and GUID); their signatures are checked at compile time against the types
+//! bindgen generated from the official FMI 2.0 headers.
 
 #![allow(non_snake_case)]
 #![allow(clippy::missing_safety_doc)]
@@ -15,8 +17,9 @@ use std::ptr;
 use fmi_sys::fmi2::*;
 
 use crate::fmi2::fmu_state;
-use crate::fmi2::instance::{copy_name, Failure, Instance, Severity, Snapshot, SNAPSHOT_MAGIC};
+use crate::fmi2::instance::{copy_name, snapshot_magic, Failure, Instance, Severity, Snapshot};
 use crate::fmi2::logging::{Category, Logger};
+use crate::fmi2::model::FmuModel;
 use crate::fmi2::model_description::guid;
 use crate::fmi2::resources::resource_dir;
 use crate::fmi2::variables::VarType;
@@ -52,11 +55,11 @@ fn status_of(s: Severity) -> fmi2Status {
 }
 
 /// Runs `f` on the instance behind `c`: NULL check, panic barrier, status and logging.
-unsafe fn call(c: fmi2Component, function: &str, f: impl FnOnce(&mut Instance) -> Result<(), Failure>) -> fmi2Status {
+unsafe fn call<M: FmuModel>(c: fmi2Component, function: &str, f: impl FnOnce(&mut Instance<M>) -> Result<(), Failure>) -> fmi2Status {
     if c.is_null() {
         return fmi2Status_fmi2Error;
     }
-    let inst = c as *mut Instance;
+    let inst = c as *mut Instance<M>;
     match catch_unwind(AssertUnwindSafe(|| f(&mut *inst))) {
         Ok(Ok(())) => {
             (*inst).log(fmi2Status_fmi2OK, Category::All, function);
@@ -90,24 +93,24 @@ fn null_argument(function: &str, what: &str) -> Failure {
 
 // ------------------------------------------------------------------------------ common functions
 
-#[no_mangle]
-pub extern "C" fn fmi2GetTypesPlatform() -> *const c_char {
+#[inline]
+pub fn fmi2GetTypesPlatform() -> *const c_char {
     TYPES_PLATFORM.as_ptr()
 }
 
-#[no_mangle]
-pub extern "C" fn fmi2GetVersion() -> *const c_char {
+#[inline]
+pub fn fmi2GetVersion() -> *const c_char {
     VERSION.as_ptr()
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2SetDebugLogging(
+#[inline]
+pub unsafe fn fmi2SetDebugLogging<M: FmuModel>(
     c: fmi2Component,
     loggingOn: fmi2Boolean,
     nCategories: usize,
     categories: *const fmi2String,
 ) -> fmi2Status {
-    call(c, "fmi2SetDebugLogging", |inst| {
+    call::<M>(c, "fmi2SetDebugLogging", |inst| {
         let cats = slice(categories, nCategories).ok_or_else(|| null_argument("fmi2SetDebugLogging", "categories"))?;
         let mut names = Vec::with_capacity(cats.len());
         for &p in cats {
@@ -117,8 +120,8 @@ pub unsafe extern "C" fn fmi2SetDebugLogging(
     })
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2Instantiate(
+#[inline]
+pub unsafe fn fmi2Instantiate<M: FmuModel>(
     instanceName: fmi2String,
     fmuType: fmi2Type,
     fmuGUID: fmi2String,
@@ -145,12 +148,12 @@ pub unsafe extern "C" fn fmi2Instantiate(
             return refuse(format!("fmuType {fmuType} is not supported: this FMU is co-simulation only"));
         }
         match opt_str(fmuGUID) {
-            Some(g) if g == guid() => {}
-            other => return refuse(format!("GUID {:?} is not this FMU's GUID {}", other.unwrap_or("NULL"), guid())),
+            Some(g) if g == guid::<M>() => {}
+            other => return refuse(format!("GUID {:?} is not this FMU's GUID {}", other.unwrap_or("NULL"), guid::<M>())),
         }
         let location = opt_str(fmuResourceLocation);
         let dir = resource_dir(location);
-        let inst = Box::new(Instance::new(logger, dir));
+        let inst = Box::new(Instance::<M>::new(logger, dir));
         inst.log(
             fmi2Status_fmi2OK,
             Category::Events,
@@ -161,15 +164,15 @@ pub unsafe extern "C" fn fmi2Instantiate(
     result.unwrap_or(ptr::null_mut())
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2FreeInstance(c: fmi2Component) {
+#[inline]
+pub unsafe fn fmi2FreeInstance<M: FmuModel>(c: fmi2Component) {
     if !c.is_null() {
-        let _ = catch_unwind(AssertUnwindSafe(|| drop(Box::from_raw(c as *mut Instance))));
+        let _ = catch_unwind(AssertUnwindSafe(|| drop(Box::from_raw(c as *mut Instance<M>))));
     }
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2SetupExperiment(
+#[inline]
+pub unsafe fn fmi2SetupExperiment<M: FmuModel>(
     c: fmi2Component,
     toleranceDefined: fmi2Boolean,
     tolerance: fmi2Real,
@@ -177,7 +180,7 @@ pub unsafe extern "C" fn fmi2SetupExperiment(
     stopTimeDefined: fmi2Boolean,
     stopTime: fmi2Real,
 ) -> fmi2Status {
-    call(c, "fmi2SetupExperiment", |inst| {
+    call::<M>(c, "fmi2SetupExperiment", |inst| {
         inst.setup_experiment(
             (toleranceDefined != 0).then_some(tolerance),
             startTime,
@@ -186,27 +189,27 @@ pub unsafe extern "C" fn fmi2SetupExperiment(
     })
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2EnterInitializationMode(c: fmi2Component) -> fmi2Status {
-    call(c, "fmi2EnterInitializationMode", |inst| inst.enter_initialization_mode())
+#[inline]
+pub unsafe fn fmi2EnterInitializationMode<M: FmuModel>(c: fmi2Component) -> fmi2Status {
+    call::<M>(c, "fmi2EnterInitializationMode", |inst| inst.enter_initialization_mode())
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2ExitInitializationMode(c: fmi2Component) -> fmi2Status {
-    call(c, "fmi2ExitInitializationMode", |inst| inst.exit_initialization_mode())
+#[inline]
+pub unsafe fn fmi2ExitInitializationMode<M: FmuModel>(c: fmi2Component) -> fmi2Status {
+    call::<M>(c, "fmi2ExitInitializationMode", |inst| inst.exit_initialization_mode())
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2Terminate(c: fmi2Component) -> fmi2Status {
-    call(c, "fmi2Terminate", |inst| inst.terminate())
+#[inline]
+pub unsafe fn fmi2Terminate<M: FmuModel>(c: fmi2Component) -> fmi2Status {
+    call::<M>(c, "fmi2Terminate", |inst| inst.terminate())
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2Reset(c: fmi2Component) -> fmi2Status {
-    call(c, "fmi2Reset", |inst| inst.reset())
+#[inline]
+pub unsafe fn fmi2Reset<M: FmuModel>(c: fmi2Component) -> fmi2Status {
+    call::<M>(c, "fmi2Reset", |inst| inst.reset())
 }
 
-unsafe fn get_values<T: Copy>(
+unsafe fn get_values<M: FmuModel, T: Copy>(
     c: fmi2Component,
     function: &'static str,
     ty: VarType,
@@ -215,7 +218,7 @@ unsafe fn get_values<T: Copy>(
     value: *mut T,
     convert: impl Fn(f64) -> T,
 ) -> fmi2Status {
-    call(c, function, |inst| {
+    call::<M>(c, function, |inst| {
         let vrs = slice(vr, nvr).ok_or_else(|| null_argument(function, "vr"))?;
         if nvr > 0 && value.is_null() {
             return Err(null_argument(function, "value"));
@@ -224,7 +227,7 @@ unsafe fn get_values<T: Copy>(
     })
 }
 
-unsafe fn set_values<T: Copy>(
+unsafe fn set_values<M: FmuModel, T: Copy>(
     c: fmi2Component,
     function: &'static str,
     ty: VarType,
@@ -233,51 +236,51 @@ unsafe fn set_values<T: Copy>(
     value: *const T,
     convert: impl Fn(T) -> f64,
 ) -> fmi2Status {
-    call(c, function, |inst| {
+    call::<M>(c, function, |inst| {
         let vrs = slice(vr, nvr).ok_or_else(|| null_argument(function, "vr"))?;
         let vals = slice(value, nvr).ok_or_else(|| null_argument(function, "value"))?;
         inst.set(function, ty, vrs, |k| convert(vals[k]))
     })
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetReal(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Real) -> fmi2Status {
-    get_values(c, "fmi2GetReal", VarType::Real, vr, nvr, value, |v| v)
+#[inline]
+pub unsafe fn fmi2GetReal<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Real) -> fmi2Status {
+    get_values::<M, _>(c, "fmi2GetReal", VarType::Real, vr, nvr, value, |v| v)
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetInteger(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Integer) -> fmi2Status {
-    get_values(c, "fmi2GetInteger", VarType::Integer, vr, nvr, value, |v| v as fmi2Integer)
+#[inline]
+pub unsafe fn fmi2GetInteger<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Integer) -> fmi2Status {
+    get_values::<M, _>(c, "fmi2GetInteger", VarType::Integer, vr, nvr, value, |v| v as fmi2Integer)
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetBoolean(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Boolean) -> fmi2Status {
-    get_values(c, "fmi2GetBoolean", VarType::Boolean, vr, nvr, value, |v| (v != 0.0) as fmi2Boolean)
+#[inline]
+pub unsafe fn fmi2GetBoolean<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Boolean) -> fmi2Status {
+    get_values::<M, _>(c, "fmi2GetBoolean", VarType::Boolean, vr, nvr, value, |v| (v != 0.0) as fmi2Boolean)
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetString(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, _value: *mut fmi2String) -> fmi2Status {
-    call(c, "fmi2GetString", |_| no_strings("fmi2GetString", vr, nvr))
+#[inline]
+pub unsafe fn fmi2GetString<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, _value: *mut fmi2String) -> fmi2Status {
+    call::<M>(c, "fmi2GetString", |_| no_strings("fmi2GetString", vr, nvr))
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2SetReal(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Real) -> fmi2Status {
-    set_values(c, "fmi2SetReal", VarType::Real, vr, nvr, value, |v| v)
+#[inline]
+pub unsafe fn fmi2SetReal<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Real) -> fmi2Status {
+    set_values::<M, _>(c, "fmi2SetReal", VarType::Real, vr, nvr, value, |v| v)
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2SetInteger(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Integer) -> fmi2Status {
-    set_values(c, "fmi2SetInteger", VarType::Integer, vr, nvr, value, |v| v as f64)
+#[inline]
+pub unsafe fn fmi2SetInteger<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Integer) -> fmi2Status {
+    set_values::<M, _>(c, "fmi2SetInteger", VarType::Integer, vr, nvr, value, |v| v as f64)
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2SetBoolean(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Boolean) -> fmi2Status {
-    set_values(c, "fmi2SetBoolean", VarType::Boolean, vr, nvr, value, |v| (v != 0) as i32 as f64)
+#[inline]
+pub unsafe fn fmi2SetBoolean<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Boolean) -> fmi2Status {
+    set_values::<M, _>(c, "fmi2SetBoolean", VarType::Boolean, vr, nvr, value, |v| (v != 0) as i32 as f64)
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2SetString(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, _value: *const fmi2String) -> fmi2Status {
-    call(c, "fmi2SetString", |_| no_strings("fmi2SetString", vr, nvr))
+#[inline]
+pub unsafe fn fmi2SetString<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, _value: *const fmi2String) -> fmi2Status {
+    call::<M>(c, "fmi2SetString", |_| no_strings("fmi2SetString", vr, nvr))
 }
 
 unsafe fn no_strings(function: &str, vr: *const fmi2ValueReference, nvr: usize) -> Result<(), Failure> {
@@ -290,29 +293,29 @@ unsafe fn no_strings(function: &str, vr: *const fmi2ValueReference, nvr: usize) 
 
 // ------------------------------------------------------------------------------ FMU state
 
-unsafe fn store_snapshot(state: *mut fmi2FMUstate, snap: Snapshot) {
-    let existing = *state as *mut Snapshot;
-    if !existing.is_null() && (*existing).magic == SNAPSHOT_MAGIC {
+unsafe fn store_snapshot<M: FmuModel>(state: *mut fmi2FMUstate, snap: Snapshot<M>) {
+    let existing = *state as *mut Snapshot<M>;
+    if !existing.is_null() && (*existing).magic == snapshot_magic::<M>() {
         *existing = snap;
     } else {
         *state = Box::into_raw(Box::new(snap)) as fmi2FMUstate;
     }
 }
 
-unsafe fn snapshot_ref<'a>(function: &str, state: fmi2FMUstate) -> Result<&'a Snapshot, Failure> {
-    let s = state as *const Snapshot;
+unsafe fn snapshot_ref<'a, M: FmuModel>(function: &str, state: fmi2FMUstate) -> Result<&'a Snapshot<M>, Failure> {
+    let s = state as *const Snapshot<M>;
     if s.is_null() {
         return Err(null_argument(function, "FMUstate"));
     }
-    if (*s).magic != SNAPSHOT_MAGIC {
+    if (*s).magic != snapshot_magic::<M>() {
         return Err(Failure::error(format!("{function}: FMUstate was not made by this FMU")));
     }
     Ok(&*s)
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetFMUstate(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
-    call(c, "fmi2GetFMUstate", |inst| {
+#[inline]
+pub unsafe fn fmi2GetFMUstate<M: FmuModel>(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
+    call::<M>(c, "fmi2GetFMUstate", |inst| {
         if state.is_null() {
             return Err(null_argument("fmi2GetFMUstate", "FMUstate"));
         }
@@ -321,19 +324,19 @@ pub unsafe extern "C" fn fmi2GetFMUstate(c: fmi2Component, state: *mut fmi2FMUst
     })
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2SetFMUstate(c: fmi2Component, state: fmi2FMUstate) -> fmi2Status {
-    call(c, "fmi2SetFMUstate", |inst| inst.restore(snapshot_ref("fmi2SetFMUstate", state)?))
+#[inline]
+pub unsafe fn fmi2SetFMUstate<M: FmuModel>(c: fmi2Component, state: fmi2FMUstate) -> fmi2Status {
+    call::<M>(c, "fmi2SetFMUstate", |inst| inst.restore(snapshot_ref::<M>("fmi2SetFMUstate", state)?))
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2FreeFMUstate(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
-    call(c, "fmi2FreeFMUstate", |_| {
+#[inline]
+pub unsafe fn fmi2FreeFMUstate<M: FmuModel>(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
+    call::<M>(c, "fmi2FreeFMUstate", |_| {
         if state.is_null() || (*state).is_null() {
             return Ok(());
         }
-        let s = *state as *mut Snapshot;
-        if (*s).magic != SNAPSHOT_MAGIC {
+        let s = *state as *mut Snapshot<M>;
+        if (*s).magic != snapshot_magic::<M>() {
             return Err(Failure::error("fmi2FreeFMUstate: FMUstate was not made by this FMU"));
         }
         (*s).magic = 0;
@@ -343,23 +346,23 @@ pub unsafe extern "C" fn fmi2FreeFMUstate(c: fmi2Component, state: *mut fmi2FMUs
     })
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2SerializedFMUstateSize(c: fmi2Component, state: fmi2FMUstate, size: *mut usize) -> fmi2Status {
-    call(c, "fmi2SerializedFMUstateSize", |_| {
-        let snap = snapshot_ref("fmi2SerializedFMUstateSize", state)?;
+#[inline]
+pub unsafe fn fmi2SerializedFMUstateSize<M: FmuModel>(c: fmi2Component, state: fmi2FMUstate, size: *mut usize) -> fmi2Status {
+    call::<M>(c, "fmi2SerializedFMUstateSize", |_| {
+        let snap = snapshot_ref::<M>("fmi2SerializedFMUstateSize", state)?;
         if size.is_null() {
             return Err(null_argument("fmi2SerializedFMUstateSize", "size"));
         }
-        *size = fmu_state::serialize(&snap.core)?.len();
+        *size = fmu_state::serialize::<M>(&snap.core)?.len();
         Ok(())
     })
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2SerializeFMUstate(c: fmi2Component, state: fmi2FMUstate, bytes: *mut fmi2Byte, size: usize) -> fmi2Status {
-    call(c, "fmi2SerializeFMUstate", |_| {
-        let snap = snapshot_ref("fmi2SerializeFMUstate", state)?;
-        let data = fmu_state::serialize(&snap.core)?;
+#[inline]
+pub unsafe fn fmi2SerializeFMUstate<M: FmuModel>(c: fmi2Component, state: fmi2FMUstate, bytes: *mut fmi2Byte, size: usize) -> fmi2Status {
+    call::<M>(c, "fmi2SerializeFMUstate", |_| {
+        let snap = snapshot_ref::<M>("fmi2SerializeFMUstate", state)?;
+        let data = fmu_state::serialize::<M>(&snap.core)?;
         if bytes.is_null() || size < data.len() {
             return Err(Failure::error(format!(
                 "fmi2SerializeFMUstate: buffer of {size} bytes is too small; {} needed",
@@ -371,21 +374,21 @@ pub unsafe extern "C" fn fmi2SerializeFMUstate(c: fmi2Component, state: fmi2FMUs
     })
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2DeSerializeFMUstate(c: fmi2Component, bytes: *const fmi2Byte, size: usize, state: *mut fmi2FMUstate) -> fmi2Status {
-    call(c, "fmi2DeSerializeFMUstate", |_| {
+#[inline]
+pub unsafe fn fmi2DeSerializeFMUstate<M: FmuModel>(c: fmi2Component, bytes: *const fmi2Byte, size: usize, state: *mut fmi2FMUstate) -> fmi2Status {
+    call::<M>(c, "fmi2DeSerializeFMUstate", |_| {
         let data = slice(bytes as *const u8, size).ok_or_else(|| null_argument("fmi2DeSerializeFMUstate", "serializedState"))?;
         if state.is_null() {
             return Err(null_argument("fmi2DeSerializeFMUstate", "FMUstate"));
         }
-        let snap = Instance::snapshot_from_core(fmu_state::deserialize(data)?)?;
+        let snap = Instance::<M>::snapshot_from_core(fmu_state::deserialize::<M>(data)?)?;
         store_snapshot(state, snap);
         Ok(())
     })
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
+#[inline]
+pub unsafe fn fmi2GetDirectionalDerivative<M: FmuModel>(
     c: fmi2Component,
     _vUnknown_ref: *const fmi2ValueReference,
     _nUnknown: usize,
@@ -394,66 +397,67 @@ pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
     _dvKnown: *const fmi2Real,
     _dvUnknown: *mut fmi2Real,
 ) -> fmi2Status {
-    call(c, "fmi2GetDirectionalDerivative", |_| {
+    call::<M>(c, "fmi2GetDirectionalDerivative", |_| {
         Err(Failure::error("fmi2GetDirectionalDerivative: not provided by this FMU (providesDirectionalDerivative=\"false\")"))
     })
 }
 
 // ------------------------------------------------------------------------------ co-simulation
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
+#[inline]
+pub unsafe fn fmi2SetRealInputDerivatives<M: FmuModel>(
     c: fmi2Component,
     _vr: *const fmi2ValueReference,
     _nvr: usize,
     _order: *const fmi2Integer,
     _value: *const fmi2Real,
 ) -> fmi2Status {
-    call(c, "fmi2SetRealInputDerivatives", |_| {
-        Err(Failure::error(
-            "fmi2SetRealInputDerivatives: not supported (canInterpolateInputs=\"false\"); supply crank.acceleration as an input instead",
-        ))
+    call::<M>(c, "fmi2SetRealInputDerivatives", |_| {
+        Err(Failure::error(format!(
+            "fmi2SetRealInputDerivatives: not supported (canInterpolateInputs=\"false\"); {}",
+            M::info().input_derivatives_hint
+        )))
     })
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetRealOutputDerivatives(
+#[inline]
+pub unsafe fn fmi2GetRealOutputDerivatives<M: FmuModel>(
     c: fmi2Component,
     _vr: *const fmi2ValueReference,
     _nvr: usize,
     _order: *const fmi2Integer,
     _value: *mut fmi2Real,
 ) -> fmi2Status {
-    call(c, "fmi2GetRealOutputDerivatives", |_| {
+    call::<M>(c, "fmi2GetRealOutputDerivatives", |_| {
         Err(Failure::error("fmi2GetRealOutputDerivatives: not supported (maxOutputDerivativeOrder=\"0\")"))
     })
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2DoStep(
+#[inline]
+pub unsafe fn fmi2DoStep<M: FmuModel>(
     c: fmi2Component,
     currentCommunicationPoint: fmi2Real,
     communicationStepSize: fmi2Real,
     _noSetFMUStatePriorToCurrentPoint: fmi2Boolean,
 ) -> fmi2Status {
-    call(c, "fmi2DoStep", |inst| inst.do_step(currentCommunicationPoint, communicationStepSize))
+    call::<M>(c, "fmi2DoStep", |inst| inst.do_step(currentCommunicationPoint, communicationStepSize))
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2CancelStep(c: fmi2Component) -> fmi2Status {
-    call(c, "fmi2CancelStep", |_| {
+#[inline]
+pub unsafe fn fmi2CancelStep<M: FmuModel>(c: fmi2Component) -> fmi2Status {
+    call::<M>(c, "fmi2CancelStep", |_| {
         Err(Failure::error("fmi2CancelStep: no asynchronous step is running (fmi2DoStep never returns fmi2Pending)"))
     })
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetStatus(c: fmi2Component, _s: fmi2StatusKind, _value: *mut fmi2Status) -> fmi2Status {
-    call(c, "fmi2GetStatus", |_| Err(Failure::discard("fmi2GetStatus: no status available (no asynchronous steps)")))
+#[inline]
+pub unsafe fn fmi2GetStatus<M: FmuModel>(c: fmi2Component, _s: fmi2StatusKind, _value: *mut fmi2Status) -> fmi2Status {
+    call::<M>(c, "fmi2GetStatus", |_| Err(Failure::discard("fmi2GetStatus: no status available (no asynchronous steps)")))
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetRealStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Real) -> fmi2Status {
-    call(c, "fmi2GetRealStatus", |inst| {
+#[inline]
+pub unsafe fn fmi2GetRealStatus<M: FmuModel>(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Real) -> fmi2Status {
+    call::<M>(c, "fmi2GetRealStatus", |inst| {
         if s != fmi2StatusKind_fmi2LastSuccessfulTime {
             return Err(Failure::discard(format!("fmi2GetRealStatus: status kind {s} is not available")));
         }
@@ -465,14 +469,14 @@ pub unsafe extern "C" fn fmi2GetRealStatus(c: fmi2Component, s: fmi2StatusKind, 
     })
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetIntegerStatus(c: fmi2Component, s: fmi2StatusKind, _value: *mut fmi2Integer) -> fmi2Status {
-    call(c, "fmi2GetIntegerStatus", |_| Err(Failure::discard(format!("fmi2GetIntegerStatus: status kind {s} is not available"))))
+#[inline]
+pub unsafe fn fmi2GetIntegerStatus<M: FmuModel>(c: fmi2Component, s: fmi2StatusKind, _value: *mut fmi2Integer) -> fmi2Status {
+    call::<M>(c, "fmi2GetIntegerStatus", |_| Err(Failure::discard(format!("fmi2GetIntegerStatus: status kind {s} is not available"))))
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetBooleanStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Boolean) -> fmi2Status {
-    call(c, "fmi2GetBooleanStatus", |_| {
+#[inline]
+pub unsafe fn fmi2GetBooleanStatus<M: FmuModel>(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Boolean) -> fmi2Status {
+    call::<M>(c, "fmi2GetBooleanStatus", |_| {
         if s != fmi2StatusKind_fmi2Terminated {
             return Err(Failure::discard(format!("fmi2GetBooleanStatus: status kind {s} is not available")));
         }
@@ -485,44 +489,197 @@ pub unsafe extern "C" fn fmi2GetBooleanStatus(c: fmi2Component, s: fmi2StatusKin
     })
 }
 
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetStringStatus(c: fmi2Component, s: fmi2StatusKind, _value: *mut fmi2String) -> fmi2Status {
-    call(c, "fmi2GetStringStatus", |_| Err(Failure::discard(format!("fmi2GetStringStatus: status kind {s} is not available"))))
+#[inline]
+pub unsafe fn fmi2GetStringStatus<M: FmuModel>(c: fmi2Component, s: fmi2StatusKind, _value: *mut fmi2String) -> fmi2Status {
+    call::<M>(c, "fmi2GetStringStatus", |_| Err(Failure::discard(format!("fmi2GetStringStatus: status kind {s} is not available"))))
 }
 
-// ------------------------------------------------------------------------------ compile-time checks
-// Each exported function must have exactly the type the FMI 2.0 headers declare.
-const _: fmi2GetTypesPlatformTYPE = Some(fmi2GetTypesPlatform);
-const _: fmi2GetVersionTYPE = Some(fmi2GetVersion);
-const _: fmi2SetDebugLoggingTYPE = Some(fmi2SetDebugLogging);
-const _: fmi2InstantiateTYPE = Some(fmi2Instantiate);
-const _: fmi2FreeInstanceTYPE = Some(fmi2FreeInstance);
-const _: fmi2SetupExperimentTYPE = Some(fmi2SetupExperiment);
-const _: fmi2EnterInitializationModeTYPE = Some(fmi2EnterInitializationMode);
-const _: fmi2ExitInitializationModeTYPE = Some(fmi2ExitInitializationMode);
-const _: fmi2TerminateTYPE = Some(fmi2Terminate);
-const _: fmi2ResetTYPE = Some(fmi2Reset);
-const _: fmi2GetRealTYPE = Some(fmi2GetReal);
-const _: fmi2GetIntegerTYPE = Some(fmi2GetInteger);
-const _: fmi2GetBooleanTYPE = Some(fmi2GetBoolean);
-const _: fmi2GetStringTYPE = Some(fmi2GetString);
-const _: fmi2SetRealTYPE = Some(fmi2SetReal);
-const _: fmi2SetIntegerTYPE = Some(fmi2SetInteger);
-const _: fmi2SetBooleanTYPE = Some(fmi2SetBoolean);
-const _: fmi2SetStringTYPE = Some(fmi2SetString);
-const _: fmi2GetFMUstateTYPE = Some(fmi2GetFMUstate);
-const _: fmi2SetFMUstateTYPE = Some(fmi2SetFMUstate);
-const _: fmi2FreeFMUstateTYPE = Some(fmi2FreeFMUstate);
-const _: fmi2SerializedFMUstateSizeTYPE = Some(fmi2SerializedFMUstateSize);
-const _: fmi2SerializeFMUstateTYPE = Some(fmi2SerializeFMUstate);
-const _: fmi2DeSerializeFMUstateTYPE = Some(fmi2DeSerializeFMUstate);
-const _: fmi2GetDirectionalDerivativeTYPE = Some(fmi2GetDirectionalDerivative);
-const _: fmi2SetRealInputDerivativesTYPE = Some(fmi2SetRealInputDerivatives);
-const _: fmi2GetRealOutputDerivativesTYPE = Some(fmi2GetRealOutputDerivatives);
-const _: fmi2DoStepTYPE = Some(fmi2DoStep);
-const _: fmi2CancelStepTYPE = Some(fmi2CancelStep);
-const _: fmi2GetStatusTYPE = Some(fmi2GetStatus);
-const _: fmi2GetRealStatusTYPE = Some(fmi2GetRealStatus);
-const _: fmi2GetIntegerStatusTYPE = Some(fmi2GetIntegerStatus);
-const _: fmi2GetBooleanStatusTYPE = Some(fmi2GetBooleanStatus);
-const _: fmi2GetStringStatusTYPE = Some(fmi2GetStringStatus);
+// ------------------------------------------------------------------------------ exports
+
+/// Exports the 34 FMI 2.0 co-simulation functions for one model: put
+/// `reciprocating_drive::export_fmu!(path::to::Model);` in the root of that FMU's cdylib crate.
+/// Each export is a thin `extern "C"` shim over the generic function of this module, and its
+/// type is checked at compile time against the official FMI 2.0 headers (`fmi2…TYPE`).
+#[macro_export]
+macro_rules! export_fmu {
+    ($model:ty) => {
+        const _: () = {
+            use $crate::fmi2::abi as glue;
+            use $crate::fmi_sys::fmi2::*;
+            type M = $model;
+
+            #[no_mangle]
+            pub extern "C" fn fmi2GetTypesPlatform() -> *const ::std::ffi::c_char {
+                glue::fmi2GetTypesPlatform()
+            }
+            #[no_mangle]
+            pub extern "C" fn fmi2GetVersion() -> *const ::std::ffi::c_char {
+                glue::fmi2GetVersion()
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetDebugLogging(c: fmi2Component, loggingOn: fmi2Boolean, nCategories: usize, categories: *const fmi2String) -> fmi2Status {
+                glue::fmi2SetDebugLogging::<M>(c, loggingOn, nCategories, categories)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2Instantiate(instanceName: fmi2String, fmuType: fmi2Type, fmuGUID: fmi2String, fmuResourceLocation: fmi2String, functions: *const fmi2CallbackFunctions, visible: fmi2Boolean, loggingOn: fmi2Boolean) -> fmi2Component {
+                glue::fmi2Instantiate::<M>(instanceName, fmuType, fmuGUID, fmuResourceLocation, functions, visible, loggingOn)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2FreeInstance(c: fmi2Component) {
+                glue::fmi2FreeInstance::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetupExperiment(c: fmi2Component, toleranceDefined: fmi2Boolean, tolerance: fmi2Real, startTime: fmi2Real, stopTimeDefined: fmi2Boolean, stopTime: fmi2Real) -> fmi2Status {
+                glue::fmi2SetupExperiment::<M>(c, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2EnterInitializationMode(c: fmi2Component) -> fmi2Status {
+                glue::fmi2EnterInitializationMode::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2ExitInitializationMode(c: fmi2Component) -> fmi2Status {
+                glue::fmi2ExitInitializationMode::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2Terminate(c: fmi2Component) -> fmi2Status {
+                glue::fmi2Terminate::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2Reset(c: fmi2Component) -> fmi2Status {
+                glue::fmi2Reset::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetReal(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Real) -> fmi2Status {
+                glue::fmi2GetReal::<M>(c, vr, nvr, value)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetInteger(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Integer) -> fmi2Status {
+                glue::fmi2GetInteger::<M>(c, vr, nvr, value)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetBoolean(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Boolean) -> fmi2Status {
+                glue::fmi2GetBoolean::<M>(c, vr, nvr, value)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetString(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2String) -> fmi2Status {
+                glue::fmi2GetString::<M>(c, vr, nvr, value)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetReal(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Real) -> fmi2Status {
+                glue::fmi2SetReal::<M>(c, vr, nvr, value)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetInteger(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Integer) -> fmi2Status {
+                glue::fmi2SetInteger::<M>(c, vr, nvr, value)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetBoolean(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Boolean) -> fmi2Status {
+                glue::fmi2SetBoolean::<M>(c, vr, nvr, value)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetString(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2String) -> fmi2Status {
+                glue::fmi2SetString::<M>(c, vr, nvr, value)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetFMUstate(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
+                glue::fmi2GetFMUstate::<M>(c, state)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetFMUstate(c: fmi2Component, state: fmi2FMUstate) -> fmi2Status {
+                glue::fmi2SetFMUstate::<M>(c, state)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2FreeFMUstate(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
+                glue::fmi2FreeFMUstate::<M>(c, state)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SerializedFMUstateSize(c: fmi2Component, state: fmi2FMUstate, size: *mut usize) -> fmi2Status {
+                glue::fmi2SerializedFMUstateSize::<M>(c, state, size)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SerializeFMUstate(c: fmi2Component, state: fmi2FMUstate, bytes: *mut fmi2Byte, size: usize) -> fmi2Status {
+                glue::fmi2SerializeFMUstate::<M>(c, state, bytes, size)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2DeSerializeFMUstate(c: fmi2Component, bytes: *const fmi2Byte, size: usize, state: *mut fmi2FMUstate) -> fmi2Status {
+                glue::fmi2DeSerializeFMUstate::<M>(c, bytes, size, state)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetDirectionalDerivative(c: fmi2Component, vUnknown_ref: *const fmi2ValueReference, nUnknown: usize, vKnown_ref: *const fmi2ValueReference, nKnown: usize, dvKnown: *const fmi2Real, dvUnknown: *mut fmi2Real) -> fmi2Status {
+                glue::fmi2GetDirectionalDerivative::<M>(c, vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown, dvUnknown)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetRealInputDerivatives(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, order: *const fmi2Integer, value: *const fmi2Real) -> fmi2Status {
+                glue::fmi2SetRealInputDerivatives::<M>(c, vr, nvr, order, value)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetRealOutputDerivatives(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, order: *const fmi2Integer, value: *mut fmi2Real) -> fmi2Status {
+                glue::fmi2GetRealOutputDerivatives::<M>(c, vr, nvr, order, value)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2DoStep(c: fmi2Component, currentCommunicationPoint: fmi2Real, communicationStepSize: fmi2Real, noSetFMUStatePriorToCurrentPoint: fmi2Boolean) -> fmi2Status {
+                glue::fmi2DoStep::<M>(c, currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2CancelStep(c: fmi2Component) -> fmi2Status {
+                glue::fmi2CancelStep::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Status) -> fmi2Status {
+                glue::fmi2GetStatus::<M>(c, s, value)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetRealStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Real) -> fmi2Status {
+                glue::fmi2GetRealStatus::<M>(c, s, value)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetIntegerStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Integer) -> fmi2Status {
+                glue::fmi2GetIntegerStatus::<M>(c, s, value)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetBooleanStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Boolean) -> fmi2Status {
+                glue::fmi2GetBooleanStatus::<M>(c, s, value)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetStringStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2String) -> fmi2Status {
+                glue::fmi2GetStringStatus::<M>(c, s, value)
+            }
+
+            // Each exported function must have exactly the type the FMI 2.0 headers declare.
+            const _: fmi2GetTypesPlatformTYPE = Some(fmi2GetTypesPlatform);
+            const _: fmi2GetVersionTYPE = Some(fmi2GetVersion);
+            const _: fmi2SetDebugLoggingTYPE = Some(fmi2SetDebugLogging);
+            const _: fmi2InstantiateTYPE = Some(fmi2Instantiate);
+            const _: fmi2FreeInstanceTYPE = Some(fmi2FreeInstance);
+            const _: fmi2SetupExperimentTYPE = Some(fmi2SetupExperiment);
+            const _: fmi2EnterInitializationModeTYPE = Some(fmi2EnterInitializationMode);
+            const _: fmi2ExitInitializationModeTYPE = Some(fmi2ExitInitializationMode);
+            const _: fmi2TerminateTYPE = Some(fmi2Terminate);
+            const _: fmi2ResetTYPE = Some(fmi2Reset);
+            const _: fmi2GetRealTYPE = Some(fmi2GetReal);
+            const _: fmi2GetIntegerTYPE = Some(fmi2GetInteger);
+            const _: fmi2GetBooleanTYPE = Some(fmi2GetBoolean);
+            const _: fmi2GetStringTYPE = Some(fmi2GetString);
+            const _: fmi2SetRealTYPE = Some(fmi2SetReal);
+            const _: fmi2SetIntegerTYPE = Some(fmi2SetInteger);
+            const _: fmi2SetBooleanTYPE = Some(fmi2SetBoolean);
+            const _: fmi2SetStringTYPE = Some(fmi2SetString);
+            const _: fmi2GetFMUstateTYPE = Some(fmi2GetFMUstate);
+            const _: fmi2SetFMUstateTYPE = Some(fmi2SetFMUstate);
+            const _: fmi2FreeFMUstateTYPE = Some(fmi2FreeFMUstate);
+            const _: fmi2SerializedFMUstateSizeTYPE = Some(fmi2SerializedFMUstateSize);
+            const _: fmi2SerializeFMUstateTYPE = Some(fmi2SerializeFMUstate);
+            const _: fmi2DeSerializeFMUstateTYPE = Some(fmi2DeSerializeFMUstate);
+            const _: fmi2GetDirectionalDerivativeTYPE = Some(fmi2GetDirectionalDerivative);
+            const _: fmi2SetRealInputDerivativesTYPE = Some(fmi2SetRealInputDerivatives);
+            const _: fmi2GetRealOutputDerivativesTYPE = Some(fmi2GetRealOutputDerivatives);
+            const _: fmi2DoStepTYPE = Some(fmi2DoStep);
+            const _: fmi2CancelStepTYPE = Some(fmi2CancelStep);
+            const _: fmi2GetStatusTYPE = Some(fmi2GetStatus);
+            const _: fmi2GetRealStatusTYPE = Some(fmi2GetRealStatus);
+            const _: fmi2GetIntegerStatusTYPE = Some(fmi2GetIntegerStatus);
+            const _: fmi2GetBooleanStatusTYPE = Some(fmi2GetBooleanStatus);
+            const _: fmi2GetStringStatusTYPE = Some(fmi2GetStringStatus);
+        };
+    };
+}

@@ -1,7 +1,9 @@
 //! One FMU instance and the FMI 2.0 co-simulation state machine. Every public method returns
 //! `Result<_, Failure>`; the ABI layer turns a failure into its status plus one log line.
 //!
-//! Error policy: a call that fails leaves the instance exactly as it was (values, time, crank and
+//! Generic over the model ([`FmuModel`]): the same state machine serves every FMU of the crate.
+//!
+//! Error policy: a call that fails leaves the instance exactly as it was (values, time, state and
 //! mode), so a master may correct an input or roll back with fmi2SetFMUstate. Only a caught panic
 //! (an internal bug) moves the instance to the terminal Fatal mode.
 
@@ -10,12 +12,9 @@ use std::ffi::CString;
 use std::path::PathBuf;
 
 use crate::fmi2::logging::{Category, Logger};
-use crate::fmi2::variables::{var_info, Binding, Causality, InputSlot, VarType, Variability, VARIABLES};
-use crate::model::crank::CrankState;
-use crate::model::drive::{Inputs, Model, Outputs, RodState};
-use crate::model::integrator::IntegratorStats;
+use crate::fmi2::model::FmuModel;
+use crate::fmi2::variables::{Binding, Causality, VarType, Variability};
 use crate::model::error::ModelError;
-use crate::model::params::Params;
 
 /// The states of the FMI 2.0 co-simulation state machine this FMU can be in. It never returns
 /// fmi2Pending or fmi2Discard from a step, so "step failed/canceled" do not occur; a failed call
@@ -63,60 +62,31 @@ impl From<ModelError> for Failure {
 
 /// Everything an FMU state snapshot holds (get/set and serialization, `fmu_state.rs`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Core {
+pub struct Core<S> {
     pub mode: Mode,
     pub time: f64,
     pub tolerance: Option<f64>,
     pub stop_time: Option<f64>,
     /// Values of parameters and inputs indexed by value reference (output slots unused: the
-    /// outputs live in `outputs`).
+    /// outputs live in the model's cache).
     pub values: Vec<f64>,
-    /// The crank as the FMU knows it: the inputs after fmi2SetReal, their extrapolation after a
-    /// step (physics.md §2).
-    pub crank: CrankState,
-    /// The continuous state of an elastic rod (cage angle and rate) and its integrator's memory.
-    pub rod: RodState,
-    /// The last evaluation. Not serialized: a deserialized state recomputes it on demand.
-    #[serde(skip)]
-    pub outputs: Outputs,
-    /// Whether `outputs` belongs to the current time, inputs, parameters and state.
+    /// The model's state ([`FmuModel::State`]).
+    pub state: S,
+    /// Whether the model's output cache belongs to the current time, inputs, parameters and state.
     pub outputs_valid: bool,
 }
 
-impl Core {
-    pub fn fresh() -> Core {
-        let values: Vec<f64> = VARIABLES.iter().map(|v| v.start().unwrap_or(0.0)).collect();
-        let mut core = Core {
-            mode: Mode::Instantiated,
-            time: 0.0,
-            tolerance: None,
-            stop_time: None,
-            values,
-            crank: CrankState::default(),
-            rod: RodState::default(),
-            outputs: Outputs::default(),
-            outputs_valid: false,
-        };
-        core.crank = core.crank_from_inputs();
-        core
-    }
-
-    fn input(&self, slot: InputSlot) -> f64 {
-        self.values[crate::fmi2::variables::input_vr(slot)]
-    }
-
-    fn crank_from_inputs(&self) -> CrankState {
-        CrankState {
-            angle: self.input(InputSlot::CrankAngle),
-            speed: self.input(InputSlot::CrankSpeed),
-            acceleration: self.input(InputSlot::CrankAcceleration),
-        }
+impl<S> Core<S> {
+    pub fn fresh<M: FmuModel<State = S>>() -> Core<S> {
+        let values: Vec<f64> = M::table().variables.iter().map(|v| v.start().unwrap_or(0.0)).collect();
+        let state = M::fresh_state(&values);
+        Core { mode: Mode::Instantiated, time: 0.0, tolerance: None, stop_time: None, values, state, outputs_valid: false }
     }
 
     /// Parameters as currently set, each checked against its declared range.
-    pub fn params(&self) -> Result<Params, Failure> {
-        let mut p = Params::default();
-        for (vr, var) in VARIABLES.iter().enumerate() {
+    pub fn params<M: FmuModel<State = S>>(&self) -> Result<M::Params, Failure> {
+        let mut p = M::Params::default();
+        for (vr, var) in M::table().variables.iter().enumerate() {
             if let Binding::Param { set, .. } = var.binding {
                 let v = self.values[vr];
                 if !var.range.contains(v) {
@@ -127,53 +97,69 @@ impl Core {
         }
         Ok(p)
     }
-
-    fn inputs(&self) -> Inputs {
-        Inputs { external_force: self.input(InputSlot::ExternalForce) }
-    }
-
-    fn write_outputs(&mut self, out: &Outputs) {
-        self.outputs = *out;
-        self.outputs_valid = true;
-    }
 }
 
 /// A saved FMU state (fmi2GetFMUstate). The magic number lets fmi2SetFMUstate refuse a pointer
-/// that is not one of ours (as far as that can be told).
-#[derive(Clone)]
-pub struct Snapshot {
+/// that is not one of ours (as far as that can be told); `repr(C)` keeps it the first field for
+/// every model.
+#[repr(C)]
+pub struct Snapshot<M: FmuModel> {
     pub magic: u64,
-    pub core: Core,
-    pub model: Option<Model>,
+    pub core: Core<M::State>,
+    outputs: M::Outputs,
+    model: Option<M::Built>,
+    provisional: Option<(M::Built, M::State)>,
+}
+
+impl<M: FmuModel> Clone for Snapshot<M> {
+    fn clone(&self) -> Self {
+        Snapshot {
+            magic: self.magic,
+            core: self.core.clone(),
+            outputs: self.outputs.clone(),
+            model: self.model.clone(),
+            provisional: self.provisional.clone(),
+        }
+    }
 }
 
 pub const SNAPSHOT_MAGIC: u64 = 0x5244_4655_5354_4154; // "RDFUSTAT"
 
-pub struct Instance {
-    pub logger: Logger,
-    pub resource_dir: Option<PathBuf>,
-    core: Core,
-    /// The validated machine; Some from fmi2ExitInitializationMode on.
-    model: Option<Model>,
-    /// Work of the cage-equation integrator (diagnostics only, not part of the FMU state).
-    pub stats: IntegratorStats,
-    /// Where a step evaluates its outputs before they replace the current ones (a failed step
-    /// must leave the current ones as they were).
-    scratch: Outputs,
+/// The snapshot magic of model `M`: a state of another model (another FMU loaded in the same
+/// process) is refused.
+pub fn snapshot_magic<M: FmuModel>() -> u64 {
+    SNAPSHOT_MAGIC ^ crate::fmi2::fmu_state::interface_fingerprint::<M>()
 }
 
-/// |ϑ| above which the linear theory of the elastic rod is no longer valid (physics.md §6).
-const ROD_ANGLE_VALIDITY: f64 = 0.2;
+pub struct Instance<M: FmuModel> {
+    pub logger: Logger,
+    pub resource_dir: Option<PathBuf>,
+    core: Core<M::State>,
+    /// The model's output cache (valid when `core.outputs_valid`).
+    outputs: M::Outputs,
+    /// The validated machine; Some from fmi2ExitInitializationMode on.
+    model: Option<M::Built>,
+    /// In initialization mode: the machine and initial state the current values would give,
+    /// built for fmi2GetReal of an output; dropped whenever the outputs become invalid.
+    provisional: Option<(M::Built, M::State)>,
+    /// Work of the model's integrator (diagnostics only, not part of the FMU state).
+    pub stats: M::Stats,
+    /// Where a step evaluates its outputs before they replace the current ones (a failed step
+    /// must leave the current ones as they were).
+    scratch: M::Outputs,
+}
 
-impl Instance {
-    pub fn new(logger: Logger, resource_dir: Option<PathBuf>) -> Instance {
+impl<M: FmuModel> Instance<M> {
+    pub fn new(logger: Logger, resource_dir: Option<PathBuf>) -> Instance<M> {
         Instance {
             logger,
             resource_dir,
-            core: Core::fresh(),
+            core: Core::fresh::<M>(),
+            outputs: M::Outputs::default(),
             model: None,
-            stats: IntegratorStats::default(),
-            scratch: Outputs::default(),
+            provisional: None,
+            stats: M::Stats::default(),
+            scratch: M::Outputs::default(),
         }
     }
 
@@ -190,6 +176,15 @@ impl Instance {
             Ok(())
         } else {
             Err(Failure::illegal(function, self.core.mode))
+        }
+    }
+
+    /// Inputs, parameters or state changed: the output cache no longer answers for them.
+    #[inline]
+    fn invalidate_outputs(&mut self) {
+        self.core.outputs_valid = false;
+        if self.provisional.is_some() {
+            self.provisional = None;
         }
     }
 
@@ -219,7 +214,7 @@ impl Instance {
     pub fn enter_initialization_mode(&mut self) -> Result<(), Failure> {
         self.require("fmi2EnterInitializationMode", &[Mode::Instantiated])?;
         self.core.mode = Mode::InitializationMode;
-        self.core.outputs_valid = false;
+        self.invalidate_outputs();
         Ok(())
     }
 
@@ -228,14 +223,15 @@ impl Instance {
     /// parameters can be corrected.
     pub fn exit_initialization_mode(&mut self) -> Result<(), Failure> {
         self.require("fmi2ExitInitializationMode", &[Mode::InitializationMode])?;
-        let model = Model::new(&self.core.params()?)?;
-        let rod = model.initial_rod_state(&self.core.crank, &self.core.inputs())?;
-        let out = model.evaluate(&self.core.crank, &self.core.inputs(), &rod)?;
-        if model.has_state() && rod.cage.theta.abs() > ROD_ANGLE_VALIDITY {
-            self.warn_rod_angle("fmi2ExitInitializationMode", rod.cage.theta);
+        let model = M::build(&self.core.params::<M>()?)?;
+        let state = M::initialize(&model, &self.core.values, &self.core.state, &mut self.scratch)?;
+        if let Some(w) = M::initial_warning(&model, &state) {
+            self.warn("fmi2ExitInitializationMode", &w);
         }
-        self.core.rod = rod;
-        self.core.write_outputs(&out);
+        self.core.state = state;
+        std::mem::swap(&mut self.outputs, &mut self.scratch);
+        self.core.outputs_valid = true;
+        self.provisional = None;
         self.model = Some(model);
         self.core.mode = Mode::StepComplete;
         Ok(())
@@ -252,15 +248,16 @@ impl Instance {
             "fmi2Reset",
             &[Mode::Instantiated, Mode::InitializationMode, Mode::StepComplete, Mode::Terminated],
         )?;
-        self.core = Core::fresh();
+        self.core = Core::fresh::<M>();
         self.model = None;
+        self.provisional = None;
         Ok(())
     }
 
     #[inline]
     fn lookup(&self, function: &str, vr: u32, ty: VarType) -> Result<usize, Failure> {
         let i = vr as usize;
-        match var_info().get(i) {
+        match M::table().info().get(i) {
             Some(v) if v.ty == ty => Ok(i),
             _ => Err(Self::lookup_failure(function, vr, ty)),
         }
@@ -268,35 +265,43 @@ impl Instance {
 
     #[cold]
     fn lookup_failure(function: &str, vr: u32, ty: VarType) -> Failure {
-        match VARIABLES.get(vr as usize) {
+        let vars = M::table().variables;
+        match vars.get(vr as usize) {
             Some(v) => Failure::error(format!(
                 "{function}: value reference {vr} is \"{}\" of type {:?}, not {ty:?}",
                 v.name, v.ty
             )),
-            None => Failure::error(format!(
-                "{function}: unknown value reference {vr} (valid: 0..{})",
-                VARIABLES.len() - 1
-            )),
+            None => Failure::error(format!("{function}: unknown value reference {vr} (valid: 0..{})", vars.len() - 1)),
         }
     }
 
-    /// Makes the outputs current: in initialization mode from the parameters as set so far,
-    /// afterwards from the validated model.
+    /// Makes the output cache current: in initialization mode from the parameters as set so far
+    /// (the state the FMU would start from with these values), afterwards from the validated model.
     fn refresh_outputs(&mut self) -> Result<(), Failure> {
         if self.core.outputs_valid {
             return Ok(());
         }
-        let out = match &self.model {
-            Some(m) => m.evaluate(&self.core.crank, &self.core.inputs(), &self.core.rod)?,
+        match &self.model {
+            Some(m) => M::update_outputs(m, &self.core.values, &self.core.state, &mut self.outputs)?,
             None => {
-                // Initialization mode: the state the FMU would start from with these values.
-                let m = Model::new(&self.core.params()?)?;
-                let rod = m.initial_rod_state(&self.core.crank, &self.core.inputs())?;
-                m.evaluate(&self.core.crank, &self.core.inputs(), &rod)?
+                let m = M::build(&self.core.params::<M>()?)?;
+                let state = M::initialize(&m, &self.core.values, &self.core.state, &mut self.outputs)?;
+                self.provisional = Some((m, state));
             }
-        };
-        self.core.write_outputs(&out);
+        }
+        self.core.outputs_valid = true;
         Ok(())
+    }
+
+    /// One output from the (valid) cache.
+    #[inline]
+    fn read_output(&mut self, output: M::Output) -> Result<f64, Failure> {
+        let (model, state) = match (&self.model, &self.provisional) {
+            (Some(m), _) => (m, &self.core.state),
+            (None, Some((m, s))) => (m, s),
+            (None, None) => return Err(Failure::error("output requested without a model (internal error)")),
+        };
+        Ok(M::output(model, &self.core.values, state, &mut self.outputs, output)?)
     }
 
     /// fmi2GetReal/Integer/Boolean: `out(i, value)` receives the i-th requested value.
@@ -308,7 +313,7 @@ impl Instance {
             Mode::Instantiated => false,
             Mode::Fatal => return Err(Failure::illegal(function, self.core.mode)),
         };
-        let info = var_info();
+        let info = M::table().info();
         for (k, &vr) in vrs.iter().enumerate() {
             let i = self.lookup(function, vr, ty)?;
             match info[i].output {
@@ -317,12 +322,12 @@ impl Instance {
                         if !outputs_available {
                             return Err(Failure::error(format!(
                                 "{function}: output \"{}\" is not available before fmi2EnterInitializationMode",
-                                VARIABLES[i].name
+                                M::table().variables[i].name
                             )));
                         }
                         self.refresh_outputs()?;
                     }
-                    out(k, get(&self.core.outputs));
+                    out(k, self.read_output(get)?);
                 }
                 None => out(k, self.core.values[i]),
             }
@@ -341,7 +346,7 @@ impl Instance {
             _ => return Err(Failure::illegal(function, self.core.mode)),
         };
         // Fast path, taken at every step by every master: finite values for inputs only.
-        let info = var_info();
+        let info = M::table().info();
         let inputs_only = vrs.iter().enumerate().all(|(k, &vr)| {
             matches!(info.get(vr as usize), Some(v) if v.ty == ty && v.slot.is_some()) && value(k).is_finite()
         });
@@ -349,13 +354,13 @@ impl Instance {
             for (k, &vr) in vrs.iter().enumerate() {
                 self.store_value(vr as usize, value(k));
             }
-            self.core.outputs_valid = false;
+            self.invalidate_outputs();
             return Ok(());
         }
         let mut tunable_changed = false;
         for (k, &vr) in vrs.iter().enumerate() {
             let i = self.lookup(function, vr, ty)?;
-            let var = &VARIABLES[i];
+            let var = &M::table().variables[i];
             let v = value(k);
             match var.causality {
                 Causality::Output | Causality::CalculatedParameter => {
@@ -384,7 +389,7 @@ impl Instance {
             self.store_value(vr as usize, value(k));
         }
         if let Some(saved) = saved {
-            match self.core.params().and_then(|p| Model::new(&p).map_err(Failure::from)) {
+            match self.core.params::<M>().and_then(|p| M::build(&p).map_err(Failure::from)) {
                 Ok(model) => self.model = Some(model),
                 Err(e) => {
                     self.core.values = saved;
@@ -392,24 +397,21 @@ impl Instance {
                 }
             }
         }
-        self.core.outputs_valid = false;
+        self.invalidate_outputs();
         Ok(())
     }
 
-    /// Stores a value; for a crank input also updates the crank state the model uses.
+    /// Stores a value; for an input also tells the model (it may keep a copy in its state).
     #[inline]
     fn store_value(&mut self, vr: usize, v: f64) {
         self.core.values[vr] = v;
-        match var_info()[vr].slot {
-            Some(InputSlot::CrankAngle) => self.core.crank.angle = v,
-            Some(InputSlot::CrankSpeed) => self.core.crank.speed = v,
-            Some(InputSlot::CrankAcceleration) => self.core.crank.acceleration = v,
-            _ => {}
+        if let Some(slot) = M::table().info()[vr].slot {
+            M::input_changed(&mut self.core.state, slot, v);
         }
     }
 
-    /// fmi2DoStep: advances the crank by the in-step extrapolation of physics.md §2 and evaluates
-    /// the outputs at the new communication point. Nothing changes unless everything succeeds.
+    /// fmi2DoStep: advances the model's state over [t, t+h] and brings the outputs to the new
+    /// communication point. Nothing changes unless everything succeeds.
     pub fn do_step(&mut self, current: f64, h: f64) -> Result<(), Failure> {
         self.require("fmi2DoStep", &[Mode::StepComplete])?;
         if !(h > 0.0 && h.is_finite()) {
@@ -429,88 +431,79 @@ impl Instance {
         }
         let model = self.model.as_ref().ok_or_else(|| Failure::illegal("fmi2DoStep", self.core.mode))?;
         let fail = |e: ModelError| Failure::error(format!("fmi2DoStep from t = {current} s with h = {h} s failed: {e}"));
-        let inputs = self.core.inputs();
-        // The master's tolerance (fmi2SetupExperiment) wins over solver.tolerance (§6).
-        let tol = self.core.tolerance.unwrap_or_else(|| model.default_tolerance());
+        // The master's tolerance (fmi2SetupExperiment) wins over the model's own (§6).
+        let tol = self.core.tolerance.unwrap_or_else(|| M::default_tolerance(model));
         let mut stats = self.stats;
-        let rod = if model.has_state() {
-            model.step(&self.core.crank, &inputs, &self.core.rod, h, tol, &mut stats).map_err(fail)?
-        } else {
-            self.core.rod
-        };
-        let crank = self.core.crank.extrapolate(h);
-        model.evaluate_into(&crank, &inputs, &rod, &mut self.scratch).map_err(fail)?;
-        let warn = model.has_state()
-            && rod.cage.theta.abs() > ROD_ANGLE_VALIDITY
-            && self.core.rod.cage.theta.abs() <= ROD_ANGLE_VALIDITY;
-        self.core.crank = crank;
-        self.core.rod = rod;
+        let state = M::step(model, &self.core.values, &self.core.state, h, tol, &mut stats, &mut self.scratch).map_err(fail)?;
+        let warning = M::step_warning(model, &self.core.state, &state);
+        self.core.state = state;
         self.core.time = current + h;
-        std::mem::swap(&mut self.core.outputs, &mut self.scratch);
+        std::mem::swap(&mut self.outputs, &mut self.scratch);
         self.core.outputs_valid = true;
         self.stats = stats;
-        if warn {
-            self.warn_rod_angle("fmi2DoStep", rod.cage.theta);
+        if let Some(w) = warning {
+            self.warn("fmi2DoStep", &w);
         }
         Ok(())
     }
 
-    /// The elastic rod's cage angle left the range of the linear theory (§6 "Validity"): warned
-    /// when it starts there and whenever a step crosses the limit.
-    fn warn_rod_angle(&self, function: &str, theta: f64) {
+    /// A model warning, with the function and the FMU's time.
+    fn warn(&self, function: &str, message: &str) {
         self.logger.log(
             fmi_sys::fmi2::fmi2Status_fmi2Warning,
             Category::Warning,
-            &format!(
-                "{function}: at t = {} s the cage angle rod.angle = {theta} rad exceeds {ROD_ANGLE_VALIDITY} rad: \
-                 the linear theory of the elastic rod (physics.md §6) is no longer valid",
-                self.core.time
-            ),
+            &format!("{function}: at t = {} s {message}", self.core.time),
         );
     }
 
-    pub fn snapshot(&self) -> Snapshot {
-        Snapshot { magic: SNAPSHOT_MAGIC, core: self.core.clone(), model: self.model.clone() }
+    pub fn snapshot(&self) -> Snapshot<M> {
+        Snapshot {
+            magic: snapshot_magic::<M>(),
+            core: self.core.clone(),
+            outputs: self.outputs.clone(),
+            model: self.model.clone(),
+            provisional: self.provisional.clone(),
+        }
     }
 
-    pub fn restore(&mut self, s: &Snapshot) -> Result<(), Failure> {
+    pub fn restore(&mut self, s: &Snapshot<M>) -> Result<(), Failure> {
         if self.core.mode == Mode::Fatal {
             return Err(Failure::illegal("fmi2SetFMUstate", self.core.mode));
         }
-        if s.magic != SNAPSHOT_MAGIC {
+        if s.magic != snapshot_magic::<M>() {
             return Err(Failure::error("fmi2SetFMUstate: the state was not made by this FMU"));
         }
         self.core = s.core.clone();
+        self.outputs = s.outputs.clone();
         self.model = s.model.clone();
+        self.provisional = s.provisional.clone();
         Ok(())
     }
 
     /// Rebuilds a snapshot from deserialized data, validating it as untrusted input.
-    pub fn snapshot_from_core(core: Core) -> Result<Snapshot, Failure> {
+    pub fn snapshot_from_core(core: Core<M::State>) -> Result<Snapshot<M>, Failure> {
         let bad = |what: &str| Failure::error(format!("fmi2DeSerializeFMUstate: invalid state: {what}"));
-        if core.values.len() != VARIABLES.len() {
+        let vars = M::table().variables;
+        if core.values.len() != vars.len() {
             return Err(bad("wrong number of variables"));
         }
         if !core.time.is_finite() || core.mode == Mode::Fatal {
             return Err(bad("time or mode"));
         }
-        let r = &core.rod;
-        if ![r.cage.theta, r.cage.rate, r.integrator.h_next, r.integrator.err_prev].iter().all(|v| v.is_finite()) {
-            return Err(bad("elastic-rod state"));
-        }
+        M::check_state(&core.state).map_err(bad)?;
         // The outputs are not part of the serialized form: recompute them when asked.
         let core = Core { outputs_valid: false, ..core };
-        for (v, var) in core.values.iter().zip(VARIABLES) {
+        for (v, var) in core.values.iter().zip(vars) {
             let integral = matches!(var.ty, VarType::Integer | VarType::Boolean);
             if integral && !(v.fract() == 0.0 && v.abs() <= i32::MAX as f64) {
                 return Err(bad(var.name));
             }
         }
         let model = match core.mode {
-            Mode::StepComplete | Mode::Terminated => Some(Model::new(&core.params()?)?),
+            Mode::StepComplete | Mode::Terminated => Some(M::build(&core.params::<M>()?)?),
             _ => None,
         };
-        Ok(Snapshot { magic: SNAPSHOT_MAGIC, core, model })
+        Ok(Snapshot { magic: snapshot_magic::<M>(), core, outputs: M::Outputs::default(), model, provisional: None })
     }
 
     #[inline]

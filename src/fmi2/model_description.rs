@@ -1,15 +1,13 @@
-//! Generates modelDescription.xml from the variable table (fmi.md "The archive"). The output is
-//! deterministic (no generation date), so the checked-in copy under `modelDescription/` can be
-//! compared byte for byte with what this produces.
+//! Generates a model's modelDescription.xml from its variable table. The output is deterministic
+//! (no generation date), so the checked-in copy under `modelDescription/` can be compared byte for
+//! byte with what this produces.
 
 use std::fmt::Write;
-use std::sync::OnceLock;
 
 use crate::fmi2::logging::CATEGORIES;
-use crate::fmi2::variables::{Binding, Causality, InputSlot, VarType, Variability, UNITS, VARIABLES};
+use crate::fmi2::model::FmuModel;
+use crate::fmi2::variables::{Binding, Causality, VarType, Variability};
 
-pub const MODEL_IDENTIFIER: &str = "ReciprocatingDrive";
-pub const MODEL_NAME: &str = "ReciprocatingDrive";
 const GUID_PLACEHOLDER: &str = "@GUID@";
 
 fn esc(s: &str) -> String {
@@ -30,26 +28,31 @@ fn ty_name(t: VarType) -> &'static str {
 }
 
 /// The 1-based index (in ModelVariables) of the input bound to `slot`.
-fn input_index(slot: InputSlot) -> usize {
-    crate::fmi2::variables::input_vr(slot) + 1
+fn input_index<M: FmuModel>(slot: M::Input) -> usize {
+    M::table().input_vr(slot).map_or(0, |vr| vr + 1)
 }
 
-fn body() -> String {
+fn body<M: FmuModel>() -> String {
+    let info = M::info();
+    let (start, stop, step) = info.default_experiment;
     let mut x = String::new();
     let w = &mut x;
     let _ = writeln!(w, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
     let _ = writeln!(
         w,
-        r#"<fmiModelDescription fmiVersion="2.0" modelName="{MODEL_NAME}" guid="{GUID_PLACEHOLDER}" description="Crank-driven reciprocating mechanism (crank-slider of a drilling mud pump, beam pumping units API class I and III, elastic connecting rod clamped in the piston): exact kinematics, inertia load, guide friction from redundant supports, rod angular oscillation, crank torque" version="{}" generationTool="reciprocating_drive {}" variableNamingConvention="structured" numberOfEventIndicators="0">"#,
+        r#"<fmiModelDescription fmiVersion="2.0" modelName="{}" guid="{GUID_PLACEHOLDER}" description="{}" version="{}" generationTool="reciprocating_drive {}" variableNamingConvention="structured" numberOfEventIndicators="0">"#,
+        esc(info.model_name),
+        esc(info.description),
         env!("CARGO_PKG_VERSION"),
         env!("CARGO_PKG_VERSION")
     );
     let _ = writeln!(
         w,
-        r#"  <CoSimulation modelIdentifier="{MODEL_IDENTIFIER}" needsExecutionTool="false" canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" maxOutputDerivativeOrder="0" canRunAsynchronuously="false" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="true" canSerializeFMUstate="true" providesDirectionalDerivative="false"/>"#
+        r#"  <CoSimulation modelIdentifier="{}" needsExecutionTool="false" canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" maxOutputDerivativeOrder="0" canRunAsynchronuously="false" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="true" canSerializeFMUstate="true" providesDirectionalDerivative="false"/>"#,
+        info.model_identifier
     );
     let _ = writeln!(w, "  <UnitDefinitions>");
-    for (name, [kg, m, s, rad]) in UNITS {
+    for (name, [kg, m, s, rad]) in M::table().units {
         let mut attrs = String::new();
         for (sym, e) in [("kg", kg), ("m", m), ("s", s), ("rad", rad)] {
             if *e != 0 {
@@ -64,9 +67,9 @@ fn body() -> String {
         let _ = writeln!(w, r#"    <Category name="{name}" description="{}"/>"#, esc(desc));
     }
     let _ = writeln!(w, "  </LogCategories>");
-    let _ = writeln!(w, r#"  <DefaultExperiment startTime="0.0" stopTime="3.0" stepSize="0.001"/>"#);
+    let _ = writeln!(w, r#"  <DefaultExperiment startTime="{}" stopTime="{}" stepSize="{}"/>"#, num(start), num(stop), num(step));
     let _ = writeln!(w, "  <ModelVariables>");
-    for (vr, v) in VARIABLES.iter().enumerate() {
+    for (vr, v) in M::table().variables.iter().enumerate() {
         let causality = match v.causality {
             Causality::Parameter => "parameter",
             Causality::CalculatedParameter => "calculatedParameter",
@@ -112,9 +115,9 @@ fn body() -> String {
     let _ = writeln!(w, "  </ModelVariables>");
     let _ = writeln!(w, "  <ModelStructure>");
     let _ = writeln!(w, "    <Outputs>");
-    for (vr, v) in VARIABLES.iter().enumerate() {
+    for (vr, v) in M::table().variables.iter().enumerate() {
         if let (Causality::Output, Binding::Output { depends_on, .. }) = (v.causality, v.binding) {
-            let deps: Vec<String> = depends_on.iter().map(|s| input_index(*s).to_string()).collect();
+            let deps: Vec<String> = depends_on.iter().map(|s| input_index::<M>(*s).to_string()).collect();
             let kinds: Vec<&str> = depends_on.iter().map(|_| "dependent").collect();
             let _ = writeln!(
                 w,
@@ -129,7 +132,7 @@ fn body() -> String {
     // Outputs and calculated parameters are computed at initialization from all knowns (inputs
     // and parameters): no `dependencies` attribute means exactly that.
     let _ = writeln!(w, "    <InitialUnknowns>");
-    for (vr, v) in VARIABLES.iter().enumerate() {
+    for (vr, v) in M::table().variables.iter().enumerate() {
         if matches!(v.causality, Causality::Output | Causality::CalculatedParameter) {
             let _ = writeln!(w, r#"      <Unknown index="{}"/>"#, vr + 1);
         }
@@ -142,10 +145,9 @@ fn body() -> String {
 
 /// GUID derived from the interface itself: any change to the table changes it, so an importer
 /// holding an old modelDescription.xml cannot instantiate a new binary by mistake.
-pub fn guid() -> &'static str {
-    static GUID: OnceLock<String> = OnceLock::new();
-    GUID.get_or_init(|| {
-        let b = body();
+pub fn guid<M: FmuModel>() -> &'static str {
+    M::table().guid.get_or_init(|| {
+        let b = body::<M>();
         let h = |seed: u64| {
             b.bytes().fold(seed, |h, c| (h ^ c as u64).wrapping_mul(0x0000_0100_0000_01b3))
         };
@@ -162,6 +164,6 @@ pub fn guid() -> &'static str {
 }
 
 /// The complete modelDescription.xml.
-pub fn generate() -> String {
-    body().replacen(GUID_PLACEHOLDER, guid(), 1)
+pub fn generate<M: FmuModel>() -> String {
+    body::<M>().replacen(GUID_PLACEHOLDER, guid::<M>(), 1)
 }

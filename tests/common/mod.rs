@@ -17,7 +17,7 @@ pub const ERROR: fmi2Status = fmi2Status_fmi2Error;
 pub fn library_path() -> PathBuf {
     let exe = std::env::current_exe().expect("test executable path");
     let deps = exe.parent().expect("deps dir");
-    deps.join("libreciprocating_drive.so")
+    deps.join("libReciprocatingDrive.so")
 }
 
 /// What the logger received, shared through componentEnvironment.
@@ -112,7 +112,7 @@ fns! {
 }
 
 pub fn vr(name: &str) -> u32 {
-    reciprocating_drive::fmi2::variables::value_reference(name).unwrap_or_else(|| panic!("no variable {name}")) as u32
+    reciprocating_drive::fmus::reciprocating_drive::value_reference(name).unwrap_or_else(|| panic!("no variable {name}")) as u32
 }
 
 /// One instance with its log sink; freed on drop.
@@ -129,7 +129,7 @@ impl<'a> Inst<'a> {
     }
 
     pub fn with(api: &'a Api, name: &str, resources: Option<&str>, logging_on: bool) -> Inst<'a> {
-        Self::try_with(api, name, resources, logging_on, reciprocating_drive::fmi2::model_description::guid())
+        Self::try_with(api, name, resources, logging_on, reciprocating_drive::fmi2::model_description::guid::<reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive>())
             .expect("fmi2Instantiate returned NULL")
     }
 

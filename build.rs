@@ -1,8 +1,0 @@
-// Link the FMU with `-z nodelete` (fmi.md, "The C ABI"): importers (fmpy, the FMI Library behind
-// libcosim) dlclose the library after each run; keeping it mapped makes any late destructor
-// harmless. (fmi-sys contributes one extra exported helper, `callback_log`, which the FMU never
-// calls; rustc's own export list for a cdylib cannot be narrowed by a second version script.)
-fn main() {
-    println!("cargo:rustc-cdylib-link-arg=-Wl,-z,nodelete");
-    println!("cargo:rerun-if-changed=build.rs");
-}

@@ -1,0 +1,121 @@
+//! What a model gives the shared FMI 2.0 glue: the counterpart of the `config.h` + `model.c`
+//! pair of each of the Modelica Reference FMUs over their one shared `fmi2Functions.c`.
+//!
+//! The glue (instances, state machine, get/set, logging, FMU states, modelDescription.xml and
+//! documentation generation, the C ABI) is written once, generic over [`FmuModel`]. A model
+//! supplies its variable table, its identity, and the physics behind a few calls; it never sees
+//! FMI types, and the glue never computes physics.
+//!
+//! Outputs: the glue does not hold an `Outputs` struct. It tells the model when its inputs or
+//! state changed ([`FmuModel::update_outputs`]) and asks for one output at a time
+//! ([`FmuModel::output`]); the model owns the cache in between. A model may evaluate everything
+//! at once in `update_outputs` (eager) or only mark its cache stale there and evaluate what an
+//! output needs on demand (lazy).
+
+use std::fmt::Debug;
+
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+
+use crate::fmi2::variables::Table;
+use crate::model::error::ModelError;
+
+/// The identity of an FMU and the texts the generators put around its variable table.
+pub struct ModelInfo {
+    /// `modelIdentifier`: the name of the shared object in `binaries/<platform>/`.
+    pub model_identifier: &'static str,
+    pub model_name: &'static str,
+    /// `description` attribute of `<fmiModelDescription>`.
+    pub description: &'static str,
+    /// `<DefaultExperiment>` start, stop, step size [s].
+    pub default_experiment: (f64, f64, f64),
+    /// HTML of documentation/index.html before the generated variable list.
+    pub documentation: &'static str,
+    /// The hint of the fmi2SetRealInputDerivatives error (what to do instead).
+    pub input_derivatives_hint: &'static str,
+}
+
+/// One model served by the FMI glue. All functions are associated functions (the glue keeps the
+/// data; the model keeps none between calls besides what the glue hands it).
+pub trait FmuModel: Sized + 'static {
+    /// Parameters as the variable table writes them; `Default` is the start values.
+    type Params: Default;
+    /// The validated machine, built from the parameters at fmi2ExitInitializationMode (and again
+    /// when a tunable parameter changes); immutable while stepping.
+    type Built: Clone;
+    /// Everything that evolves with time and must survive fmi2GetFMUstate/fmi2SerializeFMUstate:
+    /// continuous states, integrator memory, the model's copy of its inputs.
+    type State: Clone + Default + PartialEq + Debug + Serialize + DeserializeOwned;
+    /// The model's output cache (see the module doc).
+    type Outputs: Default + Clone;
+    /// Names an input of the table (where `fmi2SetReal` delivers it in the model).
+    type Input: Copy + PartialEq + Debug + Send + Sync + 'static;
+    /// Names an output (or calculated parameter) of the table, as [`FmuModel::output`] reads it.
+    type Output: Copy + Send + Sync + 'static;
+    /// Work counters kept per instance (diagnostics only, not part of the FMU state).
+    type Stats: Default + Copy;
+
+    fn info() -> &'static ModelInfo;
+    /// The variable table (value reference = index).
+    fn table() -> &'static Table<Self>;
+
+    /// The state of a fresh instance (fmi2Instantiate, fmi2Reset) with the table's start values
+    /// in `values` (indexed by value reference).
+    fn fresh_state(values: &[f64]) -> Self::State;
+
+    /// `fmi2SetReal` stored a finite value of `input` (already in `values`): keep the state's copy
+    /// of it, if the model keeps one.
+    #[inline]
+    fn input_changed(_state: &mut Self::State, _input: Self::Input, _value: f64) {}
+
+    /// Checks the machine as a whole (what single-variable ranges cannot) and precomputes.
+    fn build(params: &Self::Params) -> Result<Self::Built, ModelError>;
+
+    /// The state the simulation starts from, and the outputs there written to `out`
+    /// (fmi2ExitInitializationMode; in initialization mode also for fmi2GetReal). An error leaves
+    /// the caller's state as it was (`out` is then unspecified and not used).
+    fn initialize(built: &Self::Built, values: &[f64], state: &Self::State, out: &mut Self::Outputs)
+        -> Result<Self::State, ModelError>;
+
+    /// Inputs, parameters or state changed since `cache` was last brought up to date: make it
+    /// answer for `values` and `state` (eagerly, or by marking it stale). On error `cache` is
+    /// unspecified and asked again only after another `update_outputs`.
+    fn update_outputs(built: &Self::Built, values: &[f64], state: &Self::State, cache: &mut Self::Outputs)
+        -> Result<(), ModelError>;
+
+    /// The value of one output from an up-to-date cache (evaluating on demand if the model is lazy).
+    fn output(built: &Self::Built, values: &[f64], state: &Self::State, cache: &mut Self::Outputs, output: Self::Output)
+        -> Result<f64, ModelError>;
+
+    /// One communication step of size `h` from `state`, to the tolerance `tol`; returns the new
+    /// state and brings `out` up to date for it (as `update_outputs` would). An error changes
+    /// nothing the caller keeps.
+    #[allow(clippy::too_many_arguments)]
+    fn step(
+        built: &Self::Built,
+        values: &[f64],
+        state: &Self::State,
+        h: f64,
+        tol: f64,
+        stats: &mut Self::Stats,
+        out: &mut Self::Outputs,
+    ) -> Result<Self::State, ModelError>;
+
+    /// The integrator tolerance when fmi2SetupExperiment gives none.
+    fn default_tolerance(built: &Self::Built) -> f64;
+
+    /// A warning about the initial state (logged by the glue with the function and the time).
+    fn initial_warning(_built: &Self::Built, _state: &Self::State) -> Option<String> {
+        None
+    }
+
+    /// A warning about a completed step from `before` to `after`.
+    fn step_warning(_built: &Self::Built, _before: &Self::State, _after: &Self::State) -> Option<String> {
+        None
+    }
+
+    /// Checks a deserialized state (untrusted bytes); the error names what is invalid.
+    fn check_state(_state: &Self::State) -> Result<(), &'static str> {
+        Ok(())
+    }
+}

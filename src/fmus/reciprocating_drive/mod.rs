@@ -1,0 +1,160 @@
+//! The ReciprocatingDrive FMU: the physics of `crate::model` (docs/model.md §2–§7) behind the
+//! shared FMI glue. This module only connects the two: the variable table, the FMU's identity, and
+//! which model call answers which glue call. Outputs are evaluated eagerly: all of them at once
+//! whenever the inputs or the state change.
+
+pub mod documentation;
+pub mod variables;
+
+use serde::{Deserialize, Serialize};
+
+use crate::fmi2::model::{FmuModel, ModelInfo};
+use crate::fmi2::variables::Table;
+use crate::model::crank::CrankState;
+use crate::model::drive::{Inputs, Model, Outputs, RodState};
+use crate::model::error::ModelError;
+use crate::model::integrator::IntegratorStats;
+use crate::model::params::Params;
+
+pub use variables::{input_vr, value_reference, InputSlot, TABLE, UNITS, VARIABLES};
+
+/// The model type the glue is instantiated with (`fmi2::abi::export_fmu!`).
+pub struct ReciprocatingDrive;
+
+/// What evolves: the crank as the FMU knows it (the inputs after fmi2SetReal, their extrapolation
+/// after a step, docs/model.md §2) and the continuous state of an elastic rod (cage angle and
+/// rate) with its integrator's memory.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct State {
+    pub crank: CrankState,
+    pub rod: RodState,
+}
+
+/// |ϑ| above which the linear theory of the elastic rod is no longer valid (docs/model.md §6).
+const ROD_ANGLE_VALIDITY: f64 = 0.2;
+
+static INFO: ModelInfo = ModelInfo {
+    model_identifier: "ReciprocatingDrive",
+    model_name: "ReciprocatingDrive",
+    description: "Crank-driven reciprocating mechanism (crank-slider of a drilling mud pump, beam pumping units API class I and III, elastic connecting rod clamped in the piston): exact kinematics, inertia load, guide friction from redundant supports, rod angular oscillation, crank torque",
+    default_experiment: (0.0, 3.0, 0.001),
+    documentation: documentation::CONVENTIONS,
+    input_derivatives_hint: "supply crank.acceleration as an input instead",
+};
+
+#[inline]
+fn inputs(values: &[f64]) -> Inputs {
+    Inputs { external_force: values[input_vr(InputSlot::ExternalForce)] }
+}
+
+impl FmuModel for ReciprocatingDrive {
+    type Params = Params;
+    type Built = Model;
+    type State = State;
+    type Outputs = Outputs;
+    type Input = InputSlot;
+    type Output = fn(&Outputs) -> f64;
+    type Stats = IntegratorStats;
+
+    fn info() -> &'static ModelInfo {
+        &INFO
+    }
+
+    #[inline]
+    fn table() -> &'static Table<Self> {
+        &TABLE
+    }
+
+    fn fresh_state(values: &[f64]) -> State {
+        State {
+            crank: CrankState {
+                angle: values[input_vr(InputSlot::CrankAngle)],
+                speed: values[input_vr(InputSlot::CrankSpeed)],
+                acceleration: values[input_vr(InputSlot::CrankAcceleration)],
+            },
+            rod: RodState::default(),
+        }
+    }
+
+    #[inline]
+    fn input_changed(state: &mut State, input: InputSlot, v: f64) {
+        match input {
+            InputSlot::CrankAngle => state.crank.angle = v,
+            InputSlot::CrankSpeed => state.crank.speed = v,
+            InputSlot::CrankAcceleration => state.crank.acceleration = v,
+            InputSlot::ExternalForce => {}
+        }
+    }
+
+    fn build(params: &Params) -> Result<Model, ModelError> {
+        Model::new(params)
+    }
+
+    fn initialize(model: &Model, values: &[f64], state: &State, out: &mut Outputs) -> Result<State, ModelError> {
+        let rod = model.initial_rod_state(&state.crank, &inputs(values))?;
+        model.evaluate_into(&state.crank, &inputs(values), &rod, out)?;
+        Ok(State { crank: state.crank, rod })
+    }
+
+    #[inline]
+    fn update_outputs(model: &Model, values: &[f64], state: &State, cache: &mut Outputs) -> Result<(), ModelError> {
+        model.evaluate_into(&state.crank, &inputs(values), &state.rod, cache)
+    }
+
+    #[inline]
+    fn output(_: &Model, _: &[f64], _: &State, cache: &mut Outputs, get: fn(&Outputs) -> f64) -> Result<f64, ModelError> {
+        Ok(get(cache))
+    }
+
+    /// Advances the crank by the in-step extrapolation of docs/model.md §2 and an elastic rod's
+    /// cage state by its integrator, then evaluates the outputs at the new communication point.
+    #[inline]
+    fn step(
+        model: &Model,
+        values: &[f64],
+        state: &State,
+        h: f64,
+        tol: f64,
+        stats: &mut IntegratorStats,
+        out: &mut Outputs,
+    ) -> Result<State, ModelError> {
+        let inputs = inputs(values);
+        let rod = if model.has_state() { model.step(&state.crank, &inputs, &state.rod, h, tol, stats)? } else { state.rod };
+        let crank = state.crank.extrapolate(h);
+        model.evaluate_into(&crank, &inputs, &rod, out)?;
+        Ok(State { crank, rod })
+    }
+
+    fn default_tolerance(model: &Model) -> f64 {
+        model.default_tolerance()
+    }
+
+    /// The elastic rod's cage angle left the range of the linear theory (§6 "Validity"): warned
+    /// when it starts there and whenever a step crosses the limit.
+    fn initial_warning(model: &Model, state: &State) -> Option<String> {
+        (model.has_state() && state.rod.cage.theta.abs() > ROD_ANGLE_VALIDITY).then(|| rod_angle_warning(state.rod.cage.theta))
+    }
+
+    fn step_warning(model: &Model, before: &State, after: &State) -> Option<String> {
+        (model.has_state()
+            && after.rod.cage.theta.abs() > ROD_ANGLE_VALIDITY
+            && before.rod.cage.theta.abs() <= ROD_ANGLE_VALIDITY)
+            .then(|| rod_angle_warning(after.rod.cage.theta))
+    }
+
+    fn check_state(state: &State) -> Result<(), &'static str> {
+        let r = &state.rod;
+        if ![r.cage.theta, r.cage.rate, r.integrator.h_next, r.integrator.err_prev].iter().all(|v| v.is_finite()) {
+            return Err("elastic-rod state");
+        }
+        Ok(())
+    }
+}
+
+#[cold]
+fn rod_angle_warning(theta: f64) -> String {
+    format!(
+        "the cage angle rod.angle = {theta} rad exceeds {ROD_ANGLE_VALIDITY} rad: \
+         the linear theory of the elastic rod (physics.md §6) is no longer valid"
+    )
+}
