@@ -1,27 +1,34 @@
 #!/usr/bin/env bash
 # The main job: builds the FMU, prepares the Python environment and simulates a machine at
-# constant crank speed for 3 s with fmpy (the crank motion supplied as input signals), writing
-# results/<preset>.csv and results/<preset>.png (position, velocity, acceleration and inertia force
-# against crank angle).
+# constant crank speed with fmpy over whole revolutions. Writes results/<preset>.png (acceleration,
+# inertia load, guide friction, rod force, crank torque against crank angle; for an elastic rod
+# its cage angle and stress, for a beam unit its card), results/<preset>.json (the summary,
+# docs/results.md) and results/<preset>.csv, and prints the summary.
 #
-#   scripts/run.sh [preset]      preset: "default" (the FMU's start values, physics.md §8) or the
-#                                name of a parameter set resources/presets/<preset>.ssv
+#   scripts/run.sh [preset]      preset: "default" (the FMU's start values, docs/model.md §8), the
+#                                name of a parameter set resources/presets/<preset>.ssv, or "all"
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 preset="${1:-default}"
 if [ $# -gt 1 ]; then
-    echo "usage: scripts/run.sh [preset]" >&2
+    echo "usage: scripts/run.sh [preset|all]" >&2
     exit 2
 fi
-if [ "$preset" != "default" ] && [ ! -f "resources/presets/$preset.ssv" ]; then
+presets=("$preset")
+if [ "$preset" = all ]; then
+    presets=(default)
+    for f in resources/presets/*.ssv; do presets+=("$(basename "$f" .ssv)"); done
+elif [ "$preset" != "default" ] && [ ! -f "resources/presets/$preset.ssv" ]; then
     avail="default"
     for f in resources/presets/*.ssv; do [ -e "$f" ] && avail="$avail, $(basename "$f" .ssv)"; done
-    echo "run.sh: unknown preset \"$preset\"; available: $avail" >&2
+    echo "run.sh: unknown preset \"$preset\"; available: $avail, all" >&2
     exit 2
 fi
 
 bash scripts/build-fmu.sh
 source scripts/lib/venv.sh
 ensure_venv
-"$VENV_PYTHON" scripts/simulate.py "$preset"
+for p in "${presets[@]}"; do
+    "$VENV_PYTHON" scripts/simulate.py "$p"
+done

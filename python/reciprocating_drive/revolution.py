@@ -90,8 +90,11 @@ def _refined_peak(theta: np.ndarray, y: np.ndarray, i: int) -> tuple[float, floa
     return float(y[i]), float(theta[i])
 
 
-def _extreme(theta: np.ndarray, y: np.ndarray) -> Extreme:
-    imax, imin = int(np.argmax(y)), int(np.argmin(y))
+def _extreme(theta: np.ndarray, y: np.ndarray, sl: slice) -> Extreme:
+    """Extremes of y over the samples `sl`. The parabola may use the neighbours just outside the
+    slice, so that a peak at a revolution's boundary (the acceleration at an outer dead centre) is
+    refined like any other and reported at its true angle."""
+    imax, imin = sl.start + int(np.argmax(y[sl])), sl.start + int(np.argmin(y[sl]))
     vmax, amax = _refined_peak(theta, y, imax)
     vmin, amin = _refined_peak(theta, y, imin)
     deg = lambda a: math.degrees(a % TWO_PI) % 360.0  # noqa: E731
@@ -148,7 +151,7 @@ def summarize_revolutions(
             s.speed_fluctuation = float((ws.max() - ws.min()) / ws.mean())
         for q in quantities:
             if q in cols:
-                s.extremes[q] = _extreme(th[sl], cols[q][sl])
+                s.extremes[q] = _extreme(th, cols[q], sl)
         if "link.friction_total" in cols and "suspension.position" in cols:
             # Over exactly [t_a, t_b]: the samples inside plus the values interpolated at both ends.
             f = np.concatenate(([np.interp(ta, t, cols["link.friction_total"])], cols["link.friction_total"][sl],

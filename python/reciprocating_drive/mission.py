@@ -1,0 +1,208 @@
+"""The main job (scripts/run.sh): simulate one machine at constant crank speed and reduce the run to
+what the FMU exists for, per revolution (docs/results.md documents the summary's keys).
+
+The master (fmpy.simulate_fmu with input signals) supplies crank.angle = ω·t, crank.speed = ω,
+crank.acceleration = 0; the angle the outputs belong to is read back from crank.model_angle
+(docs/model.md §2), so a preset's crank.angle_offset is accounted for by the FMU itself.
+
+A rigid mechanism is algebraic: every revolution is the same, and two are simulated. An elastic rod
+starts with a transient of its cage oscillation (docs/model.md §6): the run is long enough for it to
+decay, the transient revolutions are the ones before the per-revolution ϑ amplitude settles (to
+`SETTLED` of its final value), and the summary describes the last complete revolution.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .presets import preset_values
+from .revolution import TWO_PI, summarize_revolutions
+
+#: Outputs recorded by the main job.
+OUTPUTS = (
+    "crank.model_angle",
+    "crank.model_speed",
+    "suspension.position",
+    "suspension.velocity",
+    "suspension.acceleration",
+    "kinematics.torque_factor",
+    "inertia.force",
+    "guide.friction",
+    "link.friction_total",
+    "rod.force",
+    "crank.torque",
+    "rod.angle",
+    "rod.angular_velocity",
+    "rod.stress_max",
+)
+
+#: Quantities whose extremes the summary reports, with their units.
+EXTREMES = {
+    "suspension.acceleration": "m/s2",
+    "inertia.force": "N",
+    "guide.friction": "N",
+    "rod.force": "N",
+    "crank.torque": "N.m",
+}
+
+MECHANISMS = {1: "crank-slider", 2: "beam pumping unit, API class I", 3: "beam pumping unit, API class III"}
+ROD_KINDS = {0: "rigid rod", 1: "elastic thin rod", 2: "helical-spring rod"}
+
+#: Relative change of the per-revolution ϑ amplitude below which the cage oscillation counts as settled.
+SETTLED = 1e-3
+
+
+@dataclass
+class Mission:
+    preset: str
+    parameters: dict           # every parameter value in use (start values overridden by the preset)
+    omega: float               # crank speed [rad/s]
+    step: float                # communication step [s]
+    data: dict                 # output name -> samples (numpy), plus "time"
+    revolutions: list          # RevolutionSummary of every complete revolution
+    transient_revolutions: int  # complete revolutions before the steady state (0 for rigid rods)
+    summary: dict = field(default_factory=dict)
+
+    @property
+    def mechanism(self) -> int:
+        return int(self.parameters["mechanism"])
+
+    @property
+    def elastic(self) -> bool:
+        return int(self.parameters["rod.kind"]) != 0
+
+    @property
+    def title(self) -> str:
+        kind = MECHANISMS.get(self.mechanism, f"mechanism {self.mechanism}")
+        if self.elastic:
+            kind += f" with {ROD_KINDS[int(self.parameters['rod.kind'])]}"
+        name = "default machine" if self.preset == "default" else f"preset {self.preset}"
+        spm = self.omega * 60.0 / TWO_PI
+        return f"{kind}, {name}: ω = {self.omega:.4g} rad/s ({spm:.4g} strokes/min)"
+
+    def steady_slice(self, last: int | None = None) -> slice:
+        """Samples of the steady revolutions (every complete revolution after the transient, or
+        only the `last` ones)."""
+        t = self.data["time"]
+        revs = self.revolutions[self.transient_revolutions:]
+        if last is not None:
+            revs = revs[-last:]
+        a = np.searchsorted(t, revs[0].start_time)
+        b = np.searchsorted(t, revs[-1].start_time + revs[-1].duration, side="right")
+        return slice(int(a), int(b))
+
+
+def _start_values(fmu: str) -> dict:
+    from fmpy import read_model_description
+
+    out = {}
+    for v in read_model_description(fmu).modelVariables:
+        if v.causality in ("parameter", "input") and v.start is not None:
+            out[v.name] = {"Real": float, "Integer": int, "Boolean": lambda s: str(s).lower() in ("true", "1")}[v.type](v.start)
+    return out
+
+
+def run_mission(fmu: str, preset: str = "default", step: float | None = None,
+                revolutions: int | None = None, preset_dir: str | pathlib.Path | None = None) -> Mission:
+    """Simulates the machine of `preset` (a name in resources/presets, a path to an .ssv, or
+    "default") and summarises it. `step` defaults to 1/900 of a revolution, rounded to 10 µs,
+    `revolutions` to 2 for a rigid rod and 30 for an elastic one (its transient)."""
+    from fmpy import simulate_fmu
+
+    values = preset_values(preset) if preset_dir is None else preset_values(preset, preset_dir)
+    params = {**_start_values(fmu), **values}
+    omega = float(params["crank.speed"])
+    if not omega > 0:
+        raise ValueError(f"the main job needs a positive crank.speed; the preset gives {omega}")
+    elastic = int(params["rod.kind"]) != 0
+    period = TWO_PI / omega
+    if step is None:
+        step = max(1e-5, round(period / 900 / 1e-5) * 1e-5)
+    if revolutions is None:
+        revolutions = 30 if elastic else 2
+    # Revolutions count from the first θ = 2πk at or after the start (θ(0) = the angle offset),
+    # and the run goes a little past the last one, so that it is complete despite the sampling.
+    theta0 = float(params.get("crank.angle_offset", 0.0))
+    wait = (TWO_PI * math.ceil(theta0 / TWO_PI) - theta0) / omega
+    n = int(math.ceil((wait + revolutions * period) / step)) + 2
+    stop = n * step
+    start = {k: v for k, v in values.items()
+             if k not in ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")}
+    t = np.arange(n + 1) * step
+    sig = np.zeros(n + 1, dtype=[("time", float), ("crank.angle", float), ("crank.speed", float),
+                                 ("crank.acceleration", float), ("link.external_force", float)])
+    sig["time"], sig["crank.angle"], sig["crank.speed"] = t, omega * t, omega
+    sig["link.external_force"] = float(params.get("link.external_force", 0.0))
+    res = simulate_fmu(fmu, start_time=0.0, stop_time=stop, output_interval=step, start_values=start,
+                       input=sig, output=list(OUTPUTS))
+    data = {"time": np.asarray(res["time"], dtype=float)}
+    for name in OUTPUTS:
+        data[name] = np.asarray(res[name], dtype=float)
+    # Revolutions of the model angle counted from the first outer dead centre at or after t = 0.
+    revs = summarize_revolutions(data["time"], data["crank.model_angle"], data,
+                                 speed=data["crank.model_speed"],
+                                 quantities=tuple(EXTREMES) + ("suspension.position",))
+    if not revs:
+        raise RuntimeError("the run holds no complete revolution")
+    transient = 0
+    if elastic:
+        amp = np.array([r.rod_angle_amplitude for r in revs])
+        settled = np.abs(amp - amp[-1]) <= SETTLED * abs(amp[-1])
+        # The first revolution from which every later one is settled.
+        transient = int(len(amp) - np.argmin(settled[::-1]) if not settled.all() else 0)
+        transient = min(transient, len(revs) - 1)
+    m = Mission(preset=preset, parameters=params, omega=omega, step=step, data=data, revolutions=revs,
+                transient_revolutions=transient)
+    m.summary = summarize(m)
+    return m
+
+
+def summarize(m: Mission) -> dict:
+    """The summary written to results/<preset>.json (keys documented in docs/results.md)."""
+    last = m.revolutions[-1]
+    pos = last.extremes["suspension.position"]
+    out = {
+        "preset": m.preset,
+        "mechanism": MECHANISMS.get(m.mechanism, str(m.mechanism)),
+        "rod": ROD_KINDS.get(int(m.parameters["rod.kind"]), str(m.parameters["rod.kind"])),
+        "crank_speed": m.omega,
+        "strokes_per_minute": m.omega * 60.0 / TWO_PI,
+        "communication_step": m.step,
+        "revolutions_simulated": len(m.revolutions),
+        "transient_revolutions": m.transient_revolutions,
+        "summarized_revolution": last.index,
+        "stroke": pos.max - pos.min,
+        "extremes": {
+            q: {"unit": unit, "max": e.max, "max_angle_deg": e.max_angle_deg, "min": e.min,
+                "min_angle_deg": e.min_angle_deg}
+            for q, unit in EXTREMES.items() if (e := last.extremes.get(q)) is not None
+        },
+        "friction_work_per_revolution": last.friction_work,
+    }
+    if m.elastic:
+        out["rod_angle_amplitude"] = last.rod_angle_amplitude
+        out["stress_max"] = last.stress_max
+    return out
+
+
+def write_summary(m: Mission, path: pathlib.Path) -> None:
+    path.write_text(json.dumps(m.summary, indent=2) + "\n")
+
+
+def format_summary(s: dict) -> str:
+    lines = [f"{s['preset']}: {s['mechanism']}, {s['rod']}, {s['strokes_per_minute']:.4g} strokes/min",
+             f"  stroke                      {s['stroke']:.6g} m"]
+    for q, e in s["extremes"].items():
+        lines.append(f"  {q:<26}  max {e['max']:.6g} {e['unit']} at {e['max_angle_deg']:.2f}°, "
+                     f"min {e['min']:.6g} {e['unit']} at {e['min_angle_deg']:.2f}°")
+    lines.append(f"  friction work / revolution  {s['friction_work_per_revolution']:.6g} J")
+    if "rod_angle_amplitude" in s:
+        lines.append(f"  rod angle ϑ amplitude       {s['rod_angle_amplitude']:.6g} rad "
+                     f"(steady after {s['transient_revolutions']} revolutions)")
+        lines.append(f"  largest rod stress          {s['stress_max'] / 1e6:.6g} MPa")
+    return "\n".join(lines)
