@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
-"""Closing-note figures of the guide friction (physics.md §5) from the FMU itself.
+"""Closing-note figures of the guide friction (docs/model.md §5) from the FMU itself.
 
 For the default machine and for the unb600a preset: the extremes of `guide.friction` over one
 revolution at 65 strokes/min (value and crank angle θ in degrees, θ = 0 at the outer dead centre),
 and the friction work per revolution ∮ F_fr·v dt with F_fr = `link.friction_total`.
 
 How: fmpy's low-level FMU2Slave; after initialization the crank inputs are set and the outputs
-read without stepping (direct feedthrough, physics.md §2), so any θ can be evaluated.
+read without stepping (direct feedthrough, docs/model.md §2), so any θ can be evaluated.
 * Extremes: a 0.1° scan, then golden-section search on the ±0.1° bracket around the best sample,
   to 1e-7° (guide.friction is unimodal there; it has kinks where an edge force changes sign,
   which golden section tolerates), then a check that no sample of a 0.01° grid over the bracket

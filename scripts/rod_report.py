@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Key numbers of the elastic connecting rod (physics.md §6) for the kvo630 preset, for the
+"""Key numbers of the elastic connecting rod (docs/model.md §6) for the kvo630 preset, for the
 closing note of issue 5:
 
 * the steady-state cage amplitude max|ϑ| over the last revolution of 1 s (transient decayed:
@@ -103,7 +103,7 @@ def main() -> None:
             found = scan[-1]
             break
 
-    print(f"kvo630 (physics.md §8), 1 s at 1500 rpm, communication step {H * 1e3:g} ms")
+    print(f"kvo630 (docs/model.md §8), 1 s at 1500 rpm, communication step {H * 1e3:g} ms")
     print(f"  rod: Ω0 = {drive.omega0:.1f} rad/s (P = 0), damping time 1/(ζΩ0) = {2 * drive.J / drive.B * 1e3:.2f} ms")
     print(f"  steady-state cage amplitude max|ϑ| (last revolution): FMU {amp:.9f} rad, reference {amp_ref:.9f} rad")
     print(f"  largest coil stress max rod.stress_max: FMU {tau / 1e6:.4f} MPa, reference {tau_ref / 1e6:.4f} MPa")

@@ -1,4 +1,4 @@
-//! Beam pumping units (physics.md §3.2), loads (§4) and the torsion-bar balancer (§7) through the
+//! Beam pumping units (docs/model.md §3.2), loads (§4) and the torsion-bar balancer (§7) through the
 //! FMU's C ABI. References: seed 001's printed values with the angle mapping of §3.2, an
 //! independent loop solution written here, closed forms, and the virtual-power identity.
 

@@ -1,4 +1,4 @@
-//! The elastic connecting rod (physics.md §6, issue 5) through the C ABI, loaded with libloading as
+//! The elastic connecting rod (docs/model.md §6, issue 5) through the C ABI, loaded with libloading as
 //! an importer loads it: FMU state save/restore with the integrator's memory, failed steps that
 //! change nothing, initialization that rejects buckled or invalid rods, the two initial states
 //! (checked against K_ϑ, K_Δ recomputed here from the §6 formulas, not taken from src/), the
@@ -104,7 +104,7 @@ fn state_bytes(f: &Inst) -> Vec<u8> {
 }
 
 // ------------------------------------------------------------------------------------------
-// §6 quantities, recomputed here from physics.md (not from src/model/elastic_rod).
+// §6 quantities, recomputed here from docs/model.md (not from src/model/elastic_rod).
 // ------------------------------------------------------------------------------------------
 
 /// (C, S, V3, V4) of v'''' − x·v'' = 0 at z: series for |x z²| ≤ 1, else cos/sin or cosh/sinh.
@@ -161,7 +161,7 @@ struct Column {
     s_n: f64,
 }
 
-/// K_ϑ, K_Δ, C3, C4 of physics.md §6 in its literal product forms, at rod force P.
+/// K_ϑ, K_Δ, C3, C4 of docs/model.md §6 in its literal product forms, at rod force P.
 fn column(a1: f64, a2: f64, l: f64, f: f64, p: f64) -> Column {
     let n = -p;
     let s_n = 1.0 - n / a1;
@@ -188,7 +188,7 @@ fn column(a1: f64, a2: f64, l: f64, f: f64, p: f64) -> Column {
 
 #[test]
 fn recomputed_stiffnesses_reproduce_the_textbook_limits() {
-    // The test's own §6 code against physics.md §6 "Textbook limits" (so it can judge the FMU).
+    // The test's own §6 code against docs/model.md §6 "Textbook limits" (so it can judge the FMU).
     let (a1, a2, l, f) = spring();
     let c = column(1e30, a2, l, f, 1e-12);
     let kt = a2 * (4.0 / l + 12.0 * f / (l * l) + 12.0 * f * f / l.powi(3));

@@ -1,6 +1,6 @@
 //! The FMU through its C ABI, loaded with libloading as an importer loads it: every legal
 //! sequence, illegal sequences, reset, FMU state round trips, interleaved instances, bad
-//! parameters and NaN inputs. Expected numbers come from the closed forms of physics.md §3.1,
+//! parameters and NaN inputs. Expected numbers come from the closed forms of docs/model.md §3.1,
 //! written out here independently of src/.
 
 mod common;
@@ -9,7 +9,7 @@ use std::f64::consts::PI;
 
 const W: f64 = 2.0 * PI * 65.0 / 60.0;
 
-/// Closed form for e = 0 (physics.md §3.1): s, TF, TF'.
+/// Closed form for e = 0 (docs/model.md §3.1): s, TF, TF'.
 fn slider(r: f64, l: f64, t: f64) -> (f64, f64, f64) {
     let lam = r / l;
     let d = (1.0 - lam * lam * t.sin().powi(2)).sqrt();
@@ -64,7 +64,7 @@ fn full_lifecycle_matches_closed_form_and_extrapolates_the_crank() {
         assert!(close(o[8], r * w * theta.cos() / (l * beta.cos()), 1e-13));
     };
     check(0.4, W, 1.5);
-    // A step without new inputs: the FMU extrapolates θ + ωh + εh²/2, ω + εh (physics.md §2).
+    // A step without new inputs: the FMU extrapolates θ + ωh + εh²/2, ω + εh (docs/model.md §2).
     let h = 0.01;
     assert_eq!(f.step(0.0, h), OK);
     check(0.4 + W * h + 0.5 * 1.5 * h * h, W + 1.5 * h, 1.5);

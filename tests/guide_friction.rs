@@ -1,4 +1,4 @@
-//! Guide friction from the link's redundant supports (physics.md §4, §5) through the C ABI,
+//! Guide friction from the link's redundant supports (docs/model.md §4, §5) through the C ABI,
 //! loaded with libloading as an importer loads it:
 //!
 //! * every kind of rejected support configuration fails fmi2ExitInitializationMode with a message
@@ -56,13 +56,13 @@ fn configured<'a>(api: &'a Api, name: &str, settings: &[(&str, f64)]) -> Inst<'a
 }
 
 // ---------------------------------------------------------------------------------------------
-// Rejected configurations (physics.md §5.2; src/model/guide/validation.rs, link_beam.rs,
+// Rejected configurations (docs/model.md §5.2; src/model/guide/validation.rs, link_beam.rs,
 // params.rs and the variable table's ranges)
 
 #[test]
 fn rejected_support_configurations_fail_initialization_with_precise_messages() {
     let api = Api::load();
-    // (settings, what the message must contain). Default machine (physics.md §8): L = 2.1 m,
+    // (settings, what the message must contain). Default machine (docs/model.md §8): L = 2.1 m,
     // S = 0.4 m; A clamp at 0.125; B guide at 1.9, length 0.4 (edges 1.7 and 2.1); C pin fixed
     // in the frame at 1.6 − s, stiffness 2e6 N/m.
     type Case = (&'static [(&'static str, f64)], &'static [&'static str]);
@@ -185,7 +185,7 @@ fn valid_variants_of_the_same_settings_are_accepted() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Self-locking guide (physics.md §4)
+// Self-locking guide (docs/model.md §4)
 
 #[test]
 fn self_locking_guide_fails_the_step_and_leaves_the_state_unchanged() {
@@ -209,7 +209,7 @@ fn self_locking_guide_fails_the_step_and_leaves_the_state_unchanged() {
     assert_eq!(f.step(h_small, h_lock), ERROR);
     let m = f.log.last();
     assert!(m.starts_with("fmi2DoStep"), "{m}");
-    for n in ["self-locking", "≥ 1", "tanβ = 0.17", "physics.md §4"] {
+    for n in ["self-locking", "≥ 1", "tanβ = 0.17", "docs/model.md §4"] {
         assert!(m.contains(n), "message lacks {n:?}: {m}");
     }
     // Nothing changed: the serialized state and the outputs are those before the step.
@@ -318,7 +318,7 @@ fn revolution(f: &Inst, n: usize, theta0: f64) -> Vec<Row> {
     let h = 2.0 * PI / W / n as f64;
     for k in 0..n {
         let t = k as f64 * h;
-        // Authoritative inputs at every point (physics.md §2) and a varying process force.
+        // Authoritative inputs at every point (docs/model.md §2) and a varying process force.
         assert_eq!(f.set("crank.angle", theta0 + W * t), OK);
         assert_eq!(f.set("link.external_force", 2.0e4 * (3.0 * W * t).sin()), OK);
         assert_eq!(f.step(t, h), OK, "step {k}: {}", f.log.last());
@@ -452,7 +452,7 @@ fn elastic_frame_fixed_gland_lateral_load_tilts_and_balancer_satisfy_the_identit
     assert_eq!(f.exit(), OK, "{}", f.log.last());
     let rows = revolution(&f, 720, -0.2);
     let m = Machine {
-        // Profile 0: load.mean + load.amplitude·cos(θ + load.phase) (physics.md §4).
+        // Profile 0: load.mean + load.amplitude·cos(θ + load.phase) (docs/model.md §4).
         profile: Box::new(|_, th| 1.0e4 + 3.0e4 * (th + 0.3).cos()),
         f_b: 0.12,
         f_c_pin: 0.15,

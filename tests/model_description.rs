@@ -14,7 +14,7 @@ fn checked_in_model_description_is_current() {
 
 #[test]
 fn every_contract_name_of_this_feature_set_is_declared() {
-    // physics.md §10 names that the crank-slider feature set must expose, spelled out here.
+    // docs/model.md §10 names that the crank-slider feature set must expose, spelled out here.
     let xml = reciprocating_drive::fmi2::model_description::generate::<ReciprocatingDrive>();
     for name in [
         "crank.angle", "crank.speed", "crank.acceleration", "link.external_force",

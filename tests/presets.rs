@@ -1,4 +1,4 @@
-//! The presets of physics.md §8, shipped as SSP parameter-value files (resources/presets/*.ssv):
+//! The presets of docs/model.md §8, shipped as SSP parameter-value files (resources/presets/*.ssv):
 //! each names only variables of the table with their declared type, sets every parameter (so a
 //! preset is a complete machine, independent of the defaults), stays in range, and initializes
 //! and runs a revolution through the C ABI.

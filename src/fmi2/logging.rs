@@ -1,4 +1,4 @@
-//! Messages through the importer's logger (fmi.md "State machine and statuses"): the caller's
+//! Messages through the importer's logger (docs/fmi-interface.md "State machine"): the caller's
 //! componentEnvironment is passed back unchanged on every call; error messages always reach the
 //! logger; other categories only while debug logging is on and the category is enabled.
 

@@ -1,4 +1,4 @@
-//! Parsing of `fmuResourceLocation` (fmi.md "What importers actually pass"): `file:///path`,
+//! Parsing of `fmuResourceLocation` (docs/fmi-interface.md "What importers pass"): `file:///path`,
 //! `file:/path`, `file://host/path`, percent-encoding, an optional trailing slash, or NULL
 //! (fmusim passes NULL when the FMU has no resources folder).
 

@@ -1,4 +1,4 @@
-//! Torsion-bar balancer (physics.md §7, seed 004): a linear spring on the link,
+//! Torsion-bar balancer (docs/model.md §7, seed 004): a linear spring on the link,
 //! F_bal = −k_b·(s − s_0), that offsets the inertia force of the reciprocating mass.
 
 use crate::model::error::ModelError;

@@ -1,7 +1,7 @@
-//! Exact kinematics of beam pumping units (mechanisms 2 and 3), physics.md §3.2, in API 11E
-//! notation, returning the stroke coordinate of physics.md §2 and its exact derivatives.
+//! Exact kinematics of beam pumping units (mechanisms 2 and 3), docs/model.md §3.2, in API 11E
+//! notation, returning the stroke coordinate of docs/model.md §2 and its exact derivatives.
 //!
-//! # Frame and unknowns (physics.md §3.2)
+//! # Frame and unknowns (docs/model.md §3.2)
 //!
 //! Origin at the crankshaft, x toward the well, y up. Crank pin `Cp = R(sin q, cos q)` with
 //! `q = rotation·θ` (q measured clockwise from 12 o'clock, the unit seen with the well on the
@@ -30,12 +30,12 @@
 //! `W·E_b = 0` only at a toggle of the rocker, which a crank-rocker never reaches; on the
 //! solution `W·E_b = σC·(D·u⊥) = −σ·kappa·sqrt(4C²ρ² − cnum²)/2` exactly, which shares its
 //! reciprocal with the normalisation of u (one division per call). Then
-//! `TF = A·rotation·b_q`, `TF' = A·b_qq` (rotation² = 1). No finite differences (physics.md §2).
+//! `TF = A·rotation·b_q`, `TF' = A·b_qq` (rotation² = 1). No finite differences (docs/model.md §2).
 
 use crate::model::error::ModelError;
 use crate::model::kinematics::Kinematics;
 
-/// Lever class of the beam unit (physics.md §1, mechanism kinds 2 and 3).
+/// Lever class of the beam unit (docs/model.md §1, mechanism kinds 2 and 3).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BeamClass {
     /// API class I, conventional (`mechanism` = 2): the centre bearing lies between the equalizer
@@ -53,7 +53,7 @@ pub enum BeamClass {
     Class3,
 }
 
-/// Geometry of a beam unit in API 11E notation (physics.md §3.2). All lengths in m.
+/// Geometry of a beam unit in API 11E notation (docs/model.md §3.2). All lengths in m.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BeamUnitGeometry {
     /// Lever class (mechanism 2 or 3).
@@ -113,7 +113,7 @@ fn positive_length(variable: &'static str, value: f64) -> Result<f64, ModelError
     }
 }
 
-/// The loop constants needed to solve `|E − Cp| = P` for the beam direction (physics.md §3.2).
+/// The loop constants needed to solve `|E − Cp| = P` for the beam direction (docs/model.md §3.2).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Loop {
     /// Centre bearing B [m].
@@ -158,7 +158,7 @@ impl Loop {
 }
 
 impl BeamUnit {
-    /// Validates the geometry and precomputes the constants (physics.md §3.2).
+    /// Validates the geometry and precomputes the constants (docs/model.md §3.2).
     ///
     /// Checks, in this order, each with an error naming the contract variables and values:
     /// 1. every length finite and > 0 (`ModelError::OutOfRange`);
@@ -169,11 +169,11 @@ impl BeamUnit {
     /// 5. Grashof, strict: `R + longest < sum of the other two` (`Invalid`).
     ///
     /// Why 4 + 5: the FMU is driven by a fully rotating crank, so the four-bar must be a
-    /// crank-rocker (physics.md §3.2). Together they are equivalent to
+    /// crank-rocker (docs/model.md §3.2). Together they are equivalent to
     /// `|C − P| < K − R` and `K + R < C + P`, i.e. the loop closes at every crank angle with a
     /// non-degenerate triangle (B, E, Cp); that is re-checked last as a guard (6).
     ///
-    /// The physical assembly (physics.md §3.2: beam near horizontal, horsehead toward the well)
+    /// The physical assembly (docs/model.md §3.2: beam near horizontal, horsehead toward the well)
     /// is fixed here. Its dead positions are closed form (crank and pitman collinear,
     /// `|E − O| = d`, `d = P ± R`): with `ψ(d) = acos((C² + K² − d²)/(2CK))` and
     /// `β0 = atan2(H−G, I)`,
@@ -293,9 +293,9 @@ impl BeamUnit {
     }
 
     /// Exact kinematics at model crank angle θ (API 11E: θ = 0 crank at 12 o'clock,
-    /// `q = rotation·θ`; physics.md §2, §3.2).
+    /// `q = rotation·θ`; docs/model.md §2, §3.2).
     ///
-    /// * `s = A(b − b_min) ≥ 0`, 0 at the bottom of stroke, growing upward (physics.md §2);
+    /// * `s = A(b − b_min) ≥ 0`, 0 at the bottom of stroke, growing upward (docs/model.md §2);
     /// * `tf = ds/dθ`, `tfp = d²s/dθ²` from the analytic implicit derivatives (module docs);
     /// * `rod_angle`: the pitman's inclination from the vertical, positive when its crank-pin end
     ///   is nearer the well (larger x) than its equalizer end: `atan2(Cp_x − E_x, E_y − Cp_y)`;
@@ -333,7 +333,7 @@ impl BeamUnit {
         }
     }
 
-    /// Polished-rod stroke `A·(ψ(P+R) − ψ(P−R))` in m (physics.md §3.2), exact.
+    /// Polished-rod stroke `A·(ψ(P+R) − ψ(P−R))` in m (docs/model.md §3.2), exact.
     pub fn stroke(&self) -> f64 {
         self.stroke
     }
@@ -344,13 +344,13 @@ mod tests {
     //! Every test compares against something computed independently of `BeamUnit`'s formulas:
     //! a second formulation of the loop solved by bisection (`Indep`), circle intersections for
     //! the dead positions, the statics identity, the closed-form stroke, or the seed paper's
-    //! printed numbers (physics.md §3.2).
+    //! printed numbers (docs/model.md §3.2).
     use super::*;
     use std::f64::consts::PI;
 
     const TAU: f64 = 2.0 * PI;
 
-    /// Seed 001, SK8-3.5-4000 (physics.md §3.2, §8 preset `sk8-3.5-4000`).
+    /// Seed 001, SK8-3.5-4000 (docs/model.md §3.2, §8 preset `sk8-3.5-4000`).
     fn sk8(rotation: f64) -> BeamUnitGeometry {
         BeamUnitGeometry {
             class: BeamClass::Conventional,
@@ -391,7 +391,7 @@ mod tests {
         }
     }
 
-    /// Independent second formulation: positions written directly from physics.md §3.2 and the
+    /// Independent second formulation: positions written directly from docs/model.md §3.2 and the
     /// loop residual `F(b) = |E(b) − Cp|² − P²` solved by bisection on a bracket around a guess
     /// (continuation), never using the closed form or `kappa`.
     struct Indep {
@@ -554,10 +554,10 @@ mod tests {
 
     // ---- 1. Seed 001 -------------------------------------------------------------------------
 
-    /// Seed 001 (physics.md §3.2, §9): a = TF'·ω² (ε = 0) at φ1 = 37.51° and 192.51°, with
+    /// Seed 001 (docs/model.md §3.2, §9): a = TF'·ω² (ε = 0) at φ1 = 37.51° and 192.51°, with
     /// φ1 = θ + 90° − atan2(H−G, I), rotation −1, must round to the paper's printed 2.72 and
     /// −1.4909 m/s², for both the exact ω = 2π·10.9/60 and the paper's rounded 1.141445.
-    /// Sign: physics.md §2 says a > 0 at the bottom in steady rotation; the paper's 37.51° is the
+    /// Sign: docs/model.md §2 says a > 0 at the bottom in steady rotation; the paper's 37.51° is the
     /// bottom dead position (s = 0, TF = 0) and its a = +2.72 > 0, so the paper's sign agrees.
     #[test]
     fn seed001_accelerations() {
@@ -580,7 +580,7 @@ mod tests {
         assert_eq!(round_to((bottom + offset).to_degrees(), 2), 37.51);
     }
 
-    /// physics.md §9: 37.51° is not the maximum and 192.51° is not the minimum of a. The true
+    /// docs/model.md §9: 37.51° is not the maximum and 192.51° is not the minimum of a. The true
     /// extremes (ε = 0) are located by golden-section search on the analytic TF' and printed.
     #[test]
     fn seed001_true_acceleration_extremes() {
@@ -627,9 +627,9 @@ mod tests {
 
     // ---- 2. Stroke -----------------------------------------------------------------------------
 
-    /// The closed-form stroke S = A·|ψ(P+R) − ψ(P−R)| (physics.md §3.2), written here from the
+    /// The closed-form stroke S = A·|ψ(P+R) − ψ(P−R)| (docs/model.md §3.2), written here from the
     /// formula, against max s over the revolution at the roots of TF (bracketing + bisection),
-    /// and against `stroke()`. Also the minimum of s is 0 (physics.md §2). The same formula holds
+    /// and against `stroke()`. Also the minimum of s is 0 (docs/model.md §2). The same formula holds
     /// for class III (its dead positions are ψ(d) − β0), checked too.
     /// Tolerance 1e-12 m: s is flat (quadratic) at the extremes, so a root error of 1e-15 rad
     /// costs nothing; what remains is rounding of A·b (≈ 1e-15 m).
@@ -703,7 +703,7 @@ mod tests {
 
     // ---- 4. Statics identity -------------------------------------------------------------------
 
-    /// |TF| = A·R·sin α/(C·sin β_p) (physics.md §3.2; virtual work through the pitman), with α
+    /// |TF| = A·R·sin α/(C·sin β_p) (docs/model.md §3.2; virtual work through the pitman), with α
     /// (crank–pitman) and β_p (beam arm–pitman) from the independently solved positions, at 720
     /// angles for both classes and rotations. Tolerance 1e-11 m/rad: positions are accurate to
     /// ~1e-15 m, the angles' sines are ≥ 0.3 away from the dead positions and the ratio's
@@ -766,7 +766,7 @@ mod tests {
 
     // ---- 6. Mirror -----------------------------------------------------------------------------
 
-    /// Counter-clockwise at θ is clockwise at −θ (q = rotation·θ, physics.md §3.2): s equal, TF
+    /// Counter-clockwise at θ is clockwise at −θ (q = rotation·θ, docs/model.md §3.2): s equal, TF
     /// opposite, TF' equal, rod angle equal, its rate opposite. The positions coincide exactly,
     /// so the tolerance is a few ulps.
     #[test]

@@ -1,4 +1,4 @@
-//! Crank motion (physics.md §2): the master supplies θ_in, ω, ε at communication points; inside a
+//! Crank motion (docs/model.md §2): the master supplies θ_in, ω, ε at communication points; inside a
 //! step the FMU extrapolates with constant ε. The model angle is θ = θ_in + `crank.angle_offset`.
 
 // `!(a <= b)` is deliberate: it also rejects NaN.

@@ -1,4 +1,4 @@
-//! Exact kinematics of the (optionally offset) crank-slider, physics.md §3.1.
+//! Exact kinematics of the (optionally offset) crank-slider, docs/model.md §3.1.
 //!
 //! Frame: x along the stroke axis from the crank centre toward the crosshead; crank pin at
 //! (r cosθ, r sinθ); stroke axis y = e. Rod angle β from l·sinβ = r·sinθ − e.
@@ -32,7 +32,7 @@ impl CrankSlider {
         if l <= r + e.abs() {
             return Err(ModelError::invalid(format!(
                 "the crank-slider cannot assemble: geometry.rod_length = {l} m must exceed \
-                 geometry.crank_radius + |geometry.slider_offset| = {r} + {} = {} m (physics.md §3.1)",
+                 geometry.crank_radius + |geometry.slider_offset| = {r} + {} = {} m (docs/model.md §3.1)",
                 e.abs(),
                 r + e.abs()
             )));
@@ -145,7 +145,7 @@ mod tests {
 
     #[test]
     fn dead_centre_closed_forms_and_stroke() {
-        // physics.md §3.1 checks: a(0) = rω²(1+λ), a(π) = −rω²(1−λ) for ε = 0; stroke 2r.
+        // docs/model.md §3.1 checks: a(0) = rω²(1+λ), a(π) = −rω²(1−λ) for ε = 0; stroke 2r.
         let (r, l) = (0.2, 1.19);
         let lambda = r / l;
         let m = CrankSlider::new(r, l, 0.0).unwrap();

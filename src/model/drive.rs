@@ -36,7 +36,7 @@ pub struct RodState {
     pub integrator: IntegratorState,
 }
 
-/// Every output of physics.md §10.
+/// Every output of docs/model.md §10.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Outputs {
     /// The model angle θ the other outputs belong to: the crank angle as last set plus
@@ -751,7 +751,7 @@ mod tests {
         assert!((a.position - b.position).abs() < 1e-15 && (a.acceleration - b.acceleration).abs() < 1e-12);
     }
 
-    /// The kvo630 machine of physics.md §8 (as in benches/host_loop.rs).
+    /// The kvo630 machine of docs/model.md §8 (as in benches/host_loop.rs).
     fn kvo630() -> Params {
         let d = Params::default();
         let mut supports = d.supports;
@@ -908,7 +908,7 @@ mod tests {
         let m = Model::new(&between).unwrap();
         assert_eq!(run(&m, 1e-3, 20, 1e-8), run(&m.without_rod_table(), 1e-3, 20, 1e-8));
         // Mean load 0.2 N below buckling: the inertia load pushes P past it within a revolution;
-        // the step fails naming the buckling (physics.md §6 "Validity"), the state is untouched.
+        // the step fails naming the buckling (docs/model.md §6 "Validity"), the state is untouched.
         let m = Model::new(&Params { load_mean: lo - 0.2, ..kvo630() }).unwrap();
         let inputs = Inputs::default();
         let crank0 = CrankState { angle: 0.0, speed: KVO_SPEED, acceleration: 0.0 };

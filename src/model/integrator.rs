@@ -1,4 +1,4 @@
-//! Adaptive integrator of the cage equation (physics.md §6, "Cage equation", "Integration").
+//! Adaptive integrator of the cage equation (docs/model.md §6, "Cage equation", "Integration").
 //!
 //! The FMU's continuous state is y = (ϑ, ϑ̇) of
 //! `J_m ϑ̈ + B_d ϑ̇ + K_ϑ(P)·ϑ = K_Δ(P)·Δ + e_P·P + m_f·f_m·Δ̈`: a lightly damped oscillator
@@ -18,7 +18,7 @@
 //!
 //! WHY this pair: each RHS evaluation costs a `BeamColumn::new` plus the caller's load/friction
 //! evaluation, so RHS evaluations per simulated second decide the cost. Measured on the kvo630
-//! problem (physics.md §8: P = 14.7 N + inertia, J_m = 5e-7, ζ = 0.05, ω = 2π·1500/60, started
+//! problem (docs/model.md §8: P = 14.7 N + inertia, J_m = 5e-7, ζ = 0.05, ω = 2π·1500/60, started
 //! quasi-statically), tolerance 1e-8 (relative and absolute on ϑ and ϑ̇/Ω0), RHS evaluations per
 //! simulated second for communication steps h_c (same controller for all candidates):
 //!
@@ -68,11 +68,11 @@ use serde::{Deserialize, Serialize};
 /// Right-hand side of the second-order cage equation, `ϑ̈ = accel(t, ϑ, ϑ̇)`.
 pub trait SecondOrderRhs {
     /// Returns ϑ̈ [rad/s²] at (t, ϑ, ϑ̇). `Err` rejects the stage (e.g. the rod buckles at a trial
-    /// state, physics.md §6 "Validity"): the integrator shrinks the step and retries.
+    /// state, docs/model.md §6 "Validity"): the integrator shrinks the step and retries.
     fn accel(&mut self, t: f64, theta: f64, theta_dot: f64) -> Result<f64, ModelError>;
 }
 
-/// Error tolerances (physics.md §6): `rtol` relative, `atol_theta` [rad] and `atol_rate` [rad/s]
+/// Error tolerances (docs/model.md §6): `rtol` relative, `atol_theta` [rad] and `atol_rate` [rad/s]
 /// absolute (`atol_rate = tol·Ω0` with Ω0 at P = 0, a fixed scale).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Tolerance {
@@ -323,7 +323,7 @@ fn step(
 /// `IntegratorState::default()`); `stats` accumulates work. Both are updated only on success:
 /// on `Err` (the RHS fails at the start point, or the step size underflows because the RHS keeps
 /// failing or the tolerance cannot be met) the caller's `state` and `stats` are untouched
-/// (the function works on copies), as physics.md §6 requires for a failed fmi2DoStep.
+/// (the function works on copies), as docs/model.md §6 requires for a failed fmi2DoStep.
 pub fn advance(
     rhs: &mut impl SecondOrderRhs,
     t0: f64,
@@ -631,7 +631,7 @@ mod tests {
     }
 
     // -----------------------------------------------------------------------------------------
-    // The kvo630 cage equation (physics.md §8) and a fine-step RK4 reference
+    // The kvo630 cage equation (docs/model.md §8) and a fine-step RK4 reference
     // -----------------------------------------------------------------------------------------
 
     #[derive(Clone, Copy)]
@@ -685,7 +685,7 @@ mod tests {
             let (s, c) = (self.omega * t).sin_cos();
             (R * s, R * self.omega * c, 14.7 - 0.02 * R * self.omega * self.omega * c)
         }
-        /// Quasi-static initial state (physics.md §6 "Initial state").
+        /// Quasi-static initial state (docs/model.md §6 "Initial state").
         fn initial(&self) -> [f64; 2] {
             let (d, dd, p) = self.load(0.0);
             let bc = BeamColumn::new(&self.st, L_F, F_RIGID, p).unwrap();

@@ -1,4 +1,4 @@
-//! The result every kinematic law returns (physics.md §2): the stroke coordinate and its exact
+//! The result every kinematic law returns (docs/model.md §2): the stroke coordinate and its exact
 //! derivatives with respect to the crank angle, plus the connecting rod's swing.
 
 /// Position-level kinematics at one crank angle θ (model angle, offset already applied).
@@ -30,7 +30,7 @@ impl Kinematics {
 }
 
 /// Largest |TF| over a revolution, exactly: |TF| is extreme where TF' = 0, so bracket the sign
-/// changes of TF' on a fine grid and bisect each to machine precision (physics.md §7: the
+/// changes of TF' on a fine grid and bisect each to machine precision (docs/model.md §7: the
 /// zero-acceleration angle is a root of TF' = 0, not the first-harmonic formula).
 pub fn max_abs_torque_factor(kin: impl Fn(f64) -> Kinematics) -> f64 {
     const N: usize = 1440;

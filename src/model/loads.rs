@@ -1,4 +1,4 @@
-//! Loads on the reciprocating link, physics.md §4. Forces are positive along +s.
+//! Loads on the reciprocating link, docs/model.md §4. Forces are positive along +s.
 
 use crate::model::params::{LOAD_PROFILE_DOUBLE_ACTING, LOAD_PROFILE_SINGLE_ACTING};
 

@@ -1,6 +1,6 @@
 //! The pure physics of ReciprocatingDrive: plain structs and functions mapping parameters and
 //! inputs to outputs. No FFI, no global state, no logging (the FMI layer in `crate::fmi2` owns
-//! those). Each file cites the section of `shared/docs/physics.md` it implements.
+//! those). Each file cites the section of `docs/model.md` it implements.
 
 pub mod balancer;
 pub mod beam_unit;

@@ -1,4 +1,4 @@
-//! Model parameters with the defaults of the default machine (physics.md §8: a UNB-600A-like
+//! Model parameters with the defaults of the default machine (docs/model.md §8: a UNB-600A-like
 //! drilling mud pump), and the checks that no single-variable range can express.
 
 use serde::{Deserialize, Serialize};
@@ -7,17 +7,17 @@ use std::f64::consts::PI;
 use crate::model::error::ModelError;
 use crate::model::guide::{GuideSpec, SupportKind, SupportSpec};
 
-/// `load.profile` (physics.md §4).
+/// `load.profile` (docs/model.md §4).
 pub const LOAD_PROFILE_COSINE: i32 = 0;
 pub const LOAD_PROFILE_DOUBLE_ACTING: i32 = 1;
 pub const LOAD_PROFILE_SINGLE_ACTING: i32 = 2;
 
-/// `mechanism` (physics.md §1).
+/// `mechanism` (docs/model.md §1).
 pub const MECHANISM_CRANK_SLIDER: i32 = 1;
 pub const MECHANISM_BEAM_CLASS_I: i32 = 2;
 pub const MECHANISM_BEAM_CLASS_III: i32 = 3;
 
-/// One support of the link (physics.md §5.2), as the user sets it.
+/// One support of the link (docs/model.md §5.2), as the user sets it.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SupportParams {
     /// 0 none, 1 pin, 2 clamp, 3 two-edge guide.
@@ -33,7 +33,7 @@ pub struct SupportParams {
 }
 
 /// All parameters, in SI units and radians. Field names follow the variable names of
-/// physics.md §10 (`geometry.crank_radius` → `crank_radius`).
+/// docs/model.md §10 (`geometry.crank_radius` → `crank_radius`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Params {
     pub mechanism: i32,

@@ -186,7 +186,7 @@ impl<'a> Inst<'a> {
         let r = vr(name);
         unsafe { (self.api.fmi2SetInteger)(self.c, &r, 1, &v) }
     }
-    /// Turns the guide-friction model off (every support kind 0, physics.md §5.2), for tests of
+    /// Turns the guide-friction model off (every support kind 0, docs/model.md §5.2), for tests of
     /// the kinematics and loads alone. Only before fmi2ExitInitializationMode.
     pub fn frictionless(&self) {
         for x in ["support_A.kind", "support_B.kind", "support_C.kind"] {

@@ -1,4 +1,4 @@
-"""Independent reference for the crank-slider (physics.md §2, §3.1, §4), evaluated with mpmath at
+"""Independent reference for the crank-slider (docs/model.md §2, §3.1, §4), evaluated with mpmath at
 30 significant digits. It shares no code and no formula with the FMU: the FMU uses the closed-form
 derivatives of §3.1; here only the vector loop is written down, and every derivative is taken
 numerically by mpmath.diff (at 30 digits, so its own error is far below double precision).
@@ -19,7 +19,7 @@ import mpmath
 
 DPS = 30
 
-# Outputs the reference computes, in FMU naming (physics.md §10).
+# Outputs the reference computes, in FMU naming (docs/model.md §10).
 OUTPUTS = (
     "suspension.position",
     "suspension.velocity",
@@ -35,7 +35,7 @@ OUTPUTS = (
 
 @dataclass
 class Machine:
-    """The parameters the reference needs; defaults = the default machine of physics.md §8."""
+    """The parameters the reference needs; defaults = the default machine of docs/model.md §8."""
 
     r: float = 0.2
     l: float = 1.19
@@ -47,9 +47,9 @@ class Machine:
     load_phase: float = 0.0
 
     def start_values(self) -> dict:
-        """The same machine as FMU start values (the names of physics.md §10). The reference has
+        """The same machine as FMU start values (the names of docs/model.md §10). The reference has
         no guide friction, so the FMU's friction model is switched off (every support kind 0,
-        physics.md §5.2); friction is tested in test_guide_friction.py."""
+        docs/model.md §5.2); friction is tested in test_guide_friction.py."""
         return {
             "support_A.kind": 0,
             "support_B.kind": 0,
@@ -90,7 +90,7 @@ class Machine:
             v = tf * w
             a = tf * ep + tf2 * w**2
             phi = -mpmath.mpf(self.m) * a
-            # Process force, profile 0 (physics.md §4) + the input.
+            # Process force, profile 0 (docs/model.md §4) + the input.
             f = (
                 mpmath.mpf(f_ext)
                 + mpmath.mpf(self.load_mean)

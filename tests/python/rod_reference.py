@@ -1,4 +1,4 @@
-"""Independent reference for the elastic connecting rod clamped in the piston (physics.md §6, with
+"""Independent reference for the elastic connecting rod clamped in the piston (docs/model.md §6, with
 §2, §4, §5.3-5.4), written from the specification alone in plain Python (math module) + scipy.
 It shares no code with the FMU and deliberately takes other routes where the FMU has a choice:
 
@@ -15,7 +15,7 @@ It shares no code with the FMU and deliberately takes other routes where the FMU
 * the cage equation integrated by scipy's solve_ivp (DOP853 or Radau) at rtol ~1e-11 on the exact
   crank motion θ(t), ω(t), ε(t) (the FMU: Verner 6(5) inside each communication step).
 
-Sign conventions (physics.md §5.3): lateral forces on the link along +y, moments positive when they
+Sign conventions (docs/model.md §5.3): lateral forces on the link along +y, moments positive when they
 turn +z toward +y; z along the link from the piston end (0) to the clamp (L). The rod exerts on the
 link at z = L the moment M_0 = A2·C3/s_N and the force V = -A2·C4/s_N² (§5.4). Equilibrium of the
 link loaded by these, the lateral load Q at B's centre z_B and B's reaction (R_B, M_B about z_B):
@@ -45,7 +45,7 @@ class Buckled(Exception):
 
 
 def fundamental(x: float, z: float) -> tuple[float, float, float, float]:
-    """C, S, V3, V4 of v'''' - x v'' = 0 at z (physics.md §6)."""
+    """C, S, V3, V4 of v'''' - x v'' = 0 at z (docs/model.md §6)."""
     u = x * z * z
     if abs(u) <= SERIES_CUT:
         # C = Σ uⁿ/(2n)!, S = z Σ uⁿ/(2n+1)!, V3 = z² Σ uⁿ/(2n+2)!, V4 = z³ Σ uⁿ/(2n+3)!
@@ -90,7 +90,7 @@ class RodColumn:
 
 
 class Rod:
-    """The elastic rod's stiffnesses A1, A2, A3 and P-dependent coefficients (physics.md §6)."""
+    """The elastic rod's stiffnesses A1, A2, A3 and P-dependent coefficients (docs/model.md §6)."""
 
     def __init__(self, kind: int, flex_length: float, rigid_length: float, wire_diameter: float,
                  coil_diameter: float, coils: float, e_modulus: float, poisson: float):
@@ -190,7 +190,7 @@ class Motion:
 
 
 class Drive:
-    """Crank-slider with an elastic rod clamped in the piston (physics.md §6) on a link that is
+    """Crank-slider with an elastic rod clamped in the piston (docs/model.md §6) on a link that is
     either unsupported (all support kinds 0: no friction) or held by a single two-edge guide B
     moving with the link, aligned and rigid (kvo630). Values by FMU variable name."""
 

@@ -1,4 +1,4 @@
-"""The elastic connecting rod of physics.md §6 through fmpy (issue 5), against an independent
+"""The elastic connecting rod of docs/model.md §6 through fmpy (issue 5), against an independent
 solution: rod_reference.py codes §6 (A1-A3, fundamental functions, W*, ē, d̄, K_ϑ, K_Δ, C3, C4, the
 cage equation, the stress), the piston law, the loads of §4 and the statically determinate link of
 kvo630 (§5.3-5.4) apart from production, solves P by brentq at every evaluation and integrates the
@@ -111,7 +111,7 @@ def kvo630_reference(t_end: float, h: float, rtol: float = 1e-11):
 
 
 def test_reference_reproduces_the_textbook_limits_of_section_6():
-    """The independent §6 code reproduces the limits physics.md §6 lists (so a disagreement with
+    """The independent §6 code reproduces the limits docs/model.md §6 lists (so a disagreement with
     the FMU points at the FMU): Euler-Bernoulli (A1 → ∞, P → 0), shear at P = 0, the
     clamped-pinned buckling load with shear, the clamp loads of a beam clamped at both ends, and a
     continuous switch between the power series and the closed forms."""

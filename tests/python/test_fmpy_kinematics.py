@@ -8,7 +8,7 @@ is exact:
     calls fmi2DoStep(t_k, h), then records the outputs at t_{k+1} = start + (k+1)·h. It reads them
     after doStep and *before* it sets the inputs of t_{k+1}: the recorded outputs are the FMU's own,
     computed at its in-step extrapolation of the crank, θ(t_k) + ω h + ε h²/2, ω(t_k) + ε h
-    (physics.md §2). The sample at t = 0 is taken after exitInitializationMode, at the inputs of
+    (docs/model.md §2). The sample at t = 0 is taken after exitInitializationMode, at the inputs of
     t = 0.
   * for constant speed (θ = ω t, ε = 0) and for a uniform ramp with ε supplied
     (θ = ω0 t + ε t²/2, ω = ω0 + ε t) that extrapolation is exact, so every recorded output must
@@ -34,7 +34,7 @@ from fmpy import simulate_fmu
 
 from reference import OUTPUTS, Machine
 
-OMEGA = 2 * math.pi * 65 / 60  # default machine: 65 strokes/min (physics.md §8)
+OMEGA = 2 * math.pi * 65 / 60  # default machine: 65 strokes/min (docs/model.md §8)
 RTOL = 1e-9
 
 
@@ -153,7 +153,7 @@ def test_uneven_step_sizes_are_exact_too(fmu_path):
 
 def test_fmpy_simulate_without_inputs_uses_start_values(fmu_path):
     """No input signal: fmpy leaves the inputs at their start values (θ = 0, ω = 65 strokes/min,
-    ε = 0) and the FMU advances the crank itself by its extrapolation, θ = ω t (physics.md §2)."""
+    ε = 0) and the FMU advances the crank itself by its extrapolation, θ = ω t (docs/model.md §2)."""
     m = Machine()
     w = 2 * np.pi * 65 / 60
     res = simulate_fmu(fmu_path, stop_time=1.0, output_interval=0.01, start_values=m.start_values(),

@@ -1,4 +1,4 @@
-"""Guide friction from the link's redundant supports (physics.md §4, §5) through fmpy, against an
+"""Guide friction from the link's redundant supports (docs/model.md §4, §5) through fmpy, against an
 independent model written here.
 
 The independent model (class `BeamFE`) solves the §5 beam problem by a different method from
@@ -10,7 +10,7 @@ contacts as springs in the stiffness matrix, rigid contacts (lateral and a clamp
 Lagrange multipliers, and the reactions read from the multipliers and spring forces. Hermite cubics
 reproduce the exact deflection of a prismatic beam under end loads, so with nodes at every point
 load and every change of EJ the FE solution is exact: the comparison is limited by rounding only.
-Everything else is written from physics.md as well: the prescribed support displacements
+Everything else is written from docs/model.md as well: the prescribed support displacements
 y = δ + α(Z − Z_ref) of §5.2 in frame coordinates (Z = z + s; Z_ref = the frame position of the
 support's centre at mid-stroke: z_X + S/2 for a support moving with the link, z_X for a
 frame-fixed one, whose centre is at link coordinate z_X − s), the edge forces and friction law of
@@ -70,7 +70,7 @@ COMPARED = [
 
 
 def default_parameters(model_description) -> dict:
-    """Start values of every parameter of the FMU (the default machine of physics.md §8)."""
+    """Start values of every parameter of the FMU (the default machine of docs/model.md §8)."""
     out = {}
     for v in model_description.modelVariables:
         if v.causality != "parameter" or v.start is None:
@@ -116,7 +116,7 @@ CONFIG_C = {
 
 
 class Slider:
-    """Exact crank-slider kinematics (physics.md §3.1) from the vector loop
+    """Exact crank-slider kinematics (docs/model.md §3.1) from the vector loop
     X(θ) = r cos θ + sqrt(l² − u²), u = r sin θ − e, differentiated by hand."""
 
     def __init__(self, r, l, e):
@@ -155,7 +155,7 @@ def solve_extended(A, B):
 
 
 class BeamFE:
-    """The link of physics.md §5 as a Hermite-cubic beam FE model (see the module docstring)."""
+    """The link of docs/model.md §5 as a Hermite-cubic beam FE model (see the module docstring)."""
 
     def __init__(self, p: dict, stroke: float):
         self.lengths = [p[f"link.l{i}"] for i in range(1, 5)]
@@ -419,7 +419,7 @@ def run_fmu(fmu_path, start_values, n=N_REV, omega=OMEGA, revolutions=1, f_input
     """fmpy.simulate_fmu over `revolutions` at constant speed: crank.angle = ω t as an input
     signal, `n` points per revolution, ε = 0, link.external_force = f_input(t) (default 0).
     fmpy sets the inputs of t_k, steps, and records at t_{k+1} the outputs at the FMU's
-    extrapolated crank ω t_k + ω h = ω t_{k+1} (physics.md §2); the process-force input is held
+    extrapolated crank ω t_k + ω h = ω t_{k+1} (docs/model.md §2); the process-force input is held
     over the step, so the outputs at t_{k+1} carry f_input(t_k) (`input_force_at`)."""
     from fmpy import simulate_fmu
 
@@ -490,7 +490,7 @@ def unb600a_values():
 
 
 def test_reference_reproduces_the_textbook_limits():
-    """The FE reference itself against the closed forms of physics.md §5.5 (uniform beam)."""
+    """The FE reference itself against the closed forms of docs/model.md §5.5 (uniform beam)."""
     L, d, E = 2.0, 0.1, 2.1e11
     EJ = E * math.pi * d**4 / 64
 
@@ -585,7 +585,7 @@ def test_frame_fixed_elastic_gland_with_tilts_matches_the_independent_model(fmu_
 def test_reference_distinguishes_wrong_models(params):
     """The comparison above has teeth: plausible wrong models differ from the reference by far
     more than 1e-8 (here ≥ 1e-4 of the largest friction), e.g. Z_ref at s = 0 instead of
-    mid-stroke, or the seed's friction formula f·(0.5 R_B + M_B/l_n) (physics.md §9)."""
+    mid-stroke, or the seed's friction formula f·(0.5 R_B + M_B/l_n) (docs/model.md §9)."""
     ref = Reference(params | CONFIG_C)
     thetas = np.linspace(0.05, 2 * math.pi - 0.05, 40)
     good = np.array([ref.at(t, OMEGA)["guide.friction"] for t in thetas])

@@ -1,5 +1,5 @@
 """The same FMU under libcosim (Open Simulation Platform, through libcosimpy), a second importer
-built on the FMI Library, which also calls fmi2GetReal in initialization mode (fmi.md).
+built on the FMI Library, which also calls fmi2GetReal in initialization mode (docs/fmi-interface.md).
 
 libcosim has no input signal table, so the test is the master: before each step it overrides
 crank.angle, crank.speed and crank.acceleration with θ(t_k), ω(t_k), ε(t_k) through an override
@@ -15,7 +15,7 @@ The crank motion is a speed oscillation, θ = ω0 t + A sin(Ω t): the FMU's own
 a step (θ + ωh + εh²/2) is then not exact, so an importer that failed to pass the inputs (the FMU
 left to extrapolate by itself) gives visibly different outputs. The outputs at t_{k+1} are checked
 against the mpmath reference at the crank state the FMU must have extrapolated to from the inputs of
-t_k (physics.md §2): θ_k + ω_k h + ε_k h²/2, ω_k + ε_k h, ε_k.
+t_k (docs/model.md §2): θ_k + ω_k h + ε_k h²/2, ω_k + ε_k h, ε_k.
 """
 
 from __future__ import annotations

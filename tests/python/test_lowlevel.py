@@ -1,6 +1,6 @@
 """The FMI 2.0 C API through fmpy's low-level FMU2Slave: error handling and its messages, recovery
 after an error, several instances in one process, instance names, resource locations
-(fmi.md, "What importers actually pass" and "State machine and statuses").
+(docs/fmi-interface.md, "What importers pass" and "State machine").
 
 Every log message is captured by our own logger callback (fmpy's native proxy formats the
 variadic printf arguments first, as fmpy.simulate_fmu does for its `logger`).
@@ -113,7 +113,7 @@ def close(fmu):
     "rod_length,offset",
     [
         (0.15, 0.0),     # l < r: the crank cannot turn round
-        (0.2, 0.0),      # l = r: assembly needs l > r + |e| strictly (physics.md §3.1)
+        (0.2, 0.0),      # l = r: assembly needs l > r + |e| strictly (docs/model.md §3.1)
         (0.25, 0.05),    # l = r + |e| with an offset
         (0.0, 0.0),      # non-positive: outside the declared range (0, inf)
         (-1.19, 0.0),
@@ -221,7 +221,7 @@ def test_rejected_multi_value_set_changes_nothing(model_description, unzipdir, v
 
 
 def test_direct_feedthrough_without_step(model_description, unzipdir, vr):
-    """physics.md §2: outputs reflect inputs set since the last step (GetReal after SetReal)."""
+    """docs/model.md §2: outputs reflect inputs set since the last step (GetReal after SetReal)."""
     m = Machine(e=-0.03, angle_offset=0.1, load_mean=500.0)
     fmu, log = new_slave(model_description, unzipdir)
     try:
@@ -343,7 +343,7 @@ def test_instance_name_with_spaces_and_component_environment(model_description, 
     ["file:///{p}", "file:///{p}/", "file:/{p}", "file://localhost/{p}", "file:///{q}", "none"],
 )
 def test_resource_location_forms(model_description, unzipdir, vr, tmp_path, form):
-    """fmi.md: file:///, file:/, file://host/, percent-encoding, a trailing slash and NULL are all
+    """docs/fmi-interface.md: file:///, file:/, file://host/, percent-encoding, a trailing slash and NULL are all
     accepted. With loggingOn the FMU reports the folder it resolved."""
     res = tmp_path / "a dir" / "resources"
     res.mkdir(parents=True)

@@ -1,10 +1,10 @@
-"""Each preset of physics.md §8, read from the FMU's own resources/presets/*.ssv, loads and runs a
+"""Each preset of docs/model.md §8, read from the FMU's own resources/presets/*.ssv, loads and runs a
 few revolutions in fmpy and in libcosim, and both importers agree (same binary, same inputs, so to
 1e-12 of scale). Preset-specific checks against independent references:
 
 * sk8-3.5-4000: seed 001's printed accelerations (2.72 m/s² at φ1 = 37.51°, −1.4909 at
   192.51°; φ1 = θ + 90° − atan2(H−G, I)) and the closed-form class-I stroke
-  S = A·|ψ(P+R) − ψ(P−R)|, ψ(d) = acos((C² + K² − d²)/(2CK)) (physics.md §3.2);
+  S = A·|ψ(P+R) − ψ(P−R)|, ψ(d) = acos((C² + K² − d²)/(2CK)) (docs/model.md §3.2);
 * unb600a and kvo630: the rod force carries the preset's process load.
 """
 

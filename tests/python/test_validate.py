@@ -1,8 +1,8 @@
-"""Static checks of the archive: fmpy's validator, and the interface contract of physics.md §10."""
+"""Static checks of the archive: fmpy's validator, and the interface contract of docs/model.md §10."""
 
 from fmpy.validation import validate_fmu
 
-# physics.md §10, copied from the spec (not from the code): name -> unit.
+# docs/model.md §10, copied from the spec (not from the code): name -> unit.
 SPEC_INPUTS = {
     "crank.angle": "rad",
     "crank.speed": "rad/s",
@@ -56,11 +56,11 @@ def test_interface_matches_physics_md_section_10(model_description):
     assert {n: v.unit for n, v in inputs.items()} == SPEC_INPUTS
     # Every output is one of §10 with the unit of §10, and the crank-slider set is complete.
     for n, v in outputs.items():
-        assert n in SPEC_OUTPUTS, f"output {n} is not in physics.md §10"
+        assert n in SPEC_OUTPUTS, f"output {n} is not in docs/model.md §10"
         assert v.unit == SPEC_OUTPUTS[n], f"{n}: unit {v.unit}, spec {SPEC_OUTPUTS[n]}"
     for n in REQUIRED_OUTPUTS:
         assert n in outputs, f"missing output {n}"
-    # Every variable has a description (fmi.md / §10).
+    # Every variable has a description (docs/fmi-interface.md / §10).
     for v in md.modelVariables:
         assert v.description, f"{v.name} has no description"
     # Start values of the default machine (§8): 65 strokes/min, r = 0.2 m, l = 1.19 m, 300 kg.

@@ -155,6 +155,6 @@ impl FmuModel for ReciprocatingDrive {
 fn rod_angle_warning(theta: f64) -> String {
     format!(
         "the cage angle rod.angle = {theta} rad exceeds {ROD_ANGLE_VALIDITY} rad: \
-         the linear theory of the elastic rod (physics.md §6) is no longer valid"
+         the linear theory of the elastic rod (docs/model.md §6) is no longer valid"
     )
 }

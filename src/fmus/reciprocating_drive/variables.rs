@@ -20,9 +20,9 @@ pub enum InputSlot {
 
 use InputSlot::*;
 
-/// Every variable, in value-reference order. Names are the contract of physics.md §10.
+/// Every variable, in value-reference order. Names are the contract of docs/model.md §10.
 pub static VARIABLES: &[Var<ReciprocatingDrive>] = &[
-    // ---- inputs (physics.md §2, §4)
+    // ---- inputs (docs/model.md §2, §4)
     input!("crank.angle", CrankAngle, 0.0, "rad",
         "Crank angle theta_in, authoritative at the communication point where it is set; between sets the FMU carries it forward itself (theta_in += omega*h + epsilon*h^2/2 per step), so the angle the outputs belong to is crank.model_angle, not necessarily this value. Crank-slider: 0 = crank along the stroke axis toward the crosshead (outer dead centre for zero offset). Increases in the direction of rotation."),
     input!("crank.speed", CrankSpeed, DEFAULT_CRANK_SPEED, "rad/s",
@@ -31,7 +31,7 @@ pub static VARIABLES: &[Var<ReciprocatingDrive>] = &[
         "Crank angular acceleration epsilon; used for a = TF*epsilon + TF'*omega^2 and to carry the crank angle and speed forward inside and between steps (held until set again). Supply it when the speed varies."),
     input!("link.external_force", ExternalForce, 0.0, "N",
         "Process force on the link, positive along +s (toward the crank for the crank-slider); added to the load.profile force"),
-    // ---- outputs (physics.md §2, §3, §4)
+    // ---- outputs (docs/model.md §2, §3, §4)
     output!("suspension.position", position, "m", [CrankAngle],
         "Stroke coordinate s of the link: 0 at the outer end of the stroke, increasing toward the crank"),
     output!("suspension.velocity", velocity, "m/s", [CrankAngle, CrankSpeed],
@@ -74,7 +74,7 @@ pub static VARIABLES: &[Var<ReciprocatingDrive>] = &[
         "Elastic rod: largest wire shear stress of the spring (Wahl factor) or largest fibre stress of a thin rod; 0 for a rigid rod"),
     output!("rod.axial_deflection", rod_axial_deflection, "m", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
         "Elastic rod: static axial shortening P*l_f/A3; 0 for a rigid rod"),
-    // ---- parameters (physics.md §3, §4, §7, §8)
+    // ---- parameters (docs/model.md §3, §4, §7, §8)
     param!("mechanism", Integer, mechanism, Fixed, "", Range::closed(1.0, 3.0),
         "Mechanism kind: 1 = crank-slider (optionally offset); 2 = beam pumping unit, conventional (API class I); 3 = beam pumping unit, class III (Mark II / air balanced)"),
     param!("rotation", Integer, rotation, Fixed, "", Range::closed(-1.0, 1.0),
@@ -107,7 +107,7 @@ pub static VARIABLES: &[Var<ReciprocatingDrive>] = &[
         "Phase of the cosine process force (profile 0)"),
     param!("guide.velocity_scale", Real, velocity_scale, Fixed, "m/s", Range::POSITIVE,
         "Velocity scale v_eps of the regularised sign tanh(v/v_eps) of the friction and of the pump load profiles"),
-    // ---- elastic connecting rod clamped in the piston (physics.md §6)
+    // ---- elastic connecting rod clamped in the piston (docs/model.md §6)
     param!("rod.kind", Integer, rod_kind, Fixed, "", Range::closed(0.0, 2.0),
         "Connecting rod: 0 rigid (crank-slider kinematics of geometry.rod_length); 1 thin elastic rod, 2 helical spring, clamped in the piston (crank-slider only; its cage rotation is integrated in time)"),
     param!("rod.flex_length", Real, rod_flex_length, Fixed, "m", Range::POSITIVE,
@@ -149,7 +149,7 @@ pub static VARIABLES: &[Var<ReciprocatingDrive>] = &[
         "Design crank speed omega_d of balancer tunings 1 and 2"),
     param!("balancer.neutral_position", Real, balancer_neutral_position, Fixed, "m", Range::ANY,
         "Stroke position s_0 where the balancer force is zero (tuning 0); a negative value means mid-stroke"),
-    // ---- guide friction from the link's redundant supports (physics.md §5)
+    // ---- guide friction from the link's redundant supports (docs/model.md §5)
     param_at!("link.l1", link_lengths[0], "m", Range::NON_NEGATIVE, "Length of link section 1 (from the piston end, z = 0); 0 = absent"),
     param_at!("link.l2", link_lengths[1], "m", Range::NON_NEGATIVE, "Length of link section 2; 0 = absent"),
     param_at!("link.l3", link_lengths[2], "m", Range::NON_NEGATIVE, "Length of link section 3; 0 = absent"),
@@ -187,7 +187,7 @@ pub static VARIABLES: &[Var<ReciprocatingDrive>] = &[
     param!("guide.friction_coefficient", Real, supports[1].friction, Fixed, "", Range::NON_NEGATIVE,
         "Friction coefficient f of support B (the guide)"),
     param_bool!("guide.rod_side_force", rod_side_force, Fixed,
-        "Rigid rod: its side load -P*tan(beta) acts on the link at B's centre (physics.md 5.4)"),
+        "Rigid rod: its side load -P*tan(beta) acts on the link at B's centre (docs/model.md 5.4)"),
     output!(CalculatedParameter, Fixed, "balancer.stiffness_used", balancer_stiffness_used, "N/m", [],
         "Balancer stiffness k_b in use (from balancer.tuning); 0 when the balancer is off"),
     // ---- the crank state the outputs belong to (§2); appended, so that earlier value

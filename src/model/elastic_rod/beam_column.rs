@@ -1,4 +1,4 @@
-//! The P-dependent part of the elastic rod (physics.md §6, "Boundary conditions"; §5.4).
+//! The P-dependent part of the elastic rod (docs/model.md §6, "Boundary conditions"; §5.4).
 //!
 //! # Derivation (independent check of §6)
 //!
@@ -47,7 +47,7 @@ use super::stiffness::RodStiffness;
 use crate::model::error::ModelError;
 use std::f64::consts::PI;
 
-/// Everything that depends on the axial load P (compression positive), physics.md §6.
+/// Everything that depends on the axial load P (compression positive), docs/model.md §6.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BeamColumn {
     /// Axial load P [N], compression positive (N = −P).

@@ -1,4 +1,4 @@
-//! The rod's lower cage on the crank pin (physics.md §6): the piston law of the clamped elastic
+//! The rod's lower cage on the crank pin (docs/model.md §6): the piston law of the clamped elastic
 //! rod, the cage equation solved for ϑ̈, and the quasi-static initial state.
 
 use serde::{Deserialize, Serialize};

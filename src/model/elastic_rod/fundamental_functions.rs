@@ -1,4 +1,4 @@
-//! Normal fundamental functions of the beam-column equation `v'''' − x·v'' = 0` (physics.md §6).
+//! Normal fundamental functions of the beam-column equation `v'''' − x·v'' = 0` (docs/model.md §6).
 //!
 //! With `C = cosh(√x z)`, `S = sinh(√x z)/√x` (x > 0) or `C = cos(√−x z)`, `S = sin(√−x z)/√−x`
 //! (x < 0), the normal solutions (V_i^(j−1)(0) = δ_ij) are `V1 = 1, V2 = z, V3 = (C − 1)/x,
@@ -52,7 +52,7 @@ const INV_FACT_ODD: [f64; 12] = [
 ];
 
 /// Values of the normal fundamental functions and the derivatives the boundary conditions and
-/// the stress need, all at one abscissa `z` (physics.md §6).
+/// the stress need, all at one abscissa `z` (docs/model.md §6).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FundamentalFunctions {
     /// `C(z)` = V3'' = V4'''.
@@ -88,7 +88,7 @@ fn horner(u: f64, coef: &[f64; 12]) -> f64 {
     acc
 }
 
-/// Normal fundamental functions of `v'''' − x·v'' = 0` at `z` (physics.md §6).
+/// Normal fundamental functions of `v'''' − x·v'' = 0` at `z` (docs/model.md §6).
 ///
 /// Entire in `x`: exact at `x = 0` (`C = 1, S = z, V3 = z²/2, V4 = z³/6`), power series for
 /// `|x z²| ≤ SERIES_LIMIT`, `cosh/sinh` (tension, x > 0) or `cos/sin` (compression, x < 0) beyond.

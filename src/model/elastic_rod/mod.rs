@@ -1,4 +1,4 @@
-//! Elastic connecting rod clamped in the piston (physics.md §6, seed 003 corrected per §9).
+//! Elastic connecting rod clamped in the piston (docs/model.md §6, seed 003 corrected per §9).
 //!
 //! The rod is a Haringx–Timoshenko beam-column of length `l_f` clamped in the piston (z = 0),
 //! followed by a rigid part of length `f` up to the crank-pin centre, where the lower cage (moment
@@ -41,7 +41,7 @@ pub enum RodKind {
     HelicalSpring = 2,
 }
 
-/// Geometry and material of the elastic rod (physics.md §6; variable names in the field docs).
+/// Geometry and material of the elastic rod (docs/model.md §6; variable names in the field docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RodSpec {
     /// `rod.kind`.

@@ -1,14 +1,14 @@
 //! Equivalent beam-column stiffnesses A1 (shear), A2 (bending), A3 (extension) of the elastic
-//! connecting rod (physics.md §6, "Equivalent beam-column").
+//! connecting rod (docs/model.md §6, "Equivalent beam-column").
 
 use super::{RodKind, RodSpec};
 use crate::model::error::ModelError;
 use std::f64::consts::PI;
 
-/// Shear correction factor of a solid circular section used for the thin rod (physics.md §6).
+/// Shear correction factor of a solid circular section used for the thin rod (docs/model.md §6).
 pub const SHEAR_CORRECTION_THIN_ROD: f64 = 0.9;
 
-/// Haringx–Timoshenko stiffnesses of the equivalent beam-column (physics.md §6).
+/// Haringx–Timoshenko stiffnesses of the equivalent beam-column (docs/model.md §6).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RodStiffness {
     /// Shear stiffness A1 [N].
@@ -28,7 +28,7 @@ fn positive(variable: &'static str, value: f64, unit: &str) -> Result<f64, Model
 }
 
 impl RodStiffness {
-    /// Validates the rod parameters and computes A1, A2, A3 (physics.md §6).
+    /// Validates the rod parameters and computes A1, A2, A3 (docs/model.md §6).
     ///
     /// * thin rod: `A2 = E·πd⁴/64`, `A1 = 0.9·G·πd²/4`, `A3 = E·πd²/4`;
     /// * helical spring (open coils), pitch `h = l_f/i`, `B_t = G·πd⁴/32`, `B_b = E·πd⁴/64`:
@@ -102,7 +102,7 @@ impl RodStiffness {
         }
     }
 
-    /// Static axial shortening `P·l_f/A3` [m] (output `rod.axial_deflection`, physics.md §6).
+    /// Static axial shortening `P·l_f/A3` [m] (output `rod.axial_deflection`, docs/model.md §6).
     #[inline]
     pub fn axial_deflection(&self, p: f64, flex_length: f64) -> f64 {
         p * flex_length / self.a3

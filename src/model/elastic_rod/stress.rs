@@ -1,4 +1,4 @@
-//! Largest stress in the elastic rod (physics.md §6, "Stress"; output `rod.stress_max`).
+//! Largest stress in the elastic rod (docs/model.md §6, "Stress"; output `rod.stress_max`).
 
 use super::beam_column::BeamColumn;
 use super::fundamental_functions::fundamental_functions;
@@ -6,7 +6,7 @@ use super::stiffness::RodStiffness;
 use super::{RodKind, RodSpec};
 use std::f64::consts::PI;
 
-/// Number of equal intervals of the thin rod's stress stations (physics.md §6).
+/// Number of equal intervals of the thin rod's stress stations (docs/model.md §6).
 pub const THIN_ROD_STATIONS: usize = 16;
 
 /// Number of intervals n of the stress stations `z_j = j·l_f/n`, j = 0..n: 16 for a thin rod,
@@ -20,7 +20,7 @@ pub fn station_intervals(spec: &RodSpec) -> usize {
     }
 }
 
-/// Largest stress [Pa] (physics.md §6): with `M(z) = (A2/s_N)(C3·C(z) + C4·S(z))` at the
+/// Largest stress [Pa] (docs/model.md §6): with `M(z) = (A2/s_N)(C3·C(z) + C4·S(z))` at the
 /// stations `z_j = j·l_f/n`, N = −P,
 ///
 /// * spring: wire shear stress `τ = k_W·(max_j |M(z_j)| + |N|·D/2)/(πd³/16)` with the Wahl factor

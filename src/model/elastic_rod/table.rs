@@ -1,4 +1,4 @@
-//! Piecewise-polynomial table of the P-dependent rod coefficients (physics.md §6, §5.4) for the
+//! Piecewise-polynomial table of the P-dependent rod coefficients (docs/model.md §6, §5.4) for the
 //! integrator's stages.
 //!
 //! # Why
@@ -33,7 +33,7 @@
 //!
 //! The range stops short of buckling (`K_ϑ ≥ K_MIN_FRACTION·K_ϑ(0)`) and of extreme tension; outside
 //! it, or for a tolerance too tight for the table (`accuracy()`), the caller uses the exact
-//! [`BeamColumn`], which also reports buckling (physics.md §6 "Validity").
+//! [`BeamColumn`], which also reports buckling (docs/model.md §6 "Validity").
 //!
 //! # Accuracy needed
 //!

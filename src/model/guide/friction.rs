@@ -1,5 +1,5 @@
-//! Guide friction from the support reactions (physics.md §5.3) and the implicit rod-force
-//! equation `P = p_base + F_fr(P)` (physics.md §4, §5.4).
+//! Guide friction from the support reactions (docs/model.md §5.3) and the implicit rod-force
+//! equation `P = p_base + F_fr(P)` (docs/model.md §4, §5.4).
 //!
 //! Friction magnitude of a support with net force R and moment M about its centre:
 //! two-edge guide (and a clamp of length l_n > 0) `f·(|N₁| + |N₂|) = f·max(|R|, 2|M|/l_n)` with
@@ -19,7 +19,7 @@
 use super::supports::ForceMoment;
 use super::{SupportKind, SupportSpec};
 
-/// The regularised sign `tanh(x)` of the friction law, x = v/v_ε (physics.md §5.3), within
+/// The regularised sign `tanh(x)` of the friction law, x = v/v_ε (docs/model.md §5.3), within
 /// 2.3e-16 absolute and 7e-16 relative of the correctly rounded value.
 ///
 /// WHY not `f64::tanh`: glibc computes it through `expm1` and a division, and in the elastic
@@ -59,7 +59,7 @@ pub fn regularized_sign(x: f64) -> f64 {
     r.copysign(x)
 }
 
-/// How a support rubs (physics.md §5.3).
+/// How a support rubs (docs/model.md §5.3).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum FrictionLaw {
     /// No friction (absent support, or friction coefficient 0).
@@ -139,7 +139,7 @@ pub(super) struct AffineReaction {
 }
 
 /// Sum over supports of f·max(|∂R/∂P|, 2|∂M/∂P|/l_n) (pin: f·|∂R/∂P|): times |tanh(v/v_ε)| the
-/// largest slope of F_fr(P), i.e. the uniqueness number K of physics.md §4 (there written per
+/// largest slope of F_fr(P), i.e. the uniqueness number K of docs/model.md §4 (there written per
 /// unit side load Q, with |∂Q/∂P| = |tanβ|).
 pub(super) fn sensitivity(laws: &[FrictionLaw; 3], r: &[AffineReaction; 3]) -> f64 {
     let mut k = 0.0;

@@ -1,4 +1,4 @@
-//! The link as a stepped Euler–Bernoulli beam (physics.md §5.1) and its exact flexibility
+//! The link as a stepped Euler–Bernoulli beam (docs/model.md §5.1) and its exact flexibility
 //! coefficients (Mohr integrals).
 //!
 //! Why the flexibility method: the beam problem has at most six support constraints, while an FE
@@ -22,7 +22,7 @@
 
 use crate::model::error::ModelError;
 
-/// Names of the section variables (physics.md §10), indexed by section.
+/// Names of the section variables (docs/model.md §10), indexed by section.
 const LENGTH_NAMES: [&str; 4] = ["link.l1", "link.l2", "link.l3", "link.l4"];
 const DIAMETER_NAMES: [&str; 4] = ["link.d1", "link.d2", "link.d3", "link.d4"];
 
@@ -93,7 +93,7 @@ impl LinkBeam {
             return Err(ModelError::invalid(format!(
                 "the link has no length: link.l1 + link.l2 + link.l3 + link.l4 = {length} m; \
                  at least one section must have a positive length when a support is defined \
-                 (physics.md §5.1)"
+                 (docs/model.md §5.1)"
             )));
         }
         // Physical section data, present sections only.

@@ -1,5 +1,5 @@
 //! Guide friction caused by the redundant (statically indeterminate) supports of the
-//! reciprocating link (physics.md §5, seed 000 corrected per §9).
+//! reciprocating link (docs/model.md §5, seed 000 corrected per §9).
 //!
 //! Where things are:
 //! * `link_beam.rs`  – the link as a stepped Euler–Bernoulli beam; exact Mohr flexibilities (§5.1);
@@ -31,7 +31,7 @@ use crate::model::error::ModelError;
 use friction::{AffineReaction, FrictionLaw};
 use supports::{ClampInfluence, ForceMoment, Influence, LoadSet, SupportSystem};
 
-/// `support_X.kind` (physics.md §5.2).
+/// `support_X.kind` (docs/model.md §5.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SupportKind {
     None = 0,
@@ -53,7 +53,7 @@ impl SupportKind {
     }
 }
 
-/// One support (physics.md §5.2). Units: m, rad, N/m.
+/// One support (docs/model.md §5.2). Units: m, rad, N/m.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SupportSpec {
     pub kind: SupportKind,
@@ -88,7 +88,7 @@ impl SupportSpec {
     };
 }
 
-/// The link and its supports (physics.md §5).
+/// The link and its supports (docs/model.md §5).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GuideSpec {
     /// `link.l1..l4` [m]; a section of length 0 is absent.
@@ -111,7 +111,7 @@ pub struct GuideSpec {
 
 #[cfg(test)]
 impl GuideSpec {
-    /// The default machine of physics.md §8, from the one place its defaults live (`Params`).
+    /// The default machine of docs/model.md §8, from the one place its defaults live (`Params`).
     pub fn default_machine() -> GuideSpec {
         crate::model::params::Params::default()
             .guide_spec()
@@ -119,7 +119,7 @@ impl GuideSpec {
     }
 }
 
-/// Friction-related outputs at one evaluation (physics.md §5.3, §10 names in brackets).
+/// Friction-related outputs at one evaluation (docs/model.md §5.3, §10 names in brackets).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct GuideOutputs {
     /// P [N] (`rod.force`), satisfying P = p_base + friction_total.
@@ -143,7 +143,7 @@ pub struct GuideOutputs {
 }
 
 /// The friction of the elastic-rod machine at one (s, v) as a function of the clamp loads
-/// (M0, V) (physics.md §5.3, §5.4), from [`Guide::clamp_friction`].
+/// (M0, V) (docs/model.md §5.3, §5.4), from [`Guide::clamp_friction`].
 #[derive(Clone, Copy, Debug)]
 pub struct ClampFriction<'a> {
     infl: ClampInfluence,
@@ -230,7 +230,7 @@ pub struct Guide {
 
 /// Largest number of fixed-point iterations of the elastic-rod friction loop.
 const MAX_FIXED_POINT_ITERATIONS: usize = 200;
-/// Relative stopping test of the fixed-point iteration (physics.md §4: machine precision).
+/// Relative stopping test of the fixed-point iteration (docs/model.md §4: machine precision).
 const FIXED_POINT_TOLERANCE: f64 = 1e-14;
 
 impl Guide {
@@ -329,7 +329,7 @@ impl Guide {
             return Err(ModelError::evaluation(format!(
                 "the guide is (close to) self-locking at s = {s} m: |tanh(v/v_ε)|·|tanβ|·Σ f·max(|∂R/∂Q|, \
                  2|∂M/∂Q|/l_n) = {:.6} · {:.6} · {:.6} = {k_unique:.6} ≥ 1 (v = {v} m/s, tanβ = {tan_beta}), so \
-                 the rod force P = p_base + F_fr(P) has no unique solution (physics.md §4)",
+                 the rod force P = p_base + F_fr(P) has no unique solution (docs/model.md §4)",
                 sign.abs(),
                 tan_beta.abs(),
                 if tan_beta != 0.0 { k / tan_beta.abs() } else { 0.0 },
@@ -436,7 +436,7 @@ impl Guide {
             "guide friction with the elastic rod: the fixed-point iteration P = p_base + F_fr(P) did \
              not converge in {MAX_FIXED_POINT_ITERATIONS} iterations at s = {} m (v = {} m/s, \
              p_base = {p_base} N, last P = {p} N, last change {last_step} N): friction depends too \
-             strongly on the rod force (physics.md §4)",
+             strongly on the rod force (docs/model.md §4)",
             cf.s, cf.v
         )))
     }

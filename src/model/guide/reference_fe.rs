@@ -1,4 +1,4 @@
-//! Test-only independent reference: a dense beam finite-element model of the link (physics.md
+//! Test-only independent reference: a dense beam finite-element model of the link (docs/model.md
 //! §5.1, §5.5), written separately from production by a different method.
 //!
 //! Production uses the flexibility method on the free link (Mohr integrals, bordered system of

@@ -1,4 +1,4 @@
-//! Support reactions of the link (physics.md §5.2, §5.3): the statically indeterminate beam
+//! Support reactions of the link (docs/model.md §5.2, §5.3): the statically indeterminate beam
 //! problem, solved by the flexibility method on the free link.
 //!
 //! Unknowns: one generalised force λ per contact (lateral force of a pin / clamp / guide edge,
@@ -71,7 +71,7 @@ impl Constraint {
     }
 }
 
-/// Net lateral force R [N] and moment M about the support's centre [N·m] (physics.md §5.3).
+/// Net lateral force R [N] and moment M about the support's centre [N·m] (docs/model.md §5.3).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(super) struct ForceMoment {
     pub r: f64,
@@ -835,7 +835,7 @@ impl SupportSystem {
             .collect();
         ModelError::evaluation(format!(
             "the link's support problem is singular at s = {} m (supports nearly coincide or do \
-             not hold the link): {} (physics.md §5.2)",
+             not hold the link): {} (docs/model.md §5.2)",
             s_scaled * self.length,
             positions.join(", ")
         ))

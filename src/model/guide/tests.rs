@@ -1,4 +1,4 @@
-//! Tests of the guide model against independent references (physics.md §5.5 textbook limits,
+//! Tests of the guide model against independent references (docs/model.md §5.5 textbook limits,
 //! equilibrium, a dense FE model in `reference_fe.rs`, brute-force root finding).
 // Index loops mirror the matrix formulas above; `!(a > b)` tests deliberately reject NaN.
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
@@ -57,7 +57,7 @@ fn rel_close(a: f64, b: f64, rel: f64, abs: f64) -> bool {
     (a - b).abs() <= rel * a.abs().max(b.abs()) + abs
 }
 
-/// Exact central crank-slider (physics.md §3.1), written out independently of production.
+/// Exact central crank-slider (docs/model.md §3.1), written out independently of production.
 #[derive(Clone, Copy)]
 struct Slider {
     r: f64,
@@ -1153,7 +1153,7 @@ fn bench_solve_rigid_default_machine() {
     );
 }
 
-/// The kvo630 preset's link (physics.md §8): the piston alone (l1 = 10 mm, d1 = 8 mm) in a
+/// The kvo630 preset's link (docs/model.md §8): the piston alone (l1 = 10 mm, d1 = 8 mm) in a
 /// two-edge guide B (z = 5 mm, length 10 mm, f = 0.1); no A, no C.
 fn kvo630() -> GuideSpec {
     let mut s = GuideSpec::default_machine();

@@ -1,6 +1,6 @@
-//! Which guide configurations are rejected at initialization, and the messages (physics.md §5.2).
+//! Which guide configurations are rejected at initialization, and the messages (docs/model.md §5.2).
 //!
-//! Every message names the contract variables (physics.md §10), their values and what is allowed,
+//! Every message names the contract variables (docs/model.md §10), their values and what is allowed,
 //! because the FMI layer turns it into the single log line a user sees.
 
 use super::link_beam::Dof;
@@ -38,7 +38,7 @@ pub(super) const NAMES: [SupportNames; 3] = [
         tilt: "support_B.tilt",
         length: "support_B.length",
         stiffness: "support_B.stiffness",
-        // B is "the guide": its coefficient is guide.friction_coefficient (physics.md §5.2).
+        // B is "the guide": its coefficient is guide.friction_coefficient (docs/model.md §5.2).
         friction: "guide.friction_coefficient",
     },
     SupportNames {
@@ -62,7 +62,7 @@ pub(super) struct Contact {
     pub offset: f64,
 }
 
-/// The contacts of a support (at most two), physics.md §5.2.
+/// The contacts of a support (at most two), docs/model.md §5.2.
 pub(super) fn contacts(spec: &SupportSpec) -> ([Contact; 2], usize) {
     let none = Contact {
         dof: Dof::Deflection,
@@ -149,7 +149,7 @@ pub(super) fn check_scalars(spec: &GuideSpec, stroke: f64) -> Result<(), ModelEr
     if !stroke.is_finite() || stroke < 0.0 {
         return Err(ModelError::invalid(format!(
             "the stroke S = {stroke} m handed to the guide model must be finite and >= 0 \
-             (it follows from the kinematic parameters, physics.md §2)"
+             (it follows from the kinematic parameters, docs/model.md §2)"
         )));
     }
     finite("link.lateral_load", spec.lateral_load, "a finite force (N)")?;
@@ -177,7 +177,7 @@ pub(super) fn check_scalars(spec: &GuideSpec, stroke: f64) -> Result<(), ModelEr
                 s.length,
                 format!(
                     "(0, inf) m for a two-edge guide ({} = 3): its two edges sit at ±length/2 \
-                     about its centre and carry the moment as an edge-force couple (physics.md §5.2)",
+                     about its centre and carry the moment as an edge-force couple (docs/model.md §5.2)",
                     n.kind
                 ),
             ));
@@ -188,7 +188,7 @@ pub(super) fn check_scalars(spec: &GuideSpec, stroke: f64) -> Result<(), ModelEr
                 s.length,
                 format!(
                     "(0, inf) m for a clamp with friction ({} = {} > 0): its friction is \
-                     f·max(|R|, 2|M|/length) (physics.md §5.3)",
+                     f·max(|R|, 2|M|/length) (docs/model.md §5.3)",
                     n.friction, s.friction
                 ),
             ));
@@ -250,7 +250,7 @@ pub(super) fn check_positions(
                 return Err(ModelError::invalid(format!(
                     "a guide edge leaves the link: {} = {} m, {} = {} m put the edge at {}{}{}/2 = {} m; \
                      {what}; every edge must stay within [0, L] = [0, {}] m, L = link.l1 + … + \
-                     link.l4 (physics.md §5.2)",
+                     link.l4 (docs/model.md §5.2)",
                     n.z,
                     s.z,
                     n.length,
@@ -265,13 +265,13 @@ pub(super) fn check_positions(
             let allowed = if s.frame_fixed {
                 format!(
                     "[S, L] = [{}, {}] m: {what}, which must stay on the link [0, L] \
-                     (physics.md §5.2)",
+                     (docs/model.md §5.2)",
                     short(stroke),
                     short(length)
                 )
             } else {
                 format!(
-                    "[0, L] = [0, {}] m: the support's centre must lie on the link (physics.md §5.2)",
+                    "[0, L] = [0, {}] m: the support's centre must lie on the link (docs/model.md §5.2)",
                     short(length)
                 )
             };
@@ -377,7 +377,7 @@ pub(super) fn check_held(spec: &GuideSpec, length: f64, stroke: f64) -> Result<(
             };
             return Err(ModelError::invalid(format!(
                 "the supports do not hold the link (a rigid-body mode remains): {why}; supports: \
-                 {}; add a clamp or a second lateral support at a different point (physics.md §5.2)",
+                 {}; add a clamp or a second lateral support at a different point (docs/model.md §5.2)",
                 listing.join("; ")
             )));
         }
@@ -426,7 +426,7 @@ pub(super) fn check_held(spec: &GuideSpec, length: f64, stroke: f64) -> Result<(
                     "{} and {} both hold the link rigidly {what} at the same point (link coordinate \
                      {} m at s = {} m; {} = {} m, {} = {} m): the split of the reaction between \
                      them is indeterminate; move one of them or give one a positive stiffness \
-                     ({} / {}) (physics.md §5.2)",
+                     ({} / {}) (docs/model.md §5.2)",
                     na.label, nb.label, short(za), short(s), na.z, spec.supports[a.support].z, nb.z,
                     spec.supports[b.support].z, na.stiffness, nb.stiffness
                 )));
