@@ -4,6 +4,7 @@
 
 use std::fmt::Write;
 
+use crate::fmi2::display_units;
 use crate::fmi2::logging::CATEGORIES;
 use crate::fmi2::model::FmuModel;
 use crate::fmi2::variables::{Binding, Causality, VarType, Variability};
@@ -59,7 +60,11 @@ fn body<M: FmuModel>() -> String {
                 let _ = write!(attrs, r#" {sym}="{e}""#);
             }
         }
-        let _ = writeln!(w, r#"    <Unit name="{}"><BaseUnit{attrs}/></Unit>"#, esc(name));
+        let mut display = String::new();
+        for d in display_units::for_unit(name) {
+            let _ = write!(display, r#"<DisplayUnit name="{}" factor="{}"/>"#, esc(d.name), num(d.factor));
+        }
+        let _ = writeln!(w, r#"    <Unit name="{}"><BaseUnit{attrs}/>{display}</Unit>"#, esc(name));
     }
     let _ = writeln!(w, "  </UnitDefinitions>");
     let _ = writeln!(w, "  <LogCategories>");
@@ -91,6 +96,9 @@ fn body<M: FmuModel>() -> String {
         let mut attrs = String::new();
         if v.ty == VarType::Real && !v.unit.is_empty() {
             let _ = write!(attrs, r#" unit="{}""#, esc(v.unit));
+            if let Some(d) = display_units::default_for(v.unit) {
+                let _ = write!(attrs, r#" displayUnit="{}""#, esc(d));
+            }
         }
         if v.ty != VarType::Boolean {
             let fmt = |b: f64| if v.ty == VarType::Integer { format!("{}", b as i64) } else { num(b) };
