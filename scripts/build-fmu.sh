@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Builds the FMUs in release mode and packages each as target/fmu/<modelIdentifier>.fmu:
-#   modelDescription.xml, binaries/linux64/<modelIdentifier>.so, resources/, documentation/
+#   modelDescription.xml, binaries/linux64/<modelIdentifier>.so, resources/, documentation/ (the
+#   variable table and docs/ as HTML with its figures)
 # Installs libclang (bindgen, for the fmi-sys FMI 2.0 types) when it is missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -39,7 +40,15 @@ for id in "${MODELS[@]}"; do
     cp "$md" "$stage/modelDescription.xml"
     # cargo names the library lib<crate>.so; the FMU's binary must be named <modelIdentifier>.so.
     cp "target/release/lib$id.so" "$stage/binaries/linux64/$id.so"
-    "$gen" --model "$id" --doc > "$stage/documentation/index.html"
+    # documentation/: the generated variable table (index.html) and the project's documentation
+    # (docs/*.md as HTML, with its figures), so users of the FMU alone have the model reference.
+    "$gen" --model "$id" --doc --pages docs > "$stage/documentation/index.html"
+    for page in docs/*.md; do
+        "$gen" --page "$page" > "$stage/documentation/$(basename "$page" .md).html"
+    done
+    if [ -d docs/figures ]; then
+        cp -r docs/figures "$stage/documentation/figures"
+    fi
     # Resources (presets, data) belong to the ReciprocatingDrive FMU.
     if [ "$id" = ReciprocatingDrive ] && compgen -G "resources/*" > /dev/null; then
         cp -r resources/. "$stage/resources/"

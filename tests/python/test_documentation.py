@@ -92,7 +92,7 @@ def test_anchors_resolve():
 
 
 def test_nothing_points_outside_the_repository():
-    bad = re.compile(r"\.\./shared|/work/shared|(?<![\w/-])physics\.md|(?<![\w/-])fmi\.md")
+    bad = re.compile(r"\.\./shared|/work" r"/shared|(?<![\w/-])physics\.md|(?<![\w/-])fmi\.md")
     hits = [f"{rel}: {m.group(0)}" for rel, text in tracked_text_files() for m in bad.finditer(text)]
     assert not hits, "\n".join(hits)
 
@@ -139,3 +139,50 @@ def test_figures_regenerate(tmp_path, fmu_path, monkeypatch):
     # The variable table in the page is what the script generates from the FMU.
     table = make_docs.variable_table(pathlib.Path(fmu_path))
     assert table in (DOCS / "fmi-interface.md").read_text(), "docs/fmi-interface.md: run scripts/make_docs.py --table-only"
+
+
+def test_fmu_carries_the_documentation_as_html(fmu_path):
+    """documentation/ of the built FMU: index.html (variables) links every page of docs/ as HTML,
+    and every relative link and image of every page resolves inside the FMU."""
+    import zipfile
+    from html.parser import HTMLParser
+
+    with zipfile.ZipFile(fmu_path) as z:
+        names = set(z.namelist())
+        pages = {p.stem for p in DOCS.glob("*.md")}
+        for stem in pages:
+            assert f"documentation/{stem}.html" in names, stem
+        index = z.read("documentation/index.html").decode()
+        for stem in pages:
+            assert f'href="{stem}.html"' in index, stem
+
+        class Refs(HTMLParser):
+            def __init__(self):
+                super().__init__()
+                self.refs, self.ids = [], set()
+
+            def handle_starttag(self, tag, attrs):
+                a = dict(attrs)
+                if "id" in a:
+                    self.ids.add(a["id"])
+                for key in ("href", "src"):
+                    if a.get(key):
+                        self.refs.append(a[key])
+
+        parsed = {}
+        for n in names:
+            if n.startswith("documentation/") and n.endswith(".html"):
+                p = Refs()
+                p.feed(z.read(n).decode())
+                parsed[n] = p
+        for n, p in parsed.items():
+            for ref in p.refs:
+                if "://" in ref or ref.startswith("mailto:"):
+                    continue
+                path, _, frag = ref.partition("#")
+                target = f"documentation/{path}" if path else n
+                assert target in names, f"{n}: {ref}"
+                if frag and target in parsed:
+                    assert frag in parsed[target].ids, f"{n}: {ref}"
+        # The model page shows the mechanism sketches.
+        assert 'src="figures/crank_slider.png"' in z.read("documentation/model.html").decode()
