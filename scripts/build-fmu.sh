@@ -46,9 +46,10 @@ for id in "${MODELS[@]}"; do
     for page in docs/*.md; do
         "$gen" --page "$page" > "$stage/documentation/$(basename "$page" .md).html"
     done
-    if [ -d docs/figures ]; then
-        cp -r docs/figures "$stage/documentation/figures"
-    fi
+    # The pages' images (docs/figures/, docs/sweeps/, ...), at the same relative paths.
+    for sub in docs/*/; do
+        [ -d "$sub" ] && cp -r "$sub" "$stage/documentation/$(basename "$sub")"
+    done
     # Resources (presets, data) belong to the ReciprocatingDrive FMU.
     if [ "$id" = ReciprocatingDrive ] && compgen -G "resources/*" > /dev/null; then
         cp -r resources/. "$stage/resources/"
