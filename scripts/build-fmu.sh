@@ -11,7 +11,7 @@ ensure_build_deps
 # The FMUs this repository builds, by modelIdentifier. Each has a cdylib crate
 # cdylib/<modelIdentifier>/ (cargo names its library lib<modelIdentifier>.so) and a checked-in
 # modelDescription (see model_description_file).
-MODELS=(ReciprocatingDrive)
+MODELS=(ReciprocatingDrive DriveTrain)
 
 # Where the generated modelDescription.xml of a model is checked in.
 model_description_file() {

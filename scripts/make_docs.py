@@ -34,6 +34,8 @@ INTERFACE = ROOT / "docs" / "fmi-interface.md"
 # Every figure this script writes; docs/*.md refer to them as figures/<name>.png.
 SKETCHES = ("crank_slider", "beam_units", "supports", "elastic_rod")
 RESULTS = ("results_default", "results_sk8-3.5-4000", "results_kvo630")
+# Drawn by scripts/closed_loop.py (docs/closed-loop.md).
+CLOSED_LOOP = "closed_loop"
 
 
 def _arrow(ax, p, q, text=None, color="k", **kw):
@@ -183,6 +185,16 @@ def result_figures(out: pathlib.Path) -> None:
         plot_mission(mission, out / f"{name}.png", dpi=70)
 
 
+def closed_loop_figure(out: pathlib.Path) -> None:
+    """The closed loop of the pump and its drive train in libcosim (scripts/closed_loop.py)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("closed_loop", ROOT / "scripts" / "closed_loop.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    mod.main(["--out-dir", str(out), "--fmu-dir", str(FMU.parent)])
+
+
 def variable_table(fmu: pathlib.Path) -> str:
     from fmpy import read_model_description
 
@@ -218,6 +230,7 @@ def main(argv=None) -> None:
         globals()[f"sketch_{name}"](out / f"{name}.png")
     if not a.sketches_only:
         result_figures(out)
+        closed_loop_figure(out)
     print(f"wrote {out}")
 
 

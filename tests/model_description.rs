@@ -13,6 +13,15 @@ fn checked_in_model_description_is_current() {
 }
 
 #[test]
+fn checked_in_drive_train_model_description_is_current() {
+    use reciprocating_drive::fmus::drive_train::DriveTrainFmu;
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/modelDescription/DriveTrain.xml");
+    let on_disk = std::fs::read_to_string(path).expect("modelDescription/DriveTrain.xml exists");
+    let generated = reciprocating_drive::fmi2::model_description::generate::<DriveTrainFmu>();
+    assert!(on_disk == generated, "DriveTrain.xml is stale: cargo run --bin gen-model-description -- --model DriveTrain");
+}
+
+#[test]
 fn every_contract_name_of_this_feature_set_is_declared() {
     // docs/model.md §10 names that the crank-slider feature set must expose, spelled out here.
     let xml = reciprocating_drive::fmi2::model_description::generate::<ReciprocatingDrive>();

@@ -8,6 +8,7 @@
 use std::path::Path;
 
 use reciprocating_drive::fmi2::{documentation, model::FmuModel, model_description};
+use reciprocating_drive::fmus::drive_train::DriveTrainFmu;
 use reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive;
 
 fn pages(dir: &Path) -> Vec<(String, String)> {
@@ -56,8 +57,9 @@ fn main() {
     let model = value("--model").unwrap_or("ReciprocatingDrive");
     match model {
         "ReciprocatingDrive" => emit::<ReciprocatingDrive>(doc, value("--pages")),
+        "DriveTrain" => emit::<DriveTrainFmu>(doc, value("--pages")),
         other => {
-            eprintln!("gen-model-description: unknown model \"{other}\"; known: ReciprocatingDrive");
+            eprintln!("gen-model-description: unknown model \"{other}\"; known: ReciprocatingDrive, DriveTrain");
             std::process::exit(2);
         }
     }

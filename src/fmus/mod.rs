@@ -3,4 +3,5 @@
 //! shared object is a thin cdylib crate under `cdylib/<modelIdentifier>/` that exports the glue
 //! for its model with [`export_fmu!`](crate::export_fmu).
 
+pub mod drive_train;
 pub mod reciprocating_drive;

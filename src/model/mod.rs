@@ -7,6 +7,7 @@ pub mod beam_unit;
 pub mod crank;
 pub mod crank_slider;
 pub mod drive;
+pub mod drive_train;
 pub mod elastic_rod;
 pub mod error;
 pub mod guide;

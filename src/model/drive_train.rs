@@ -1,0 +1,234 @@
+//! The drive train of a reciprocating pump (docs/closed-loop.md "The DriveTrain FMU"): an induction
+//! motor with Kloss's torque curve drives the crank shaft through a gearbox; the crank torque the
+//! mechanism demands is the load.
+//!
+//! ```text
+//! T_m = 2·T_b / (s/s_b + s_b/s) = 2·T_b·s·s_b / (s² + s_b²)     (Kloss; the second form is
+//! s   = 1 − ω_m/ω_s,   ω_m = i·ω                                  regular at s = 0 and holds for
+//! J·ω̇ = i·T_m − T_L,   J = J_c + i²·J_m,   θ̇ = ω                  generating, s < 0)
+//! ```
+//!
+//! T_L (`load.torque`, the pump's `crank.torque`) is held over a communication step. The state
+//! (θ, ω) is integrated inside the step with error control by the same Verner 6(5) pair as the
+//! elastic rod (`crate::model::integrator`), seen as the second-order equation θ̈ = ω̇(θ̇).
+
+use serde::{Deserialize, Serialize};
+
+use crate::model::error::ModelError;
+use crate::model::integrator::{advance, IntegratorState, IntegratorStats, SecondOrderRhs, Tolerance};
+
+/// Parameters as the variable table writes them; `Default` is the documented default drive
+/// (docs/closed-loop.md): a 4-pole 50 Hz motor through a 23:1 gearbox, the default pump at about
+/// 65 strokes/min.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveTrainParams {
+    /// i = ω_m/ω (motor speed over crank speed).
+    pub gear_ratio: f64,
+    /// ω_s [rad/s], motor shaft (2π·f/p).
+    pub synchronous_speed: f64,
+    /// T_b [N·m], motor shaft.
+    pub breakdown_torque: f64,
+    /// s_b.
+    pub breakdown_slip: f64,
+    /// J_m [kg·m²]: motor rotor and flywheel, motor shaft.
+    pub motor_inertia: f64,
+    /// J_c [kg·m²]: crank shaft, gear and rotating parts, crank side.
+    pub crank_inertia: f64,
+    /// Initial crank angle [rad] and speed [rad/s].
+    pub angle_start: f64,
+    pub speed_start: f64,
+    /// Integrator tolerance when fmi2SetupExperiment gives none.
+    pub tolerance: f64,
+}
+
+impl Default for DriveTrainParams {
+    fn default() -> Self {
+        DriveTrainParams {
+            gear_ratio: 23.0,
+            synchronous_speed: 2.0 * std::f64::consts::PI * 1500.0 / 60.0,
+            breakdown_torque: 200.0,
+            breakdown_slip: 0.15,
+            motor_inertia: 0.5,
+            crank_inertia: 50.0,
+            angle_start: 0.0,
+            speed_start: 2.0 * std::f64::consts::PI * 65.0 / 60.0,
+            tolerance: 1e-8,
+        }
+    }
+}
+
+/// A validated drive train.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveTrain {
+    pub p: DriveTrainParams,
+    /// J = J_c + i²·J_m [kg·m²], crank side.
+    pub inertia: f64,
+}
+
+/// The continuous state and the integrator's memory (part of the FMU state).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct DriveState {
+    pub angle: f64,
+    pub speed: f64,
+    pub integrator: IntegratorState,
+}
+
+/// What the drive train reports at a communication point.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct DriveOutputs {
+    pub angle: f64,
+    pub speed: f64,
+    pub acceleration: f64,
+    pub motor_speed: f64,
+    pub motor_torque: f64,
+    pub slip: f64,
+    pub motor_power: f64,
+}
+
+impl DriveTrain {
+    pub fn new(p: &DriveTrainParams) -> Result<DriveTrain, ModelError> {
+        let pos = |name: &'static str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(ModelError::out_of_range(name, v, "(0, inf)"))
+            }
+        };
+        pos("drive.gear_ratio", p.gear_ratio)?;
+        pos("motor.synchronous_speed", p.synchronous_speed)?;
+        pos("motor.breakdown_torque", p.breakdown_torque)?;
+        if !(p.breakdown_slip > 0.0 && p.breakdown_slip < 1.0) {
+            return Err(ModelError::out_of_range("motor.breakdown_slip", p.breakdown_slip, "(0, 1)"));
+        }
+        for (name, v) in [("motor.inertia", p.motor_inertia), ("crank.inertia", p.crank_inertia)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(ModelError::out_of_range(name, v, "[0, inf) kg.m2"));
+            }
+        }
+        let inertia = p.crank_inertia + p.gear_ratio * p.gear_ratio * p.motor_inertia;
+        if !(inertia > 0.0 && inertia.is_finite()) {
+            return Err(ModelError::invalid(format!(
+                "the drive train has no inertia: crank.inertia + drive.gear_ratio²·motor.inertia = {inertia} kg.m2; \
+                 allowed: > 0"
+            )));
+        }
+        for (name, v) in [("crank.angle_start", p.angle_start), ("crank.speed_start", p.speed_start)] {
+            if !v.is_finite() {
+                return Err(ModelError::out_of_range(name, v, "a finite number"));
+            }
+        }
+        if !(p.tolerance > 0.0 && p.tolerance < 1.0) {
+            return Err(ModelError::out_of_range("solver.tolerance", p.tolerance, "(0, 1)"));
+        }
+        Ok(DriveTrain { p: *p, inertia })
+    }
+
+    /// Motor slip and torque [N·m, motor shaft] at crank speed ω (Kloss).
+    #[inline]
+    pub fn motor(&self, omega: f64) -> (f64, f64) {
+        let s = 1.0 - self.p.gear_ratio * omega / self.p.synchronous_speed;
+        let sb = self.p.breakdown_slip;
+        (s, 2.0 * self.p.breakdown_torque * s * sb / (s * s + sb * sb))
+    }
+
+    /// ω̇ = (i·T_m − T_L)/J.
+    #[inline]
+    pub fn acceleration(&self, omega: f64, load: f64) -> f64 {
+        (self.p.gear_ratio * self.motor(omega).1 - load) / self.inertia
+    }
+
+    pub fn initial_state(&self) -> DriveState {
+        DriveState { angle: self.p.angle_start, speed: self.p.speed_start, integrator: IntegratorState::default() }
+    }
+
+    /// Integrates (θ, ω) over [t, t+h] with the load held. Tolerances: `tol` relative, and absolute
+    /// on θ [rad] and on ω/ω_0 with ω_0 = ω_s/i, the synchronous crank speed (a fixed scale).
+    pub fn step(
+        &self,
+        state: &DriveState,
+        load: f64,
+        t: f64,
+        h: f64,
+        tol: f64,
+        stats: &mut IntegratorStats,
+    ) -> Result<DriveState, ModelError> {
+        if !load.is_finite() {
+            return Err(ModelError::out_of_range("load.torque", load, "a finite number"));
+        }
+        struct Rhs<'a>(&'a DriveTrain, f64);
+        impl SecondOrderRhs for Rhs<'_> {
+            #[inline]
+            fn accel(&mut self, _t: f64, _theta: f64, omega: f64) -> Result<f64, ModelError> {
+                Ok(self.0.acceleration(omega, self.1))
+            }
+        }
+        let omega0 = self.p.synchronous_speed / self.p.gear_ratio;
+        let tolerance = Tolerance::from_solver_tolerance(tol, omega0);
+        let mut integ = state.integrator;
+        let [angle, speed] = advance(&mut Rhs(self, load), t, [state.angle, state.speed], h, &tolerance, &mut integ, stats)?;
+        Ok(DriveState { angle, speed, integrator: integ })
+    }
+
+    pub fn outputs(&self, state: &DriveState, load: f64) -> DriveOutputs {
+        let (slip, torque) = self.motor(state.speed);
+        let motor_speed = self.p.gear_ratio * state.speed;
+        DriveOutputs {
+            angle: state.angle,
+            speed: state.speed,
+            acceleration: self.acceleration(state.speed, load),
+            motor_speed,
+            motor_torque: torque,
+            slip,
+            motor_power: torque * motor_speed,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kloss_curve_peaks_at_the_breakdown_slip_and_vanishes_at_synchronous_speed() {
+        let d = DriveTrain::new(&DriveTrainParams::default()).unwrap();
+        let ws = d.p.synchronous_speed / d.p.gear_ratio;
+        assert_eq!(d.motor(ws).1, 0.0);
+        let at = |s: f64| d.motor(ws * (1.0 - s)).1;
+        // T(s_b) = T_b, and the textbook form 2T_b/(s/s_b + s_b/s) away from s = 0.
+        assert!((at(0.15) - 200.0).abs() < 1e-9);
+        for s in [0.01, 0.05, 0.3, 0.9, -0.1] {
+            assert!((at(s) - 2.0 * 200.0 / (s / 0.15 + 0.15 / s)).abs() < 1e-9 * 200.0, "{s}");
+            assert!(at(0.15) >= at(s));
+        }
+    }
+
+    #[test]
+    fn constant_load_steady_state_and_exponential_approach() {
+        // Linearised about the steady slip s*, ω approaches ω* with rate 1/τ = i·(dT/dω)/J.
+        let d = DriveTrain::new(&DriveTrainParams::default()).unwrap();
+        let load = 400.0;
+        let mut st = d.initial_state();
+        let mut stats = IntegratorStats::default();
+        for k in 0..20000 {
+            st = d.step(&st, load, k as f64 * 1e-3, 1e-3, 1e-10, &mut stats).unwrap();
+        }
+        // Steady: i·T_m(s*) = T_L, solved here by bisection on the Kloss curve (independent of step()).
+        let (mut lo, mut hi) = (0.0, 0.15);
+        for _ in 0..200 {
+            let s = 0.5 * (lo + hi);
+            if d.p.gear_ratio * 2.0 * 200.0 * s * 0.15 / (s * s + 0.0225) < load { lo = s } else { hi = s }
+        }
+        let w_star = d.p.synchronous_speed * (1.0 - lo) / d.p.gear_ratio;
+        assert!((st.speed - w_star).abs() < 1e-9 * w_star, "{} vs {w_star}", st.speed);
+    }
+
+    #[test]
+    fn rejects_bad_parameters_by_name() {
+        let mut p = DriveTrainParams { breakdown_slip: 1.5, ..Default::default() };
+        assert!(DriveTrain::new(&p).unwrap_err().to_string().contains("motor.breakdown_slip"));
+        p = DriveTrainParams { crank_inertia: 0.0, motor_inertia: 0.0, ..Default::default() };
+        assert!(DriveTrain::new(&p).unwrap_err().to_string().contains("no inertia"));
+        p = DriveTrainParams { gear_ratio: f64::NAN, ..Default::default() };
+        assert!(DriveTrain::new(&p).unwrap_err().to_string().contains("drive.gear_ratio"));
+    }
+}
