@@ -1,0 +1,158 @@
+#!/usr/bin/env python3
+"""The drilling-pump digital twin (docs/twin.md): measured crank data in, the FMU's loads out.
+
+    .venv/bin/python scripts/twin.py data/twin/pump_encoder.csv --angle-unit counts --counts-per-rev 4096
+    producer | .venv/bin/python scripts/twin.py - --live ...          # samples on standard input
+    .venv/bin/python scripts/twin.py growing.csv --follow --live ...   # follow a growing file
+
+Writes --out (every sample: time and every FMU output), --summary (one row per completed crank
+revolution) and, with --plots DIR, time series, the card and per-revolution trends. With
+--checkpoint FILE the FMU's state and the twin's position are saved every --checkpoint-every
+samples and at the end; --resume FILE continues a run from its checkpoint.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import pathlib
+import sys
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "python"))
+from reciprocating_drive.fmu import FmuError  # noqa: E402
+from reciprocating_drive.twin import SUMMARY_FIELDS, DataError, Options, Twin, save_checkpoint  # noqa: E402
+
+
+def lines_of(src, follow: bool, poll: float = 0.05):
+    """Lines of a file or stdin; with `follow`, waits for more until a line 'EOF' or forever."""
+    while True:
+        line = src.readline()
+        if line:
+            if follow and line.strip() == "EOF":
+                return
+            if follow and not line.endswith("\n"):  # a line still being written
+                while not line.endswith("\n"):
+                    time.sleep(poll)
+                    line += src.readline()
+            yield line
+        elif follow:
+            time.sleep(poll)
+        else:
+            return
+
+
+def fmt(v) -> str:
+    return "" if v is None else repr(v)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("input", help="CSV file, or - for standard input")
+    ap.add_argument("--fmu", default=str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
+    ap.add_argument("--machine", default="default", help="a preset, 'default', or an .ssv file")
+    ap.add_argument("--angle-unit", choices=("rad", "deg", "counts"), default="rad")
+    ap.add_argument("--counts-per-rev", type=float, default=None)
+    ap.add_argument("--continuous", action="store_true", help="angles do not wrap (default: wrapped every revolution)")
+    ap.add_argument("--speed-unit", choices=("rad/s", "rpm"), default="rad/s")
+    ap.add_argument("--ignore-speed", action="store_true", help="estimate ω from the angle even if crank_speed is given")
+    ap.add_argument("--duplicates", choices=("drop", "error"), default="drop")
+    ap.add_argument("--window", type=float, default=0.1, help="smoothing window [s] (default 0.1)")
+    ap.add_argument("--gap-limit", type=float, default=0.05, help="a longer interval is a gap [s] (default 0.05)")
+    ap.add_argument("--max-speed", type=float, default=100.0, help="fastest possible crank speed [rad/s] (default 100)")
+    ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "twin" / "outputs.csv")
+    ap.add_argument("--summary", type=pathlib.Path, default=None, help="default: <out>-revolutions.csv")
+    ap.add_argument("--plots", type=pathlib.Path, default=None, help="folder for the plots (replay)")
+    ap.add_argument("--live", action="store_true", help="flush every output line as soon as it is computed")
+    ap.add_argument("--follow", action="store_true", help="follow a growing file (ends at a line 'EOF')")
+    ap.add_argument("--checkpoint", type=pathlib.Path, default=None)
+    ap.add_argument("--checkpoint-every", type=int, default=10000)
+    ap.add_argument("--resume", type=pathlib.Path, default=None, help="continue from this checkpoint")
+    ap.add_argument("--stop-after", type=int, default=None, help="stop after this many input lines (and checkpoint)")
+    a = ap.parse_args(argv)
+
+    summary = a.summary or a.out.with_name(a.out.stem + "-revolutions.csv")
+    opts = Options(angle_unit=a.angle_unit, counts_per_rev=a.counts_per_rev, wrapped=not a.continuous,
+                   speed_unit=a.speed_unit, duplicates=a.duplicates, window=a.window, gap_limit=a.gap_limit,
+                   max_speed=a.max_speed, use_measured_speed=not a.ignore_speed)
+    a.out.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        if a.resume:
+            cp = json.loads(a.resume.read_text())
+            twin = Twin.from_checkpoint(a.fmu, cp, batch=1 if a.live else 4096)
+            skip = cp["lines_read"]
+            for path, size in ((a.out, cp["out_bytes"]), (summary, cp["summary_bytes"])):
+                with open(path, "r+b") as f:
+                    f.truncate(size)
+            out, summ = open(a.out, "a"), open(summary, "a")
+        else:
+            twin = Twin(a.fmu, a.machine, opts, batch=1 if a.live else 4096)
+            skip = 0
+            out, summ = open(a.out, "w"), open(summary, "w")
+            out.write(",".join(twin.header) + "\n")
+            summ.write(",".join(SUMMARY_FIELDS) + "\n")
+    except (FmuError, KeyError, OSError, ValueError) as e:
+        print(f"twin.py: {e}", file=sys.stderr)
+        return 2
+
+    src = sys.stdin if a.input == "-" else open(a.input)
+    n_since = 0
+
+    def emit(rows, sums):
+        for r in rows:
+            out.write(",".join(map(repr, r)) + "\n")
+        for s in sums:
+            summ.write(",".join(fmt(s[k]) for k in SUMMARY_FIELDS) + "\n")
+        if a.live and (rows or sums):
+            out.flush()
+            summ.flush()
+
+    def checkpoint():
+        out.flush()
+        summ.flush()
+        cp = twin.checkpoint()
+        cp["out_bytes"], cp["summary_bytes"] = out.tell(), summ.tell()
+        save_checkpoint(a.checkpoint, cp)
+
+    lineno = 0
+    try:
+        for line in lines_of(src, a.follow):
+            lineno += 1
+            if lineno <= skip:
+                continue
+            emit(*twin.push(line, lineno))
+            n_since += 1
+            if a.checkpoint and n_since >= a.checkpoint_every:
+                checkpoint()
+                n_since = 0
+            if a.stop_after and lineno >= a.stop_after:
+                if a.checkpoint:
+                    checkpoint()
+                out.close()
+                summ.close()
+                print(f"stopped after line {lineno}" + (f"; checkpoint {a.checkpoint}" if a.checkpoint else ""))
+                return 0
+        emit(*twin.finish())
+    except (DataError, FmuError) as e:
+        print(f"twin.py: {e}", file=sys.stderr)
+        return 1
+    if a.checkpoint:
+        checkpoint()
+    out.close()
+    summ.close()
+    for m in twin.messages:
+        print(f"twin.py: {m}", file=sys.stderr)
+    print(f"{twin.rows_out} samples, {twin.duplicates} duplicate timestamps dropped, {len(twin.gaps)} gap(s); "
+          f"wrote {a.out} and {summary}")
+    if a.plots:
+        from reciprocating_drive.twin_plots import plot_twin
+
+        plot_twin(a.out, summary, a.plots)
+        print(f"wrote plots to {a.plots}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
