@@ -12,6 +12,9 @@ source scripts/lib/venv.sh
 echo "== cargo test --release"
 cargo test --release
 
+echo "== scripts/valgrind.sh (C-ABI tests under memcheck)"
+bash scripts/valgrind.sh
+
 echo "== scripts/build-fmu.sh"
 bash scripts/build-fmu.sh
 

@@ -238,9 +238,15 @@ fn bad_parameters_are_rejected_at_initialization_with_precise_messages() {
     let api = Api::load();
     let cases: &[(&str, f64, &[&str])] = &[
         ("geometry.rod_length", 0.2, &["geometry.rod_length", "0.2", "geometry.crank_radius"]),
-        ("geometry.crank_radius", 0.0, &["geometry.crank_radius", "= 0", "(0, inf)"]),
+        ("geometry.crank_radius", 0.0, &["geometry.crank_radius", "= 0", "(0, 1000] m"]),
         ("geometry.crank_radius", f64::NAN, &["geometry.crank_radius", "NaN"]),
-        ("mass.reciprocating", -5.0, &["mass.reciprocating", "-5", "[0, inf)"]),
+        ("mass.reciprocating", -5.0, &["mass.reciprocating", "-5", "[0, 1000000000] kg"]),
+        // Values whose products overflow (docs/hardening.md): bounded ranges, short numbers.
+        ("support_B.offset", 1e308, &["support_B.offset = 1e308", "[-1, 1] m"]),
+        ("support_C.tilt", -1e308, &["support_C.tilt = -1e308", "[-1, 1] rad"]),
+        ("guide.friction_coefficient", 1e308, &["guide.friction_coefficient = 1e308", "[0, 10]"]),
+        ("link.l1", 1e200, &["link.l1 = 1e200", "[0, 1000] m"]),
+        ("geometry.beam_front_arm", 1e200, &["geometry.beam_front_arm = 1e200", "(0, 1000] m"]),
         ("mass.reciprocating", f64::INFINITY, &["mass.reciprocating", "inf"]),
         ("geometry.slider_offset", 1.0, &["geometry.rod_length", "geometry.slider_offset"]),
         ("guide.velocity_scale", 0.0, &["guide.velocity_scale"]),

@@ -114,7 +114,7 @@ fn rejected_support_configurations_fail_initialization_with_precise_messages() {
         ),
         (&[("support_B.length", 0.0)], &["support_B.length = 0", "two-edge guide"]),
         // Negative lengths and diameters, non-positive diameters of present sections.
-        (&[("link.l3", -1.0)], &["link.l3 = -1", "out of range", "[0, inf)"]),
+        (&[("link.l3", -1.0)], &["link.l3 = -1", "out of range", "[0, 1000] m"]),
         (&[("support_B.length", -0.4)], &["support_B.length = -0.4", "out of range"]),
         (&[("support_A.length", -0.25)], &["support_A.length = -0.25", "out of range"]),
         (&[("link.d2", -0.13)], &["link.d2 = -0.13", "out of range"]),
@@ -124,11 +124,11 @@ fn rejected_support_configurations_fail_initialization_with_precise_messages() {
             &["link.l1 + link.l2 + link.l3 + link.l4 = 0"],
         ),
         // Young's modulus.
-        (&[("link.E", 0.0)], &["link.E = 0", "(0, inf)"]),
-        (&[("link.E", -2.1e11)], &["link.E = -210000000000", "(0, inf)"]),
+        (&[("link.E", 0.0)], &["link.E = 0", "(0, 10000000000000] Pa"]),
+        (&[("link.E", -2.1e11)], &["link.E = -210000000000", "(0, 10000000000000] Pa"]),
         // Negative stiffness and friction coefficients, non-finite values.
-        (&[("support_C.stiffness", -1.0)], &["support_C.stiffness = -1", "[0, inf)"]),
-        (&[("guide.friction_coefficient", -0.1)], &["guide.friction_coefficient = -0.1", "[0, inf)"]),
+        (&[("support_C.stiffness", -1.0)], &["support_C.stiffness = -1", "[0, 1e15] N/m"]),
+        (&[("guide.friction_coefficient", -0.1)], &["guide.friction_coefficient = -0.1", "[0, 10]"]),
         (&[("support_C.friction", -0.2)], &["support_C.friction = -0.2"]),
         (&[("support_B.offset", f64::NAN)], &["support_B.offset = NaN"]),
         (&[("support_A.tilt", f64::INFINITY)], &["support_A.tilt = inf"]),

@@ -167,7 +167,16 @@ pub unsafe fn fmi2Instantiate<M: FmuModel>(
 #[inline]
 pub unsafe fn fmi2FreeInstance<M: FmuModel>(c: fmi2Component) {
     if !c.is_null() {
-        let _ = catch_unwind(AssertUnwindSafe(|| drop(Box::from_raw(c as *mut Instance<M>))));
+        let _ = catch_unwind(AssertUnwindSafe(|| {
+            let mut inst = Box::from_raw(c as *mut Instance<M>);
+            // The states the importer did not free belong to the instance (FMI 2.0 §2.1.5).
+            for p in inst.states.drain(..) {
+                let s = p as *mut Snapshot<M>;
+                (*s).magic = 0;
+                drop(Box::from_raw(s));
+            }
+            drop(inst);
+        }));
     }
 }
 
@@ -293,12 +302,16 @@ unsafe fn no_strings(function: &str, vr: *const fmi2ValueReference, nvr: usize) 
 
 // ------------------------------------------------------------------------------ FMU state
 
-unsafe fn store_snapshot<M: FmuModel>(state: *mut fmi2FMUstate, snap: Snapshot<M>) {
+/// Stores a snapshot in the importer's FMUstate: reuses a state it passes back (FMI 2.0 allows
+/// that), else allocates one, which the instance keeps track of so that fmi2FreeInstance frees
+/// it if the importer does not.
+unsafe fn store_snapshot<M: FmuModel>(inst: &mut Instance<M>, state: *mut fmi2FMUstate, snap: Snapshot<M>) {
     let existing = *state as *mut Snapshot<M>;
-    if !existing.is_null() && (*existing).magic == snapshot_magic::<M>() {
+    if !existing.is_null() && inst.states.contains(&(existing as usize)) && (*existing).magic == snapshot_magic::<M>() {
         *existing = snap;
     } else {
         *state = Box::into_raw(Box::new(snap)) as fmi2FMUstate;
+        inst.states.push(*state as usize);
     }
 }
 
@@ -319,7 +332,8 @@ pub unsafe fn fmi2GetFMUstate<M: FmuModel>(c: fmi2Component, state: *mut fmi2FMU
         if state.is_null() {
             return Err(null_argument("fmi2GetFMUstate", "FMUstate"));
         }
-        store_snapshot(state, inst.snapshot());
+        let snap = inst.snapshot();
+        store_snapshot(inst, state, snap);
         Ok(())
     })
 }
@@ -331,14 +345,18 @@ pub unsafe fn fmi2SetFMUstate<M: FmuModel>(c: fmi2Component, state: fmi2FMUstate
 
 #[inline]
 pub unsafe fn fmi2FreeFMUstate<M: FmuModel>(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
-    call::<M>(c, "fmi2FreeFMUstate", |_| {
+    call::<M>(c, "fmi2FreeFMUstate", |inst| {
         if state.is_null() || (*state).is_null() {
             return Ok(());
         }
         let s = *state as *mut Snapshot<M>;
+        let Some(pos) = inst.states.iter().position(|&p| p == s as usize) else {
+            return Err(Failure::error("fmi2FreeFMUstate: FMUstate was not made by this instance (or was freed)"));
+        };
         if (*s).magic != snapshot_magic::<M>() {
             return Err(Failure::error("fmi2FreeFMUstate: FMUstate was not made by this FMU"));
         }
+        inst.states.swap_remove(pos);
         (*s).magic = 0;
         drop(Box::from_raw(s));
         *state = ptr::null_mut();
@@ -376,13 +394,13 @@ pub unsafe fn fmi2SerializeFMUstate<M: FmuModel>(c: fmi2Component, state: fmi2FM
 
 #[inline]
 pub unsafe fn fmi2DeSerializeFMUstate<M: FmuModel>(c: fmi2Component, bytes: *const fmi2Byte, size: usize, state: *mut fmi2FMUstate) -> fmi2Status {
-    call::<M>(c, "fmi2DeSerializeFMUstate", |_| {
+    call::<M>(c, "fmi2DeSerializeFMUstate", |inst| {
         let data = slice(bytes as *const u8, size).ok_or_else(|| null_argument("fmi2DeSerializeFMUstate", "serializedState"))?;
         if state.is_null() {
             return Err(null_argument("fmi2DeSerializeFMUstate", "FMUstate"));
         }
         let snap = Instance::<M>::snapshot_from_core(fmu_state::deserialize::<M>(data)?)?;
-        store_snapshot(state, snap);
+        store_snapshot(inst, state, snap);
         Ok(())
     })
 }

@@ -14,7 +14,7 @@ use std::path::PathBuf;
 use crate::fmi2::logging::{Category, Logger};
 use crate::fmi2::model::FmuModel;
 use crate::fmi2::variables::{Binding, Causality, VarType, Variability};
-use crate::model::error::ModelError;
+use crate::model::error::{num, ModelError};
 
 /// The states of the FMI 2.0 co-simulation state machine this FMU can be in. It never returns
 /// fmi2Pending or fmi2Discard from a step, so "step failed/canceled" do not occur; a failed call
@@ -147,6 +147,9 @@ pub struct Instance<M: FmuModel> {
     /// Where a step evaluates its outputs before they replace the current ones (a failed step
     /// must leave the current ones as they were).
     scratch: M::Outputs,
+    /// FMU states made by fmi2GetFMUstate for this instance and not yet freed: fmi2FreeInstance
+    /// frees them (FMI 2.0: freeing the instance frees everything the FMU allocated for it).
+    pub states: Vec<usize>,
 }
 
 impl<M: FmuModel> Instance<M> {
@@ -160,11 +163,34 @@ impl<M: FmuModel> Instance<M> {
             provisional: None,
             stats: M::Stats::default(),
             scratch: M::Outputs::default(),
+            states: Vec::new(),
         }
     }
 
     pub fn time(&self) -> f64 {
         self.core.time
+    }
+
+    /// The parameters set furthest from their start values (by order of magnitude), to name in a
+    /// message when no finite result exists.
+    fn extreme_parameters(&self) -> String {
+        let mut cand: Vec<(f64, String)> = M::table()
+            .variables
+            .iter()
+            .enumerate()
+            .filter(|(_, v)| v.causality == Causality::Parameter && v.ty == VarType::Real)
+            .filter_map(|(i, v)| {
+                let x = self.core.values[i];
+                let s = v.start().unwrap_or(0.0);
+                let ratio = (x.abs().max(1e-300) / s.abs().max(1e-300)).log10().abs();
+                (x != s).then(|| (ratio, format!("{} = {}", v.name, num(x))))
+            })
+            .collect();
+        cand.sort_by(|a, b| b.0.total_cmp(&a.0));
+        if cand.is_empty() {
+            return "(start values)".into();
+        }
+        cand.into_iter().take(3).map(|c| c.1).collect::<Vec<_>>().join(", ")
     }
 
     pub fn set_fatal(&mut self) {
@@ -314,6 +340,7 @@ impl<M: FmuModel> Instance<M> {
             Mode::Fatal => return Err(Failure::illegal(function, self.core.mode)),
         };
         let info = M::table().info();
+        let mut non_finite: Vec<String> = Vec::new();
         for (k, &vr) in vrs.iter().enumerate() {
             let i = self.lookup(function, vr, ty)?;
             match info[i].output {
@@ -327,10 +354,24 @@ impl<M: FmuModel> Instance<M> {
                         }
                         self.refresh_outputs()?;
                     }
-                    out(k, self.read_output(get)?);
+                    let v = self.read_output(get)?;
+                    // No non-finite value leaves the FMU with fmi2OK (docs/hardening.md).
+                    if !v.is_finite() && non_finite.len() < 8 {
+                        non_finite.push(format!("{} = {}", M::table().variables[i].name, num(v)));
+                    }
+                    out(k, v);
                 }
                 None => out(k, self.core.values[i]),
             }
+        }
+        if !non_finite.is_empty() {
+            return Err(Failure::error(format!(
+                "{function}: non-finite outputs at t = {} s: {}; the parameters {} give no finite result \
+                 here (the FMU's state is unchanged)",
+                num(self.core.time),
+                non_finite.join(", "),
+                self.extreme_parameters()
+            )));
         }
         Ok(())
     }
@@ -493,10 +534,25 @@ impl<M: FmuModel> Instance<M> {
         M::check_state(&core.state).map_err(bad)?;
         // The outputs are not part of the serialized form: recompute them when asked.
         let core = Core { outputs_valid: false, ..core };
+        // Validated like values set by the importer: parameters in their ranges, finite inputs,
+        // a tolerance in (0, 1).
         for (v, var) in core.values.iter().zip(vars) {
             let integral = matches!(var.ty, VarType::Integer | VarType::Boolean);
             if integral && !(v.fract() == 0.0 && v.abs() <= i32::MAX as f64) {
                 return Err(bad(var.name));
+            }
+            let ok = match var.causality {
+                Causality::Parameter => var.range.contains(*v),
+                Causality::Input => v.is_finite(),
+                _ => true,
+            };
+            if !ok {
+                return Err(bad(&format!("{} = {}; allowed: {}", var.name, num(*v), var.range.describe(var.unit))));
+            }
+        }
+        if let Some(t) = core.tolerance {
+            if !(t > 0.0 && t < 1.0) {
+                return Err(bad(&format!("tolerance = {}; allowed: (0, 1)", num(t))));
             }
         }
         let model = match core.mode {

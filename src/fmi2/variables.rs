@@ -67,6 +67,14 @@ impl Range {
     pub const fn closed(min: f64, max: f64) -> Range {
         Range { min, max, min_open: false, max_open: false }
     }
+    /// (0, max]: a positive quantity with an upper bound.
+    pub const fn positive_to(max: f64) -> Range {
+        Range { min: 0.0, max, min_open: true, max_open: false }
+    }
+    /// [−m, m].
+    pub const fn within(m: f64) -> Range {
+        Range { min: -m, max: m, min_open: false, max_open: false }
+    }
 
     pub fn contains(&self, v: f64) -> bool {
         if !v.is_finite() {
@@ -91,13 +99,7 @@ impl Range {
 }
 
 fn fmt_bound(v: f64) -> String {
-    if v == f64::INFINITY {
-        "inf".into()
-    } else if v == f64::NEG_INFINITY {
-        "-inf".into()
-    } else {
-        format!("{v}")
-    }
+    crate::model::error::num(v)
 }
 
 pub struct Var<M: FmuModel> {

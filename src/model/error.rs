@@ -35,7 +35,7 @@ impl fmt::Display for ModelError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             ModelError::OutOfRange { variable, value, allowed } => {
-                write!(f, "{variable} = {value} is out of range; allowed: {allowed}")
+                write!(f, "{variable} = {} is out of range; allowed: {allowed}", num(*value))
             }
             ModelError::Invalid { message } | ModelError::Evaluation { message } => {
                 f.write_str(message)
@@ -52,5 +52,32 @@ pub fn require_finite(variable: &'static str, value: f64) -> Result<f64, ModelEr
         Ok(value)
     } else {
         Err(ModelError::out_of_range(variable, value, "a finite number"))
+    }
+}
+
+/// A number in a message, short: 1e308 as `1e308`, 0.0025 as `0.0025`, 2.5e-7 as `2.5e-7`
+/// (never hundreds of digits), NaN and infinities as such.
+pub fn num(v: f64) -> String {
+    let a = v.abs();
+    if v == 0.0 || !v.is_finite() || (1e-4..1e15).contains(&a) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+#[cfg(test)]
+mod num_tests {
+    use super::num;
+
+    #[test]
+    fn short_numbers() {
+        assert_eq!(num(1e308), "1e308");
+        assert_eq!(num(-1e-300), "-1e-300");
+        assert_eq!(num(2.5e-7), "2.5e-7");
+        assert_eq!(num(0.001), "0.001");
+        assert_eq!(num(0.2), "0.2");
+        assert_eq!(num(f64::NAN), "NaN");
+        assert_eq!(num(f64::INFINITY), "inf");
     }
 }

@@ -62,7 +62,7 @@
 // `!(x <= y)` tests are deliberate: they also catch NaN.
 #![allow(clippy::excessive_precision, clippy::neg_cmp_op_on_partial_ord)]
 
-use crate::model::error::ModelError;
+use crate::model::error::{num, ModelError};
 use serde::{Deserialize, Serialize};
 
 /// Right-hand side of the second-order cage equation, `ϑ̈ = accel(t, ϑ, ϑ̇)`.
@@ -243,9 +243,8 @@ fn eval(
         Ok([y[1], acc])
     } else {
         Err(ModelError::evaluation(format!(
-            "rod cage equation: non-finite angular acceleration {acc} at t = {t} s, \
-             rod.angle = {} rad, rod.angular_velocity = {} rad/s",
-            y[0], y[1]
+            "non-finite second derivative {acc} {} s into the step, state ({}, {})",
+            num(t), num(y[0]), num(y[1])
         )))
     }
 }
@@ -360,11 +359,18 @@ pub fn advance(
                 Some(e) => format!("; last rejected stage: {e}"),
                 None => String::new(),
             };
+            // Times are relative to the start of the communication step (the caller, which
+            // knows the absolute time, names the interval).
+            let reason = if n_steps >= MAX_STEPS_PER_CALL {
+                format!("the internal step limit of {MAX_STEPS_PER_CALL} steps per communication step is reached")
+            } else {
+                format!("the step size fell to {h_try:e} s")
+            };
             return Err(ModelError::evaluation(format!(
-                "rod cage equation: the integrator cannot meet solver.tolerance (rtol = {}) \
-                 between t = {t0} s and {t_end} s: step size {h_try:e} s at t = {t} s after \
-                 {n_steps} attempts{why}",
-                tol.rtol
+                "the integrator cannot meet solver.tolerance (rtol = {}) within the step: {reason} \
+                 {} s after its start{why}",
+                num(tol.rtol),
+                num(t - t0)
             )));
         }
         n_steps += 1;

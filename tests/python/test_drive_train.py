@@ -91,3 +91,14 @@ def test_state_restore_and_serialization_bit_for_bit(drive_fmu):
         g.start()
         g.restore(data, t)
         assert run(g) == a
+
+
+def test_no_non_finite_output_with_ok(drive_fmu):
+    """docs/hardening.md: the glue refuses to return a non-finite output. A drive train with almost
+    no inertia and an enormous load has an infinite acceleration: fmi2GetReal fails naming it, and
+    the other outputs stay readable."""
+    with Fmu(drive_fmu) as f:
+        f.start({"crank.inertia": 1e-300, "motor.inertia": 0.0, "load.torque": -1e308})
+        with pytest.raises(FmuError, match=r"non-finite outputs.*crank\.acceleration = inf.*crank\.inertia = 1e-300"):
+            f.get(["crank.speed", "crank.acceleration"])
+        assert f.get(["crank.speed"]) == [pytest.approx(2 * math.pi * 65 / 60)]

@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Runs the C-ABI hardening tests (tests/hardening.rs: states left to fmi2FreeInstance, crafted
+# states) and the FMI life-cycle tests under valgrind's memcheck: any invalid access or a
+# definitely lost block is an error (docs/hardening.md). scripts/test.sh runs it.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+if ! command -v valgrind >/dev/null 2>&1; then
+    echo "valgrind.sh: installing valgrind" >&2
+    sudo=""; [ "$(id -u)" -ne 0 ] && sudo="sudo"
+    $sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq valgrind >/dev/null
+fi
+for t in hardening fmi_lifecycle; do
+    bin=$(cargo test --release --test "$t" --no-run --message-format=json 2>/dev/null \
+        | python3 -c 'import sys, json
+for line in sys.stdin:
+    m = json.loads(line)
+    if m.get("executable"): print(m["executable"])' | tail -1)
+    echo "== valgrind $t"
+    valgrind --quiet --leak-check=full --errors-for-leak-kinds=definite --show-leak-kinds=definite \
+        --error-exitcode=1 "$bin" --test-threads=1 -q
+done

@@ -1,0 +1,68 @@
+//! Hardening of the FMI layer through the C ABI (docs/hardening.md): FMU states the importer never
+//! frees are released by fmi2FreeInstance (scripts/valgrind.sh runs this file under valgrind,
+//! where a leak is an error), and a deserialized state is validated like values the importer sets,
+//! naming the variable.
+
+mod common;
+use common::*;
+use reciprocating_drive::fmi2::fmu_state;
+use reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive;
+
+fn running(api: &Api) -> Inst<'_> {
+    let f = Inst::new(api, "hardening");
+    assert_eq!(f.setup(0.0), OK);
+    assert_eq!(f.enter(), OK);
+    assert_eq!(f.exit(), OK);
+    for k in 0..5 {
+        assert_eq!(f.step(k as f64 * 1e-3, 1e-3), OK);
+    }
+    f
+}
+
+#[test]
+fn states_not_freed_by_the_importer_are_freed_with_the_instance() {
+    let api = Api::load();
+    for _ in 0..20 {
+        let f = running(&api);
+        let kept: Vec<_> = (0..10).map(|_| f.get_state()).collect();
+        let bytes = f.serialize(kept[0]);
+        let restored = f.deserialize(&bytes).expect("deserialize");
+        // One state freed by the importer, the others left to fmi2FreeInstance (Drop of Inst).
+        f.free_state(kept[3]);
+        assert_eq!(f.set_state(restored), OK);
+        // A state is freed once: a second free is refused, not a double free.
+        let mut again = kept[3];
+        assert_eq!(unsafe { (api.fmi2FreeFMUstate)(f.c, &mut again) }, ERROR);
+    }
+}
+
+#[test]
+fn deserialized_states_are_validated_like_set_calls() {
+    let api = Api::load();
+    let f = running(&api);
+    let s = f.get_state();
+    let bytes = f.serialize(s);
+    let core = fmu_state::deserialize::<ReciprocatingDrive>(&bytes).expect("decode");
+    let cases: Vec<(Box<dyn Fn(&mut reciprocating_drive::fmi2::instance::Core<_>)>, &str)> = vec![
+        (Box::new(|c| c.tolerance = Some(f64::NAN)), "tolerance = NaN"),
+        (Box::new(|c| c.tolerance = Some(-1e-8)), "tolerance = -1e-8"),
+        (Box::new(|c| c.values[vr("crank.speed") as usize] = f64::NAN), "crank.speed = NaN"),
+        (Box::new(|c| c.values[vr("support_B.offset") as usize] = 1e308), "support_B.offset = 1e308"),
+        (Box::new(|c| c.values[vr("guide.friction_coefficient") as usize] = -1.0), "guide.friction_coefficient = -1"),
+    ];
+    for (corrupt, expect) in cases {
+        let mut c = core.clone();
+        corrupt(&mut c);
+        // A valid checksum: the bytes are well-formed, only their content is wrong.
+        let crafted = fmu_state::serialize::<ReciprocatingDrive>(&c).unwrap();
+        assert_eq!(f.deserialize(&crafted), Err(ERROR), "{expect}");
+        let m = f.log.last();
+        assert!(m.contains(expect) && m.contains("fmi2DeSerializeFMUstate"), "{expect}: {m}");
+    }
+    // The instance is unharmed and the genuine bytes still restore.
+    let ok = f.deserialize(&bytes).expect("genuine state");
+    assert_eq!(f.set_state(ok), OK);
+    assert_eq!(f.step(5e-3, 1e-3), OK);
+    f.free_state(ok);
+    f.free_state(s);
+}
