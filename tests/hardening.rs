@@ -6,6 +6,7 @@
 mod common;
 use common::*;
 use reciprocating_drive::fmi2::fmu_state;
+use reciprocating_drive::fmi2::model::FmuModel;
 use reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive;
 
 fn running(api: &Api) -> Inst<'_> {
@@ -43,7 +44,8 @@ fn deserialized_states_are_validated_like_set_calls() {
     let s = f.get_state();
     let bytes = f.serialize(s);
     let core = fmu_state::deserialize::<ReciprocatingDrive>(&bytes).expect("decode");
-    let cases: Vec<(Box<dyn Fn(&mut reciprocating_drive::fmi2::instance::Core<_>)>, &str)> = vec![
+    type Corrupt = Box<dyn Fn(&mut reciprocating_drive::fmi2::instance::Core<<ReciprocatingDrive as FmuModel>::State>)>;
+    let cases: Vec<(Corrupt, &str)> = vec![
         (Box::new(|c| c.tolerance = Some(f64::NAN)), "tolerance = NaN"),
         (Box::new(|c| c.tolerance = Some(-1e-8)), "tolerance = -1e-8"),
         (Box::new(|c| c.values[vr("crank.speed") as usize] = f64::NAN), "crank.speed = NaN"),
