@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
 # Builds the FMUs in release mode and packages each as target/fmu/<modelIdentifier>.fmu:
-#   modelDescription.xml, binaries/linux64/<modelIdentifier>.so, resources/, documentation/ (the
+#   modelDescription.xml, binaries/linux64/<modelIdentifier>.so, binaries/win64/<modelIdentifier>.dll
+#   (cross-compiled; RD_WIN64=0 skips it, docs/win64.md), resources/, documentation/ (the
 #   variable table and docs/ as HTML with its figures)
 # Installs libclang (bindgen, for the fmi-sys FMI 2.0 types) when it is missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/lib/ensure-build-deps.sh
 ensure_build_deps
+source scripts/lib/win64.sh
 
 # The FMUs this repository builds, by modelIdentifier. Each has a cdylib crate
 # cdylib/<modelIdentifier>/ (cargo names its library lib<modelIdentifier>.so) and a checked-in
@@ -23,6 +25,10 @@ model_description_file() {
 }
 
 cargo build --release --workspace --lib
+if win64_enabled; then
+    ensure_win64_build
+    cargo build --release --target "$WIN64_TARGET" $(for id in "${MODELS[@]}"; do echo -n " -p fmu-$(echo "$id" | sed -E 's/([a-z])([A-Z])/\1-\2/g' | tr 'A-Z' 'a-z')"; done)
+fi
 cargo build --release --quiet --bin gen-model-description
 gen=target/release/gen-model-description
 
@@ -40,6 +46,10 @@ for id in "${MODELS[@]}"; do
     cp "$md" "$stage/modelDescription.xml"
     # cargo names the library lib<crate>.so; the FMU's binary must be named <modelIdentifier>.so.
     cp "target/release/lib$id.so" "$stage/binaries/linux64/$id.so"
+    if win64_enabled; then
+        mkdir -p "$stage/binaries/win64"
+        cp "target/$WIN64_TARGET/release/$id.dll" "$stage/binaries/win64/$id.dll"
+    fi
     # documentation/: the generated variable table (index.html) and the project's documentation
     # (docs/*.md as HTML, with its figures), so users of the FMU alone have the model reference.
     "$gen" --model "$id" --doc --pages docs > "$stage/documentation/index.html"

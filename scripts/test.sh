@@ -20,6 +20,10 @@ bash scripts/build-fmu.sh
 
 echo "== Python environment (.venv)"
 ensure_venv
+source scripts/lib/win64.sh
+if win64_enabled; then
+    ensure_wine  # tests/python/test_win64.py runs the win64 DLL under wine
+fi
 
 echo "== pytest tests/python"
 # RD_REQUIRE_FMU: a missing FMU fails the run instead of skipping the tests.
