@@ -1,24 +1,30 @@
-//! The checked-in modelDescription/modelDescription.xml must equal what the generator produces
-//! from the variable table now (regenerate with
-//! `cargo run --bin gen-model-description > modelDescription/modelDescription.xml`).
+//! The checked-in modelDescription/*.xml must equal what the generator produces from the
+//! variable tables now (regenerate with `cargo run --bin gen-model-description [-- --model ID]`).
 
 use reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive;
 
+/// The checked-in file equals what the generator makes from model M's table now.
+fn assert_current<M: reciprocating_drive::fmi2::model::FmuModel>(file: &str, regenerate: &str) {
+    let path = format!("{}/modelDescription/{file}", env!("CARGO_MANIFEST_DIR"));
+    let on_disk = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let generated = reciprocating_drive::fmi2::model_description::generate::<M>();
+    assert!(on_disk == generated, "{file} is stale: regenerate it with {regenerate}");
+}
+
 #[test]
 fn checked_in_model_description_is_current() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/modelDescription/modelDescription.xml");
-    let on_disk = std::fs::read_to_string(path).expect("modelDescription/modelDescription.xml exists");
-    let generated = reciprocating_drive::fmi2::model_description::generate::<ReciprocatingDrive>();
-    assert!(on_disk == generated, "modelDescription.xml is stale: regenerate it (see this file's doc)");
+    assert_current::<ReciprocatingDrive>(
+        "modelDescription.xml",
+        "cargo run --bin gen-model-description > modelDescription/modelDescription.xml",
+    );
 }
 
 #[test]
 fn checked_in_drive_train_model_description_is_current() {
-    use reciprocating_drive::fmus::drive_train::DriveTrainFmu;
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/modelDescription/DriveTrain.xml");
-    let on_disk = std::fs::read_to_string(path).expect("modelDescription/DriveTrain.xml exists");
-    let generated = reciprocating_drive::fmi2::model_description::generate::<DriveTrainFmu>();
-    assert!(on_disk == generated, "DriveTrain.xml is stale: cargo run --bin gen-model-description -- --model DriveTrain");
+    assert_current::<reciprocating_drive::fmus::drive_train::DriveTrainFmu>(
+        "DriveTrain.xml",
+        "cargo run --bin gen-model-description -- --model DriveTrain > modelDescription/DriveTrain.xml",
+    );
 }
 
 #[test]
