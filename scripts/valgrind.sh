@@ -12,9 +12,16 @@ fi
 for t in hardening fmi_lifecycle; do
     bin=$(cargo test --release --test "$t" --no-run --message-format=json 2>/dev/null \
         | python3 -c 'import sys, json
+name = sys.argv[1]
 for line in sys.stdin:
     m = json.loads(line)
-    if m.get("executable"): print(m["executable"])' | tail -1)
+    t = m.get("target", {})
+    if m.get("executable") and t.get("name") == name and "test" in t.get("kind", []):
+        print(m["executable"])' "$t" | tail -1)
+    if [ -z "$bin" ]; then
+        echo "valgrind.sh: no test binary for $t" >&2
+        exit 1
+    fi
     echo "== valgrind $t"
     valgrind --quiet --leak-check=full --errors-for-leak-kinds=definite --show-leak-kinds=definite \
         --error-exitcode=1 "$bin" --test-threads=1 -q
