@@ -14,7 +14,6 @@ samples and at the end; --resume FILE continues a run from its checkpoint.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import pathlib
 import sys

@@ -20,7 +20,6 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from conftest import ROOT
 from reciprocating_drive.system import build_ssp, run_fmpy, run_libcosim, speed_fluctuation
 
 R, L, M, F = 0.2, 1.19, 300.0, 5000.0

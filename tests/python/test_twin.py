@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import csv
 import math
-import pathlib
 import subprocess
 import sys
 
