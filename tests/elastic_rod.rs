@@ -13,18 +13,7 @@ const WARNING: i32 = fmi_sys::fmi2::fmi2Status_fmi2Warning as i32;
 
 /// (name, type, value) of every `<ssv:Parameter>` of the kvo630 preset.
 fn preset() -> Vec<(String, String, String)> {
-    let mut out = vec![];
-    for line in KVO630.lines().map(str::trim).filter(|l| l.starts_with("<ssv:Parameter ")) {
-        let attr = |s: &str, key: &str| -> String {
-            let k = format!("{key}=\"");
-            let i = s.find(&k).expect("attribute") + k.len();
-            s[i..i + s[i..].find('"').expect("closing quote")].to_string()
-        };
-        let inner = &line[line.find("><ssv:").expect("value element") + 6..];
-        let ty = inner[..inner.find(' ').expect("type")].to_string();
-        out.push((attr(line, "name"), ty, attr(inner, "value")));
-    }
-    out
+    parse_ssv(KVO630)
 }
 
 fn preset_real(name: &str) -> f64 {
@@ -50,17 +39,7 @@ fn kvo630<'a>(api: &'a Api, name: &str, logging_on: bool, tolerance: Option<f64>
     let st = unsafe { (api.fmi2SetupExperiment)(f.c, tolerance.is_some() as i32, tolerance.unwrap_or(0.0), 0.0, 0, 0.0) };
     assert_eq!(st, OK, "{}", f.log.last());
     assert_eq!(f.enter(), OK);
-    for (name, ty, value) in preset() {
-        let st = match ty.as_str() {
-            "Real" => f.set(&name, value.parse().unwrap()),
-            "Integer" => f.set_int(&name, value.parse().unwrap()),
-            _ => {
-                let (r, b) = (vr(&name), (value == "true") as i32);
-                unsafe { (api.fmi2SetBoolean)(f.c, &r, 1, &b) }
-            }
-        };
-        assert_eq!(st, OK, "{name}");
-    }
+    f.apply_preset(&preset());
     for &(name, v) in overrides {
         // Out-of-range values may be refused at once or at fmi2ExitInitializationMode.
         let _ = match v {

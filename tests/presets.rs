@@ -8,23 +8,6 @@ use common::*;
 use reciprocating_drive::fmi2::variables::{Binding, Causality, VarType};
 use reciprocating_drive::fmus::reciprocating_drive::VARIABLES;
 
-/// (name, type, value) of every `<ssv:Parameter>` in the file.
-fn parse(text: &str) -> Vec<(String, String, String)> {
-    let mut out = vec![];
-    for line in text.lines().map(str::trim).filter(|l| l.starts_with("<ssv:Parameter ")) {
-        let attr = |s: &str, key: &str| -> String {
-            let k = format!("{key}=\"");
-            let i = s.find(&k).expect("attribute") + k.len();
-            s[i..i + s[i..].find('"').expect("closing quote")].to_string()
-        };
-        let name = attr(line, "name");
-        let inner = &line[line.find("><ssv:").expect("value element") + 6..];
-        let ty = inner[..inner.find(' ').expect("type")].to_string();
-        out.push((name, ty, attr(inner, "value")));
-    }
-    out
-}
-
 /// (preset name, its (name, type, value) entries).
 type Preset = (String, Vec<(String, String, String)>);
 
@@ -34,7 +17,7 @@ fn presets() -> Vec<Preset> {
         .expect("resources/presets")
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "ssv"))
-        .map(|p| (p.file_stem().unwrap().to_string_lossy().into_owned(), parse(&std::fs::read_to_string(&p).unwrap())))
+        .map(|p| (p.file_stem().unwrap().to_string_lossy().into_owned(), parse_ssv(&std::fs::read_to_string(&p).unwrap())))
         .collect();
     v.sort();
     v

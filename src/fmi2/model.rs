@@ -35,6 +35,21 @@ pub struct ModelInfo {
     pub input_derivatives_hint: &'static str,
 }
 
+/// An output of a model that evaluates its outputs on demand by groups (see the module doc):
+/// `group` is the model's own mark of what must be evaluated before `get` reads the cache (the
+/// glue does not interpret it).
+pub struct GroupedOutput<O> {
+    pub group: u8,
+    pub get: fn(&O) -> f64,
+}
+
+impl<O> Clone for GroupedOutput<O> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<O> Copy for GroupedOutput<O> {}
+
 /// One model served by the FMI glue. All functions are associated functions (the glue keeps the
 /// data; the model keeps none between calls besides what the glue hands it).
 pub trait FmuModel: Sized + 'static {

@@ -323,6 +323,26 @@ macro_rules! output {
             binding: $crate::fmi2::variables::Binding::Output { get: |o| o.$($field).+, depends_on: &[$($dep),*] },
         }
     };
+    // An output of a model evaluated on demand by groups: `GROUP => ...` (the model's
+    // `Output` type is then `GroupedOutput<Outputs>`).
+    ($group:path => $name:literal, $($field:ident).+, $unit:literal, [$($dep:ident),*], $desc:literal) => {
+        output!($group => Output, Continuous, $name, $($field).+, $unit, [$($dep),*], $desc)
+    };
+    ($group:path => $causality:ident, $variability:ident, $name:literal, $($field:ident).+, $unit:literal, [$($dep:ident),*], $desc:literal) => {
+        $crate::fmi2::variables::Var {
+            name: $name,
+            ty: $crate::fmi2::variables::VarType::Real,
+            causality: $crate::fmi2::variables::Causality::$causality,
+            variability: $crate::fmi2::variables::Variability::$variability,
+            unit: $unit,
+            description: $desc,
+            range: $crate::fmi2::variables::Range::ANY,
+            binding: $crate::fmi2::variables::Binding::Output {
+                get: $crate::fmi2::model::GroupedOutput { group: $group, get: |o| o.$($field).+ },
+                depends_on: &[$($dep),*],
+            },
+        }
+    };
 }
 
 pub(crate) use {input, output, param, param_at, param_bool};

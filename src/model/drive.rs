@@ -36,9 +36,30 @@ pub struct RodState {
     pub integrator: IntegratorState,
 }
 
+/// Groups of outputs evaluated together, as bits of [`Outputs::ready`]. A rigid mechanism's
+/// outputs are evaluated on demand, a group at a time, each with the groups it needs
+/// ([`Model::evaluate_groups`]); an elastic rod evaluates all of them at once (one beam column
+/// serves every group beyond the kinematics).
+pub mod groups {
+    /// Crank state and kinematics (§2, §3): model angle and speed, position, velocity,
+    /// acceleration, torque factor, rod angle and its rate.
+    pub const KINEMATICS: u8 = 1;
+    /// Loads that do not depend on P (§4, §7): inertia force, balancer force and residual, and
+    /// P without friction. Needs KINEMATICS.
+    pub const LOADS: u8 = 2;
+    /// The rod force P (implicit through the guide friction, §4, §5), crank torque, support
+    /// reactions and friction, an elastic rod's stress and deflection (§6). Needs LOADS.
+    pub const FORCES: u8 = 4;
+    pub const ALL: u8 = KINEMATICS | LOADS | FORCES;
+}
+
 /// Every output of docs/model.md §10.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Outputs {
+    /// The [`groups`] whose fields below are up to date (0: none; set to 0 to invalidate).
+    pub ready: u8,
+    /// F_ext + Φ + F_bal, P without friction (§4): the LOADS group's input to FORCES.
+    pub p_base: f64,
     /// The model angle θ the other outputs belong to: the crank angle as last set plus
     /// `crank.angle_offset`, carried forward through the steps since (§2).
     pub model_angle: f64,
@@ -89,8 +110,6 @@ pub struct Model {
 
 /// Kinematics and the loads on the link that do not depend on P, at one instant.
 struct LinkLoads {
-    /// Model angle θ = θ_in + offset.
-    theta: f64,
     k: Kinematics,
     velocity: f64,
     acceleration: f64,
@@ -102,16 +121,17 @@ struct LinkLoads {
     piston: Option<PistonPoint>,
 }
 
-/// Everything at one instant that the outputs and the cage equation share.
+/// Everything at one instant that an elastic rod's outputs and its cage equation share.
 struct Instant {
     k: Kinematics,
     velocity: f64,
     acceleration: f64,
     inertia_force: f64,
     balancer_force: f64,
+    p_base: f64,
     guide: GuideOutputs,
-    /// Elastic rod: the beam column at the final P, Δ and dΔ/dθ, and the clamp's transverse force.
-    rod: Option<(BeamColumn, CageLoads, f64, f64)>,
+    /// The beam column at the final P, the cage loads, dΔ/dθ, and the clamp's transverse force.
+    rod: (BeamColumn, CageLoads, f64, f64),
 }
 
 impl Model {
@@ -320,7 +340,6 @@ impl Model {
     /// `sin_cos`: sinθ, cosθ when the caller has them (the integrator's stages), else computed.
     #[inline]
     fn link_loads(&self, crank: &CrankState, inputs: &Inputs, sin_cos: Option<(f64, f64)>) -> LinkLoads {
-        let p = &self.params;
         let (w, eps) = (crank.speed, crank.acceleration);
         let theta = self.model_angle(crank);
         let (k, piston) = match &self.mechanism {
@@ -336,6 +355,15 @@ impl Model {
         };
         let velocity = k.velocity(w);
         let acceleration = k.acceleration(w, eps);
+        let (inertia_force, balancer_force, p_base) = self.loads_at(theta, k.s, velocity, acceleration, inputs);
+        LinkLoads { k, velocity, acceleration, inertia_force, balancer_force, p_base, piston }
+    }
+
+    /// The loads on the link that do not depend on P at model angle θ, position s, velocity v and
+    /// acceleration a (§4, §7): (Φ, F_bal, p_base = F_ext + Φ + F_bal).
+    #[inline]
+    fn loads_at(&self, theta: f64, s: f64, velocity: f64, acceleration: f64, inputs: &Inputs) -> (f64, f64, f64) {
+        let p = &self.params;
         let inertia_force = loads::inertia_force(p.mass, acceleration);
         let f_ext = inputs.external_force
             + loads::process_force_profile(
@@ -347,16 +375,14 @@ impl Model {
                 velocity,
                 p.velocity_scale,
             );
-        let balancer_force = self.balancer.as_ref().map_or(0.0, |b| b.force(k.s));
+        let balancer_force = self.balancer.as_ref().map_or(0.0, |b| b.force(s));
         // §4: P = F_ext + Φ + F_fr + F_bal.
-        let p_base = f_ext + inertia_force + balancer_force;
-        LinkLoads { theta, k, velocity, acceleration, inertia_force, balancer_force, p_base, piston }
+        (inertia_force, balancer_force, f_ext + inertia_force + balancer_force)
     }
 
-    /// Kinematics, loads and the rod force at one instant (§2–§6). P is implicit through the
-    /// friction: exactly (piecewise linear) for a rigid rod, by the guide's contracting
-    /// iteration for an elastic rod, whose clamp loads depend on P and ϑ. The elastic rod's
-    /// iteration starts from P solved on the stiffness table (its error is that of the friction
+    /// Kinematics, loads and the rod force of an elastic rod at one instant (§2–§6). P is
+    /// implicit through the friction: found by the guide's contracting iteration, as the clamp
+    /// loads depend on P and ϑ. The starts from P solved on the stiffness table (its error is that of the friction
     /// from the table, ~1e-13·|F_fr|, far inside the iteration's 1e-14 relative test), so it
     /// usually needs a single beam column, which is then reused for the outputs.
     // Always inlined: `Instant` is large (it carries the beam column of an elastic rod), and
@@ -407,23 +433,10 @@ impl Model {
                 };
                 let loads = CageLoads { delta: pp.delta, delta_ddot: pp.delta_ddot, rod_force: guide.rod_force };
                 let transverse = bc.clamp_loads(pp.delta, cage.theta).1;
-                (guide, Some((bc, loads, pp.delta_rate, transverse)))
+                (guide, (bc, loads, pp.delta_rate, transverse))
             }
-            _ => {
-                let guide = match &self.guide {
-                    Some(g) => {
-                        // The rigid slider rod pushes the crosshead sideways with −P·tanβ; a beam
-                        // unit's polished rod hangs from the horsehead arc: no side force (§5.4).
-                        let tan_beta = match &self.mechanism {
-                            Mechanism::CrankSlider(m) => m.tan_beta(ll.theta),
-                            _ => 0.0,
-                        };
-                        g.solve_rigid(ll.k.s, ll.velocity, ll.p_base, tan_beta)?
-                    }
-                    None => GuideOutputs { rod_force: ll.p_base, ..GuideOutputs::default() },
-                };
-                (guide, None)
-            }
+            // Rigid rods are evaluated by groups (`evaluate_groups`), never here.
+            _ => return Err(ModelError::evaluation("internal: Model::instant is for an elastic rod only")),
         };
         Ok(Instant {
             k: ll.k,
@@ -431,12 +444,14 @@ impl Model {
             acceleration: ll.acceleration,
             inertia_force: ll.inertia_force,
             balancer_force: ll.balancer_force,
+            p_base: ll.p_base,
             guide,
             rod,
         })
     }
 
-    fn check_inputs(crank: &CrankState, inputs: &Inputs) -> Result<(), ModelError> {
+    /// Inputs (and the crank state carried forward from them) must be finite.
+    pub fn check_inputs(crank: &CrankState, inputs: &Inputs) -> Result<(), ModelError> {
         require_finite("crank.angle", crank.angle)?;
         require_finite("crank.speed", crank.speed)?;
         require_finite("crank.acceleration", crank.acceleration)?;
@@ -452,14 +467,92 @@ impl Model {
         Ok(out)
     }
 
-    /// [`Model::evaluate`] writing into `out` (the FMU's per-step path: no large moves). On error
-    /// `out` is unspecified.
+    /// [`Model::evaluate`] writing into `out`: every group at once. On error `out` is
+    /// unspecified.
     #[inline]
     pub fn evaluate_into(&self, crank: &CrankState, inputs: &Inputs, rod: &RodState, out: &mut Outputs) -> Result<(), ModelError> {
-        Self::check_inputs(crank, inputs)?;
+        out.ready = 0;
+        self.evaluate_groups(crank, inputs, rod, out, groups::ALL)
+    }
+
+    /// Brings the [`groups`] in `want` of `out` up to date, with the groups they need, keeping
+    /// those already marked ready (the FMU's evaluation on demand: a group is computed at most
+    /// once per communication point, and only when an output of it is read). The values are
+    /// those of evaluating every group at once, bit for bit: each group does the same
+    /// arithmetic in the same order whenever it runs. A group that fails (a self-locking guide)
+    /// leaves the groups before it ready and itself not ready, so it fails again when asked again.
+    #[inline]
+    pub fn evaluate_groups(&self, crank: &CrankState, inputs: &Inputs, rod: &RodState, out: &mut Outputs, want: u8) -> Result<(), ModelError> {
+        let missing = want & !out.ready;
+        if missing == 0 {
+            return Ok(());
+        }
+        if out.ready == 0 {
+            Self::check_inputs(crank, inputs)?;
+        }
+        let theta = self.model_angle(crank);
+        let (w, eps) = (crank.speed, crank.acceleration);
+        let rigid_rod_tan_beta = match &self.mechanism {
+            Mechanism::CrankSlider(m) => m.tan_beta(theta),
+            // A beam unit's polished rod hangs from the horsehead arc: no side force (§5.4).
+            Mechanism::BeamUnit(_) => 0.0,
+            Mechanism::ElasticRodSlider(_, elastic) => return self.evaluate_elastic(crank, inputs, rod, elastic, out),
+        };
+        if out.ready & groups::KINEMATICS == 0 {
+            let k = self.kinematics_at(theta);
+            out.model_angle = theta;
+            out.model_speed = w;
+            out.position = k.s;
+            out.velocity = k.velocity(w);
+            out.acceleration = k.acceleration(w, eps);
+            out.torque_factor = k.tf;
+            out.rod_angle = k.rod_angle;
+            out.rod_angular_velocity = k.rod_angle_rate * w;
+            out.ready |= groups::KINEMATICS;
+        }
+        if missing & (groups::LOADS | groups::FORCES) != 0 && out.ready & groups::LOADS == 0 {
+            let (inertia_force, balancer_force, p_base) =
+                self.loads_at(theta, out.position, out.velocity, out.acceleration, inputs);
+            out.inertia_force = inertia_force;
+            out.balancer_force = balancer_force;
+            out.balancer_residual = inertia_force + balancer_force;
+            out.balancer_stiffness_used = self.balancer.as_ref().map_or(0.0, |b| b.stiffness);
+            out.p_base = p_base;
+            out.ready |= groups::LOADS;
+        }
+        if missing & groups::FORCES != 0 {
+            // The rigid slider rod pushes the crosshead sideways with −P·tanβ (§5.4); P is
+            // solved exactly (piecewise linear in P).
+            let guide = match &self.guide {
+                Some(g) => g.solve_rigid(out.position, out.velocity, out.p_base, rigid_rod_tan_beta)?,
+                None => GuideOutputs { rod_force: out.p_base, ..GuideOutputs::default() },
+            };
+            out.guide = guide;
+            out.rod_force = guide.rod_force;
+            out.crank_torque = loads::crank_torque_rigid(guide.rod_force, out.torque_factor);
+            out.rod_stress_max = 0.0;
+            out.rod_axial_deflection = 0.0;
+            out.ready |= groups::FORCES;
+        }
+        Ok(())
+    }
+
+    /// Every output of an elastic-rod machine at once: its kinematics, loads, rod force and
+    /// stress share the piston law's point and one beam column (§6).
+    fn evaluate_elastic(
+        &self,
+        crank: &CrankState,
+        inputs: &Inputs,
+        rod: &RodState,
+        elastic: &ElasticRod,
+        out: &mut Outputs,
+    ) -> Result<(), ModelError> {
         let i = self.instant(crank, inputs, &rod.cage)?;
+        let (bc, loads, ddelta, transverse) = &i.rod;
         let rod_force = i.guide.rod_force;
         *out = Outputs {
+            ready: groups::ALL,
+            p_base: i.p_base,
             model_angle: self.model_angle(crank),
             model_speed: crank.speed,
             position: i.k.s,
@@ -468,24 +561,17 @@ impl Model {
             torque_factor: i.k.tf,
             inertia_force: i.inertia_force,
             rod_force,
-            crank_torque: loads::crank_torque_rigid(rod_force, i.k.tf),
-            rod_angle: i.k.rod_angle,
-            rod_angular_velocity: i.k.rod_angle_rate * crank.speed,
+            // §4: the lateral pin force does work too: T = −P·TF + V·dΔ/dθ.
+            crank_torque: loads::crank_torque_rigid(rod_force, i.k.tf) + transverse * ddelta,
+            rod_angle: rod.cage.theta,
+            rod_angular_velocity: rod.cage.rate,
             balancer_force: i.balancer_force,
             balancer_residual: i.inertia_force + i.balancer_force,
             balancer_stiffness_used: self.balancer.as_ref().map_or(0.0, |b| b.stiffness),
             guide: i.guide,
-            rod_stress_max: 0.0,
-            rod_axial_deflection: 0.0,
+            rod_stress_max: elastic.stress_max(bc, loads.delta, rod.cage.theta, rod_force),
+            rod_axial_deflection: elastic.axial_deflection(rod_force),
         };
-        if let (Some((bc, loads, ddelta, transverse)), Mechanism::ElasticRodSlider(_, elastic)) = (&i.rod, &self.mechanism) {
-            // §4: the lateral pin force does work too: T = −P·TF + V·dΔ/dθ.
-            out.crank_torque += transverse * ddelta;
-            out.rod_angle = rod.cage.theta;
-            out.rod_angular_velocity = rod.cage.rate;
-            out.rod_stress_max = elastic.stress_max(bc, loads.delta, rod.cage.theta, rod_force);
-            out.rod_axial_deflection = elastic.axial_deflection(rod_force);
-        }
         Ok(())
     }
 
@@ -505,7 +591,7 @@ impl Model {
         // P depends on ϑ only through the guide friction (weakly): a contracting iteration.
         for _ in 0..100 {
             let i = self.instant(crank, inputs, &cage)?;
-            let (bc, loads, _, _) = i.rod.as_ref().ok_or_else(|| ModelError::evaluation("elastic rod state missing"))?;
+            let (bc, loads, _, _) = &i.rod;
             let next = rod.quasi_static(bc, loads, delta_dot);
             let done = (next.theta - cage.theta).abs() <= 1e-15 * next.theta.abs().max(1e-300);
             cage = next;
@@ -717,7 +803,7 @@ impl SecondOrderRhs for CageRhs<'_> {
             }
         }
         let i = self.model.instant(&crank, self.inputs, &cage)?;
-        let (bc, loads, _, _) = i.rod.as_ref().ok_or_else(|| ModelError::evaluation("elastic rod state missing"))?;
+        let (bc, loads, _, _) = &i.rod;
         Ok(self.rod.acceleration(bc, loads, &cage))
     }
 }
@@ -822,7 +908,7 @@ mod tests {
                     let c = crank.extrapolate(tau);
                     let cage = CageState { theta, rate: 30.0 };
                     let exact = m.instant(&c, &inputs, &cage).unwrap();
-                    let (bc, loads, _, _) = exact.rod.unwrap();
+                    let (bc, loads, _, _) = exact.rod;
                     let a_exact = rod.acceleration(&bc, &loads, &cage);
                     let ll = m.link_loads(&c, &inputs, None);
                     let pp = ll.piston.unwrap();

@@ -251,3 +251,43 @@ impl Drop for Inst<'_> {
         let _ = &self.callbacks;
     }
 }
+
+/// (name, type, value) of every `<ssv:Parameter>` of an SSP parameter-value file.
+pub fn parse_ssv(text: &str) -> Vec<(String, String, String)> {
+    let mut out = vec![];
+    for line in text.lines().map(str::trim).filter(|l| l.starts_with("<ssv:Parameter ")) {
+        let attr = |s: &str, key: &str| -> String {
+            let k = format!("{key}=\"");
+            let i = s.find(&k).expect("attribute") + k.len();
+            s[i..i + s[i..].find('"').expect("closing quote")].to_string()
+        };
+        let name = attr(line, "name");
+        let inner = &line[line.find("><ssv:").expect("value element") + 6..];
+        let ty = inner[..inner.find(' ').expect("type")].to_string();
+        out.push((name, ty, attr(inner, "value")));
+    }
+    out
+}
+
+/// The entries of the shipped preset resources/presets/<name>.ssv (docs/model.md §8).
+pub fn preset(name: &str) -> Vec<(String, String, String)> {
+    let path = format!("{}/resources/presets/{name}.ssv", env!("CARGO_MANIFEST_DIR"));
+    parse_ssv(&std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}")))
+}
+
+impl Inst<'_> {
+    /// Sets every entry of a preset (in initialization mode), asserting each is accepted.
+    pub fn apply_preset(&self, entries: &[(String, String, String)]) {
+        for (name, ty, value) in entries {
+            let st = match ty.as_str() {
+                "Real" => self.set(name, value.parse().unwrap()),
+                "Integer" => self.set_int(name, value.parse().unwrap()),
+                _ => {
+                    let (r, b) = (vr(name), (value == "true") as i32);
+                    unsafe { (self.api.fmi2SetBoolean)(self.c, &r, 1, &b) }
+                }
+            };
+            assert_eq!(st, OK, "{name}: {}", self.log.last());
+        }
+    }
+}

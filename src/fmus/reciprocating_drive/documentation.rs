@@ -61,8 +61,11 @@ reads them); each also gives the start value of <code>crank.speed</code>.</p>
 <p>Invalid parameters (out of range, a linkage that cannot assemble, supports that do not hold the link or leave it
 during the stroke, a rod at or above its buckling load) make <code>fmi2ExitInitializationMode</code> return fmi2Error with a
 message naming the variable, its value and the allowed range; the instance stays in initialization mode so the value
-can be corrected. A non-finite input is refused by <code>fmi2SetReal</code> and not stored. A failed step (self-locking guide,
-buckled rod) leaves the FMU's state as it was. FMU states can be saved, restored and serialized.</p>
+can be corrected. A non-finite input is refused by <code>fmi2SetReal</code> and not stored. A failed step (buckled rod)
+leaves the FMU's state as it was. A rigid mechanism's outputs are evaluated when <code>fmi2GetReal</code> asks for them
+(only the groups read: kinematics, loads, forces), so a guide that self-locks at the new crank angle is reported by the
+<code>fmi2GetReal</code> of a force, while the kinematics stay readable. FMU states can be saved, restored and
+serialized.</p>
 
 <h2>Using it from fmpy</h2>
 <pre>

@@ -1,14 +1,19 @@
 //! The ReciprocatingDrive FMU: the physics of `crate::model` (docs/model.md §2–§7) behind the
 //! shared FMI glue. This module only connects the two: the variable table, the FMU's identity, and
-//! which model call answers which glue call. Outputs are evaluated eagerly: all of them at once
-//! whenever the inputs or the state change.
+//! which model call answers which glue call.
+//!
+//! Outputs are evaluated on demand (docs/fmi-interface.md "Evaluation on demand"): a step or a
+//! set input only marks the cache stale, and `fmi2GetReal` evaluates the groups of the outputs it
+//! is asked for (kinematics; loads; rod force, friction and reactions), each at most once per
+//! communication point. An elastic rod's step integrates the cage equation and evaluates every
+//! output at its end, so that a step to a state where the rod cannot be evaluated fails as a step.
 
 pub mod documentation;
 pub mod variables;
 
 use serde::{Deserialize, Serialize};
 
-use crate::fmi2::model::{FmuModel, ModelInfo};
+use crate::fmi2::model::{FmuModel, GroupedOutput, ModelInfo};
 use crate::fmi2::variables::Table;
 use crate::model::crank::CrankState;
 use crate::model::drive::{Inputs, Model, Outputs, RodState};
@@ -53,7 +58,7 @@ impl FmuModel for ReciprocatingDrive {
     type State = State;
     type Outputs = Outputs;
     type Input = InputSlot;
-    type Output = fn(&Outputs) -> f64;
+    type Output = GroupedOutput<Outputs>;
     type Stats = IntegratorStats;
 
     fn info() -> &'static ModelInfo {
@@ -96,18 +101,22 @@ impl FmuModel for ReciprocatingDrive {
         Ok(State { crank: state.crank, rod })
     }
 
+    /// Lazy: only marks the cache stale; [`Self::output`] evaluates what is read.
     #[inline]
-    fn update_outputs(model: &Model, values: &[f64], state: &State, cache: &mut Outputs) -> Result<(), ModelError> {
-        model.evaluate_into(&state.crank, &inputs(values), &state.rod, cache)
+    fn update_outputs(_: &Model, _: &[f64], _: &State, cache: &mut Outputs) -> Result<(), ModelError> {
+        cache.ready = 0;
+        Ok(())
     }
 
     #[inline]
-    fn output(_: &Model, _: &[f64], _: &State, cache: &mut Outputs, get: fn(&Outputs) -> f64) -> Result<f64, ModelError> {
-        Ok(get(cache))
+    fn output(model: &Model, values: &[f64], state: &State, cache: &mut Outputs, output: GroupedOutput<Outputs>) -> Result<f64, ModelError> {
+        model.evaluate_groups(&state.crank, &inputs(values), &state.rod, cache, output.group)?;
+        Ok((output.get)(cache))
     }
 
     /// Advances the crank by the in-step extrapolation of docs/model.md §2 and an elastic rod's
-    /// cage state by its integrator, then evaluates the outputs at the new communication point.
+    /// cage state by its integrator. A rigid mechanism's outputs are left to be evaluated when read
+    /// (the new crank state is only checked to be finite); an elastic rod's are evaluated here.
     #[inline]
     fn step(
         model: &Model,
@@ -119,10 +128,16 @@ impl FmuModel for ReciprocatingDrive {
         out: &mut Outputs,
     ) -> Result<State, ModelError> {
         let inputs = inputs(values);
-        let rod = if model.has_state() { model.step(&state.crank, &inputs, &state.rod, h, tol, stats)? } else { state.rod };
         let crank = state.crank.extrapolate(h);
-        model.evaluate_into(&crank, &inputs, &rod, out)?;
-        Ok(State { crank, rod })
+        if model.has_state() {
+            let rod = model.step(&state.crank, &inputs, &state.rod, h, tol, stats)?;
+            model.evaluate_into(&crank, &inputs, &rod, out)?;
+            Ok(State { crank, rod })
+        } else {
+            Model::check_inputs(&crank, &inputs)?;
+            out.ready = 0;
+            Ok(State { crank, rod: state.rod })
+        }
     }
 
     fn default_tolerance(model: &Model) -> f64 {
