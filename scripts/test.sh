@@ -11,6 +11,8 @@ source scripts/lib/venv.sh
 
 echo "== cargo test --release"
 cargo test --release
+# The native batch driver of the digital twin is a workspace member outside default-members.
+cargo test --release -p fmi2-batch
 
 echo "== scripts/valgrind.sh (C-ABI tests under memcheck)"
 bash scripts/valgrind.sh

@@ -10,7 +10,9 @@ Two ways to exchange values:
 * `set({name: value})`, `get([names])`: by name, any type; convenient, a few µs per call;
 * `channel(inputs, outputs)`: a `Channel` with preallocated ctypes arrays for a fixed list of
   Real inputs and outputs, whose `step(t_next, values)` is one fmi2SetReal, one fmi2DoStep and
-  one fmi2GetReal straight into a numpy row: the per-sample path of the twin and the sweeps.
+  one fmi2GetReal straight into a numpy row (the per-sample path of the sweeps), and whose
+  `run(t, inputs, outputs)` does the same for many communication points in one call of the
+  native batch driver (`batch.py`, tools/fmi2-batch): the path of the digital twin.
 """
 
 from __future__ import annotations
@@ -293,6 +295,36 @@ class Channel:
         mark = f._log.mark()
         f._check("fmi2DoStep", self._do(f._component, f.time, t_next - f.time, 1), mark)
         f.time = t_next
+
+    def run(self, t: np.ndarray, inputs: np.ndarray, outputs: np.ndarray, set_first: bool = False) -> None:
+        """Many communication points in one native call: for each k, fmi2DoStep to t[k], fmi2SetReal
+        of inputs[k], fmi2GetReal into outputs[k] (with `set_first`, fmi2SetReal before the step,
+        as `step` does). `outputs` may be a view whose rows are strided (e.g. columns 1: of a table).
+        A call returning fmi2Discard or worse stops the batch: the rows before it are written, the
+        FMU's time is that of the last completed step, and FmuError carries the FMU's messages
+        (those logged during the batch) and `index`, the sample that failed."""
+        from . import batch
+
+        f = self.fmu
+        mark = f._log.mark()
+        done, status, function = batch.run(self._addresses, f._component, self._vin, self._vout, f.time, t, inputs,
+                                           outputs, batch.ORDER_SET_STEP_GET if set_first else batch.ORDER_STEP_SET_GET)
+        # The FMU's time: the last communication point whose step succeeded.
+        stepped = done + int(function == "fmi2GetReal" or (function == "fmi2SetReal" and not set_first))
+        if stepped > 0:
+            f.time = float(t[stepped - 1])
+        if function is not None:
+            err = FmuError(function, status, f._log.since(mark))
+            err.index = done
+            raise err
+
+    @property
+    def _addresses(self) -> tuple[int, int, int]:
+        from .batch import address
+
+        if not hasattr(self, "_addr"):
+            self._addr = (address(self._set), address(self._do), address(self._get))
+        return self._addr
 
     def step(self, t_next: float, values: Sequence[float] | None, out: np.ndarray) -> np.ndarray:
         """Inputs `values` (taken as the crank state at the step's start, which the FMU carries

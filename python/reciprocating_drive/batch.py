@@ -1,0 +1,105 @@
+"""The native batch driver (tools/fmi2-batch, `libfmi2_batch.so`) through ctypes: many
+communication points of a loaded FMU in one call (`run`, used by `fmu.Channel.run`) and rows of
+numbers as CSV text exactly as Python's repr writes them (`format_csv`).
+
+The library is built by `cargo build --release --workspace --lib` (scripts/build-fmu.sh, which
+scripts/run.sh and scripts/test.sh call). RD_BATCH_LIB=/path/to/libfmi2_batch.so loads another
+build.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import pathlib
+
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+DEFAULT_LIB = ROOT / "target" / "release" / "libfmi2_batch.so"
+
+#: Call order at each communication point (tools/fmi2-batch/src/lib.rs).
+ORDER_STEP_SET_GET = 0
+ORDER_SET_STEP_GET = 1
+#: Which call failed.
+FUNCTIONS = {1: "fmi2DoStep", 2: "fmi2SetReal", 3: "fmi2GetReal"}
+_BAD_ARGUMENTS, _PANICKED = -1, -2
+
+
+class Failure(ctypes.Structure):
+    _fields_ = [("status", ctypes.c_int), ("function", ctypes.c_int)]
+
+
+_lib = None
+
+
+def library() -> ctypes.CDLL:
+    """The loaded native library (loaded once)."""
+    global _lib
+    if _lib is None:
+        path = pathlib.Path(os.environ.get("RD_BATCH_LIB", DEFAULT_LIB))
+        if not path.is_file():
+            raise FileNotFoundError(f"{path} not found: build it with scripts/build-fmu.sh "
+                                    "(or cargo build --release -p fmi2-batch)")
+        lib = ctypes.CDLL(str(path))
+        vp, sz, dp, ip = ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p, ctypes.c_int
+        lib.fmi2_batch_run.argtypes = [vp, vp, vp, vp, vp, sz, vp, sz, ctypes.c_double, sz, dp, dp, sz, dp, sz,
+                                       ip, ip, ctypes.POINTER(Failure)]
+        lib.fmi2_batch_run.restype = ctypes.c_ssize_t
+        lib.fmi2_batch_format_csv.argtypes = [dp, sz, sz, sz, vp, sz]
+        lib.fmi2_batch_format_csv.restype = ctypes.c_ssize_t
+        lib.fmi2_batch_max_number_len.restype = sz
+        _lib = lib
+    return _lib
+
+
+def address(function) -> int:
+    """The C address of a ctypes function (e.g. fmpy's loaded fmi2DoStep)."""
+    return ctypes.cast(function, ctypes.c_void_p).value
+
+
+def _rows(a: np.ndarray, width: int, name: str) -> tuple[int, int]:
+    """(pointer, row stride in elements) of a 2-D float64 array whose rows are contiguous."""
+    if a.dtype != np.float64 or a.ndim != 2 or a.shape[1] != width or (a.shape[0] > 1 and a.strides[0] % 8) \
+            or (width > 1 and a.strides[1] != 8):
+        raise ValueError(f"{name}: a 2-D float64 array of {width} contiguous columns is needed")
+    return a.ctypes.data, (a.strides[0] // 8 if a.shape[0] > 1 else width)
+
+
+def run(functions: tuple, component: int, vr_in, vr_out, t_start: float, t: np.ndarray, inputs: np.ndarray,
+        outputs: np.ndarray, order: int = ORDER_STEP_SET_GET, worst_ok: int = 1) -> tuple[int, int, str | None]:
+    """Communication points t[k] through the native driver; `functions` are the addresses of
+    fmi2SetReal, fmi2DoStep and fmi2GetReal, vr_in/vr_out ctypes arrays of value references.
+    Returns (samples completed, status, name of the failed call or None)."""
+    t = np.ascontiguousarray(t, dtype=np.float64)
+    n = len(t)
+    if inputs.shape[0] != n or outputs.shape[0] != n:
+        raise ValueError("t, inputs and outputs must have the same number of rows")
+    xin, sin = _rows(inputs, len(vr_in), "inputs")
+    xout, sout = _rows(outputs, len(vr_out), "outputs")
+    fail = Failure()
+    done = library().fmi2_batch_run(*functions, component, ctypes.addressof(vr_in), len(vr_in),
+                                    ctypes.addressof(vr_out), len(vr_out), float(t_start), n, t.ctypes.data,
+                                    xin, sin, xout, sout, order, worst_ok, ctypes.byref(fail))
+    if done < 0:
+        raise RuntimeError("fmi2_batch_run: " + ("bad arguments" if done == _BAD_ARGUMENTS else "internal error"))
+    return done, fail.status, FUNCTIONS.get(fail.function)
+
+
+def format_csv(rows: np.ndarray) -> bytes:
+    """CSV lines of a 2-D float64 array, each number as repr() writes it (reads back exactly)."""
+    lib = library()
+    rows = np.asarray(rows, dtype=np.float64)
+    if rows.ndim != 2:
+        raise ValueError("format_csv wants a 2-D array")
+    if rows.shape[0] == 0:
+        return b""
+    if rows.strides[1] != 8:
+        rows = np.ascontiguousarray(rows)
+    ptr, stride = _rows(rows, rows.shape[1], "rows")
+    cap = rows.shape[0] * rows.shape[1] * (lib.fmi2_batch_max_number_len() + 1)
+    buf = np.empty(cap, dtype=np.uint8)
+    n = lib.fmi2_batch_format_csv(ptr, rows.shape[0], rows.shape[1], stride, buf.ctypes.data, cap)
+    if n < 0:
+        raise RuntimeError("fmi2_batch_format_csv failed")
+    return buf[:n].tobytes()

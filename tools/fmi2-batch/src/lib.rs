@@ -1,0 +1,188 @@
+//! Native batch driver of a loaded FMI 2.0 co-simulation FMU and a CSV formatter, called from
+//! Python through ctypes (python/reciprocating_drive/fmu.py, `Channel.run` and `format_csv`).
+//!
+//! The driver knows nothing about the FMU it drives: the caller passes the FMU's own
+//! `fmi2DoStep`, `fmi2SetReal` and `fmi2GetReal` (as loaded by fmpy) and the component. Every
+//! exported function checks its pointers and catches panics, so nothing unwinds across the C
+//! boundary; failures are return codes.
+
+mod csv;
+
+use std::os::raw::{c_int, c_uint, c_void};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+
+pub use csv::{format_number, MAX_NUMBER_LEN};
+
+/// `fmi2SetReal(c, vr[], nvr, value[])`
+pub type SetReal = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *const f64) -> c_int;
+/// `fmi2GetReal(c, vr[], nvr, value[])`
+pub type GetReal = unsafe extern "C" fn(*mut c_void, *const c_uint, usize, *mut f64) -> c_int;
+/// `fmi2DoStep(c, currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint)`
+pub type DoStep = unsafe extern "C" fn(*mut c_void, f64, f64, c_int) -> c_int;
+
+/// Which call of a sample failed (`Failure::function`).
+pub const FAILED_NONE: c_int = 0;
+pub const FAILED_DO_STEP: c_int = 1;
+pub const FAILED_SET_REAL: c_int = 2;
+pub const FAILED_GET_REAL: c_int = 3;
+
+/// Return codes other than a count of samples.
+pub const BAD_ARGUMENTS: isize = -1;
+pub const PANICKED: isize = -2;
+
+/// The order of the calls at each communication point k.
+/// `ORDER_STEP_SET_GET`: fmi2DoStep to t[k], fmi2SetReal of input row k, fmi2GetReal into output
+/// row k (inputs are the state at t[k] and the outputs read belong to them: the digital twin).
+/// `ORDER_SET_STEP_GET`: fmi2SetReal of row k, fmi2DoStep to t[k], fmi2GetReal (inputs held over
+/// the step that ends at t[k]: a classic co-simulation master).
+pub const ORDER_STEP_SET_GET: c_int = 0;
+pub const ORDER_SET_STEP_GET: c_int = 1;
+
+/// Where a batch stopped: the status of the first call whose status exceeded `worst_ok`, and
+/// which call it was (`FAILED_*`); `FAILED_NONE` and status 0 when every sample succeeded.
+#[repr(C)]
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct Failure {
+    pub status: c_int,
+    pub function: c_int,
+}
+
+/// The FMU's functions and component, and the value references of the batch.
+pub struct Fmu {
+    pub set_real: SetReal,
+    pub do_step: DoStep,
+    pub get_real: GetReal,
+    pub component: *mut c_void,
+}
+
+/// Runs communication points `t` (sample k's inputs at `inputs[k * in_stride..][..vr_in.len()]`,
+/// its outputs into `outputs[k * out_stride..][..vr_out.len()]`) from the FMU time `t_start`.
+/// Stops at the first call whose status exceeds `worst_ok` (fmi2Warning = 1 accepts warnings).
+/// Returns the number of samples completed and the failure, if any; the rows before it are
+/// written, the rows after it untouched.
+///
+/// # Safety
+/// The function pointers and component must be a live FMU instance; the slices must hold the
+/// rows described.
+#[allow(clippy::too_many_arguments)]
+pub unsafe fn run(fmu: &Fmu, vr_in: &[c_uint], vr_out: &[c_uint], t_start: f64, t: &[f64], inputs: &[f64],
+                  in_stride: usize, outputs: &mut [f64], out_stride: usize, order: c_int, worst_ok: c_int)
+                  -> (usize, Failure) {
+    let mut now = t_start;
+    for (k, &tk) in t.iter().enumerate() {
+        let x = inputs[k * in_stride..][..vr_in.len()].as_ptr();
+        let set = || (fmu.set_real)(fmu.component, vr_in.as_ptr(), vr_in.len(), x);
+        let step = || (fmu.do_step)(fmu.component, now, tk - now, 1);
+        let calls: [(c_int, &dyn Fn() -> c_int); 2] = if order == ORDER_SET_STEP_GET {
+            [(FAILED_SET_REAL, &set), (FAILED_DO_STEP, &step)]
+        } else {
+            [(FAILED_DO_STEP, &step), (FAILED_SET_REAL, &set)]
+        };
+        for (function, call) in calls {
+            let status = call();
+            if status > worst_ok {
+                return (k, Failure { status, function });
+            }
+        }
+        now = tk;
+        let y = outputs[k * out_stride..][..vr_out.len()].as_mut_ptr();
+        let status = (fmu.get_real)(fmu.component, vr_out.as_ptr(), vr_out.len(), y);
+        if status > worst_ok {
+            return (k, Failure { status, function: FAILED_GET_REAL });
+        }
+    }
+    (t.len(), Failure::default())
+}
+
+/// Length of a strided array of `rows` rows of `width` values; None on overflow.
+fn strided_len(rows: usize, stride: usize, width: usize) -> Option<usize> {
+    if rows == 0 {
+        return Some(0);
+    }
+    if stride < width {
+        return None;
+    }
+    (rows - 1).checked_mul(stride)?.checked_add(width)
+}
+
+unsafe fn slice<'a, T>(p: *const T, len: usize) -> Option<&'a [T]> {
+    if len == 0 {
+        return Some(&[]);
+    }
+    (!p.is_null()).then(|| std::slice::from_raw_parts(p, len))
+}
+
+unsafe fn slice_mut<'a, T>(p: *mut T, len: usize) -> Option<&'a mut [T]> {
+    if len == 0 {
+        return Some(&mut []);
+    }
+    (!p.is_null()).then(|| std::slice::from_raw_parts_mut(p, len))
+}
+
+/// C entry of [`run`]. Returns the number of samples completed (then `*failure` says whether and
+/// where it stopped), `BAD_ARGUMENTS` for a null pointer, a stride narrower than its row or an
+/// unknown order, `PANICKED` if a panic was caught.
+///
+/// # Safety
+/// As [`run`]; `failure` must be writable.
+#[no_mangle]
+pub unsafe extern "C" fn fmi2_batch_run(
+    set_real: Option<SetReal>, do_step: Option<DoStep>, get_real: Option<GetReal>, component: *mut c_void,
+    vr_in: *const c_uint, n_in: usize, vr_out: *const c_uint, n_out: usize, t_start: f64, n: usize,
+    t: *const f64, inputs: *const f64, in_stride: usize, outputs: *mut f64, out_stride: usize, order: c_int,
+    worst_ok: c_int, failure: *mut Failure,
+) -> isize {
+    let result = catch_unwind(AssertUnwindSafe(|| {
+        let (Some(set_real), Some(do_step), Some(get_real)) = (set_real, do_step, get_real) else {
+            return BAD_ARGUMENTS;
+        };
+        if failure.is_null() || component.is_null() || !(order == ORDER_STEP_SET_GET || order == ORDER_SET_STEP_GET) {
+            return BAD_ARGUMENTS;
+        }
+        let (Some(ni), Some(no)) = (strided_len(n, in_stride, n_in), strided_len(n, out_stride, n_out)) else {
+            return BAD_ARGUMENTS;
+        };
+        let (Some(vr_in), Some(vr_out), Some(t), Some(x), Some(y)) = (
+            slice(vr_in, n_in), slice(vr_out, n_out), slice(t, n), slice(inputs, ni), slice_mut(outputs, no),
+        ) else {
+            return BAD_ARGUMENTS;
+        };
+        let fmu = Fmu { set_real, do_step, get_real, component };
+        let (done, f) = run(&fmu, vr_in, vr_out, t_start, t, x, in_stride, y, out_stride, order, worst_ok);
+        *failure = f;
+        done as isize
+    }));
+    result.unwrap_or(PANICKED)
+}
+
+/// Formats `rows` rows of `cols` numbers (row k at `values + k * row_stride`) as CSV lines, each
+/// number exactly as Python's `repr(float)` writes it, into `out` (`capacity` bytes). Returns the
+/// bytes written, `BAD_ARGUMENTS` for null pointers, a narrow stride or a buffer shorter than
+/// `rows * (cols * (MAX_NUMBER_LEN + 1))` bytes, `PANICKED` if a panic was caught.
+///
+/// # Safety
+/// `values` must hold the rows described and `out` `capacity` writable bytes.
+#[no_mangle]
+pub unsafe extern "C" fn fmi2_batch_format_csv(values: *const f64, rows: usize, cols: usize, row_stride: usize,
+                                               out: *mut u8, capacity: usize) -> isize {
+    let result = catch_unwind(AssertUnwindSafe(|| {
+        let need = cols.checked_mul(MAX_NUMBER_LEN + 1).and_then(|r| r.checked_mul(rows));
+        let (Some(len), Some(need)) = (strided_len(rows, row_stride, cols), need) else {
+            return BAD_ARGUMENTS;
+        };
+        if need > capacity || cols == 0 {
+            return BAD_ARGUMENTS;
+        }
+        let (Some(v), Some(buf)) = (slice(values, len), slice_mut(out, capacity)) else {
+            return BAD_ARGUMENTS;
+        };
+        csv::format_rows(v, rows, cols, row_stride, buf) as isize
+    }));
+    result.unwrap_or(PANICKED)
+}
+
+/// The longest number `fmi2_batch_format_csv` writes, in bytes (for sizing its buffer).
+#[no_mangle]
+pub extern "C" fn fmi2_batch_max_number_len() -> usize {
+    MAX_NUMBER_LEN
+}
