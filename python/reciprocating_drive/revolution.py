@@ -76,38 +76,34 @@ class RevolutionSummary:
         return row
 
 
-def _refined_peak(theta: np.ndarray, y: np.ndarray, i: int) -> tuple[float, float]:
-    """(value, angle) of the extreme at sample i, refined by the parabola through i-1, i, i+1."""
-    if 0 < i < len(y) - 1:
-        x0, x1, x2 = theta[i - 1], theta[i], theta[i + 1]
-        y0, y1, y2 = y[i - 1], y[i], y[i + 1]
+def _refined_peaks(theta: np.ndarray, y: np.ndarray, i: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(values, angles) of the extremes at samples i, each refined by the parabola through i-1, i,
+    i+1 when it has both neighbours and its vertex lies between them (else the sample itself)."""
+    inner = (i > 0) & (i < len(y) - 1)
+    im, ip = np.where(inner, i - 1, i), np.where(inner, i + 1, i)
+    x0, x1, x2 = theta[im], theta[i], theta[ip]
+    y0, y1, y2 = y[im], y[i], y[ip]
+    with np.errstate(all="ignore"):
         d01, d12 = (y1 - y0) / (x1 - x0), (y2 - y1) / (x2 - x1)
         a = (d12 - d01) / (x2 - x0)
-        if a != 0.0:
-            xv = 0.5 * (x0 + x1) - d01 / (2.0 * a)
-            if x0 <= xv <= x2:
-                return float(y1 + d01 * (xv - x1) + a * (xv - x0) * (xv - x1)), float(xv)
-    return float(y[i]), float(theta[i])
+        xv = 0.5 * (x0 + x1) - d01 / (2.0 * a)
+        use = inner & (a != 0.0) & (x0 <= xv) & (xv <= x2)
+        value = np.where(use, y1 + d01 * (xv - x1) + a * (xv - x0) * (xv - x1), y1)
+    return value, np.where(use, xv, x1)
 
 
-def _extreme(theta: np.ndarray, y: np.ndarray, sl: slice) -> Extreme:
-    """Extremes of y over the samples `sl`. The parabola may use the neighbours just outside the
-    slice, so that a peak at a revolution's boundary (the acceleration at an outer dead centre) is
-    refined like any other and reported at its true angle."""
-    imax, imin = sl.start + int(np.argmax(y[sl])), sl.start + int(np.argmin(y[sl]))
-    vmax, amax = _refined_peak(theta, y, imax)
-    vmin, amin = _refined_peak(theta, y, imin)
-    deg = lambda a: math.degrees(a % TWO_PI) % 360.0  # noqa: E731
-    return Extreme(vmax, deg(amax), vmin, deg(amin))
+def _degrees(a: np.ndarray) -> np.ndarray:
+    """Angles [rad] as degrees in [0, 360)."""
+    return np.mod(np.degrees(np.mod(a, TWO_PI)), 360.0)
 
 
-def _crossing_time(t: np.ndarray, theta: np.ndarray, target: float) -> tuple[int, float] | None:
-    """First sample index j with θ_j ≥ target (j ≥ 1) and the interpolated time of θ = target."""
-    j = int(np.searchsorted(theta, target, side="left"))
-    if j == 0 or j >= len(theta):
-        return None
+def _crossing_times(t: np.ndarray, theta: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For each target (inside theta's range): the first sample index j with θ_j ≥ target and the
+    interpolated time of θ = target."""
+    j = np.searchsorted(theta, target, side="left")
     t0, t1, a0, a1 = t[j - 1], t[j], theta[j - 1], theta[j]
-    return j, float(t0 + (t1 - t0) * (target - a0) / (a1 - a0)) if a1 != a0 else float(t1)
+    with np.errstate(all="ignore"):
+        return j, np.where(a1 != a0, t0 + (t1 - t0) * (target - a0) / (a1 - a0), t1)
 
 
 def summarize_revolutions(
@@ -120,7 +116,10 @@ def summarize_revolutions(
     """Summaries of every complete revolution. `angle` is the model angle [rad], continuous and
     non-decreasing (forward rotation); `series` maps output names to sampled values (quantities
     missing from it are skipped; link.friction_total with suspension.position gives the friction
-    work, rod.angle the ϑ amplitude, rod.stress_max the largest stress)."""
+    work, rod.angle the ϑ amplitude, rod.stress_max the largest stress).
+
+    Vectorised over the revolutions: a revolution's numbers depend only on its own samples and
+    their two neighbours, so they are the same whichever other revolutions share the call."""
     t = np.asarray(time, dtype=float)
     th = np.asarray(angle, dtype=float)
     if t.shape != th.shape or t.ndim != 1:
@@ -129,40 +128,73 @@ def summarize_revolutions(
         return []
     if np.any(np.diff(th) < 0):
         raise ValueError("the crank angle must not decrease (unwrap it; forward rotation only)")
+    # Revolutions k with 2π(k+1) reached by the data.
+    k0 = math.ceil(th[0] / TWO_PI - 1e-12)
+    ks = np.arange(k0, max(k0, math.floor(th[-1] / TWO_PI) + 1))
+    ks = ks[TWO_PI * (ks + 1).astype(float) <= th[-1]]
+    if len(ks) == 0:
+        return []
+    lo, hi = TWO_PI * ks.astype(float), TWO_PI * (ks + 1).astype(float)
+    inside = th[0] < lo
+    ja, ta = _crossing_times(t, th, np.where(inside, lo, th[-1]))
+    ja, ta = np.where(inside, ja, 0), np.where(inside, ta, t[0])
+    jb, tb = _crossing_times(t, th, hi)
+    keep = jb - ja >= 3
+    ks, ja, jb, ta, tb = ks[keep], ja[keep], jb[keep], ta[keep], tb[keep]
+    if len(ks) == 0:
+        return []
+    # The samples of every revolution, flat: revolution r owns flat[off[r]:off[r] + n[r]].
+    n = jb - ja
+    off = np.cumsum(n) - n
+    flat = np.repeat(ja - off, n) + np.arange(n.sum())
+    pos = np.arange(len(flat))
+
+    def seg_max(y):
+        return np.maximum.reduceat(y[flat], off)
+
+    def seg_min(y):
+        return np.minimum.reduceat(y[flat], off)
+
+    def first_where(y, value):
+        """The first sample of each revolution where y equals its value (np.argmax's choice)."""
+        return flat[np.minimum.reduceat(np.where(y[flat] == np.repeat(value, n), pos, len(pos)), off)]
+
     cols = {k: np.asarray(v, dtype=float) for k, v in series.items()}
-    w = None if speed is None else np.asarray(speed, dtype=float)
-    out: list[RevolutionSummary] = []
-    k = math.ceil(th[0] / TWO_PI - 1e-12)
-    while True:
-        a = _crossing_time(t, th, TWO_PI * k) if th[0] < TWO_PI * k else (0, float(t[0]))
-        b = _crossing_time(t, th, TWO_PI * (k + 1))
-        if a is None or b is None:
-            break
-        (ja, ta), (jb, tb) = a, b
-        sl = slice(ja, jb)  # samples with 2πk ≤ θ < 2π(k+1)
-        if jb - ja < 3:
-            k += 1
+    dur = tb - ta
+    out = [RevolutionSummary(index=int(k), start_time=float(a), duration=float(d), mean_speed=float(TWO_PI / d),
+                             speed_fluctuation=None) for k, a, d in zip(ks, ta, dur)]
+    if speed is not None:
+        w = np.asarray(speed, dtype=float)
+        # The mean by numpy's (pairwise) sum of each revolution, as ws.mean() would.
+        means = np.array([np.add.reduce(w[a:b]) / (b - a) for a, b in zip(ja.tolist(), jb.tolist())])
+        fl = (seg_max(w) - seg_min(w)) / means
+        for s, v in zip(out, fl.tolist()):
+            s.speed_fluctuation = v
+    for q in quantities:
+        if q not in cols:
             continue
-        dur = tb - ta
-        s = RevolutionSummary(index=k, start_time=ta, duration=dur, mean_speed=TWO_PI / dur,
-                              speed_fluctuation=None)
-        if w is not None:
-            ws = w[sl]
-            s.speed_fluctuation = float((ws.max() - ws.min()) / ws.mean())
-        for q in quantities:
-            if q in cols:
-                s.extremes[q] = _extreme(th, cols[q], sl)
-        if "link.friction_total" in cols and "suspension.position" in cols:
-            # Over exactly [t_a, t_b]: the samples inside plus the values interpolated at both ends.
-            f = np.concatenate(([np.interp(ta, t, cols["link.friction_total"])], cols["link.friction_total"][sl],
-                                [np.interp(tb, t, cols["link.friction_total"])]))
-            x = np.concatenate(([np.interp(ta, t, cols["suspension.position"])], cols["suspension.position"][sl],
-                                [np.interp(tb, t, cols["suspension.position"])]))
-            s.friction_work = float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(x)))
-        if "rod.angle" in cols:
-            s.rod_angle_amplitude = float(np.max(np.abs(cols["rod.angle"][sl])))
-        if "rod.stress_max" in cols:
-            s.stress_max = float(np.max(cols["rod.stress_max"][sl]))
-        out.append(s)
-        k += 1
+        y = cols[q]
+        vmax, amax = _refined_peaks(th, y, first_where(y, seg_max(y)))
+        vmin, amin = _refined_peaks(th, y, first_where(y, seg_min(y)))
+        for s, e in zip(out, zip(vmax.tolist(), _degrees(amax).tolist(), vmin.tolist(), _degrees(amin).tolist())):
+            s.extremes[q] = Extreme(*e)
+    if "link.friction_total" in cols and "suspension.position" in cols:
+        # Over exactly [t_a, t_b]: the samples inside plus the values interpolated at both ends;
+        # the trapezoids of revolution r are terms[toff[r]:toff[r] + n[r] + 1].
+        f, x = cols["link.friction_total"], cols["suspension.position"]
+        fa, fb, xa, xb = np.interp(ta, t, f), np.interp(tb, t, f), np.interp(ta, t, x), np.interp(tb, t, x)
+        toff = off + np.arange(len(n))
+        terms = np.empty(len(flat) + len(n))
+        seg = np.repeat(np.arange(len(n)), n)
+        terms[toff[seg] + 1 + pos - off[seg]] = 0.5 * (f[flat + 1] + f[flat]) * (x[flat + 1] - x[flat])
+        terms[toff] = 0.5 * (f[ja] + fa) * (x[ja] - xa)
+        terms[toff + n] = 0.5 * (fb + f[jb - 1]) * (xb - x[jb - 1])
+        for s, a, b in zip(out, toff.tolist(), (toff + n + 1).tolist()):
+            s.friction_work = float(np.add.reduce(terms[a:b]))
+    if "rod.angle" in cols:
+        for s, v in zip(out, seg_max(np.abs(cols["rod.angle"])).tolist()):
+            s.rod_angle_amplitude = v
+    if "rod.stress_max" in cols:
+        for s, v in zip(out, seg_max(cols["rod.stress_max"]).tolist()):
+            s.stress_max = v
     return out

@@ -62,3 +62,21 @@ def test_friction_work_and_rod_quantities():
 def test_rejects_a_decreasing_angle():
     with pytest.raises(ValueError, match="must not decrease"):
         summarize_revolutions([0, 1, 2, 3], [0, 1, 0.5, 2], {})
+
+
+def test_a_revolution_does_not_depend_on_the_others_in_the_call():
+    """Summaries are vectorised over revolutions: each must equal, bit for bit, the summary of its
+    own samples and their two neighbours alone (what the live twin computes, one at a time)."""
+    t, th, w = rotation(n_rev=6.0, fluct=0.05)
+    rng = np.random.default_rng(3)
+    series = {"suspension.position": 0.2 * (1 - np.cos(th)), "link.friction_total": -300 * np.sin(th) + rng.normal(size=len(t)),
+              "rod.angle": 0.03 * np.sin(3 * th), "rod.stress_max": 2e8 + 1e7 * np.cos(th),
+              "rod.force": rng.normal(size=len(t)), "crank.torque": np.round(np.cos(2 * th), 1)}
+    whole = summarize_revolutions(t, th, series, speed=w)
+    assert [r.index for r in whole] == list(range(6))
+    for r in whole:
+        a = max(0, int(np.searchsorted(th, 2 * math.pi * r.index)) - 1)
+        b = int(np.searchsorted(th, 2 * math.pi * (r.index + 1))) + 1
+        alone = [s for s in summarize_revolutions(t[a:b], th[a:b], {k: v[a:b] for k, v in series.items()}, speed=w[a:b])
+                 if s.index == r.index]
+        assert [s.as_row() for s in alone] == [r.as_row()]
