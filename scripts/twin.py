@@ -21,26 +21,40 @@ import time
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
+from reciprocating_drive.batch import format_csv  # noqa: E402
 from reciprocating_drive.fmu import FmuError  # noqa: E402
 from reciprocating_drive.twin import SUMMARY_FIELDS, DataError, Options, Twin, save_checkpoint  # noqa: E402
 
 
-def lines_of(src, follow: bool, poll: float = 0.05):
-    """Lines of a file or stdin; with `follow`, waits for more until a line 'EOF' or forever."""
+def chunks_of(raw, follow: bool, size: int, poll: float = 0.05):
+    """Lists of consecutive lines of a binary stream, each list as soon as it is available: one
+    read blocks until there is at least one complete line, and takes whatever else has arrived
+    (a pipe or a growing file gives what is there now; a file gives blocks of `size` bytes). With
+    `follow`, waits for more at the end until a line 'EOF'; a line still being written waits for
+    its end. Bytes that are not UTF-8 become U+FFFD (and are reported as not a number)."""
+    tail = b""
     while True:
-        line = src.readline()
-        if line:
-            if follow and line.strip() == "EOF":
-                return
-            if follow and not line.endswith("\n"):  # a line still being written
-                while not line.endswith("\n"):
-                    time.sleep(poll)
-                    line += src.readline()
-            yield line
-        elif follow:
-            time.sleep(poll)
-        else:
+        data = raw.read(size)
+        if not data:
+            if follow:
+                time.sleep(poll)
+                continue
+            if tail:
+                yield [tail.decode("utf-8", "replace")]
             return
+        data = tail + data
+        cut = data.rfind(b"\n")
+        if cut < 0:
+            tail = data
+            continue
+        lines, tail = data[:cut].decode("utf-8", "replace").split("\n"), data[cut + 1:]
+        if follow:
+            ends = [i for i, line in enumerate(lines) if line.strip() == "EOF"]
+            if ends:
+                if ends[0]:
+                    yield lines[:ends[0]]
+                return
+        yield lines
 
 
 def fmt(v) -> str:
@@ -80,31 +94,35 @@ def main(argv=None) -> int:
     try:
         if a.resume:
             cp = json.loads(a.resume.read_text())
-            twin = Twin.from_checkpoint(a.fmu, cp, batch=1 if a.live else 4096)
+            twin = Twin.from_checkpoint(a.fmu, cp)
             skip = cp["lines_read"]
             for path, size in ((a.out, cp["out_bytes"]), (summary, cp["summary_bytes"])):
                 with open(path, "r+b") as f:
                     f.truncate(size)
-            out, summ = open(a.out, "a"), open(summary, "a")
+            out, summ = open(a.out, "ab"), open(summary, "a")
         else:
-            twin = Twin(a.fmu, a.machine, opts, batch=1 if a.live else 4096)
+            twin = Twin(a.fmu, a.machine, opts)
             skip = 0
-            out, summ = open(a.out, "w"), open(summary, "w")
-            out.write(",".join(twin.header) + "\n")
+            out, summ = open(a.out, "wb"), open(summary, "w")
+            out.write((",".join(twin.header) + "\n").encode())
             summ.write(",".join(SUMMARY_FIELDS) + "\n")
+        # Ready: the headers are out before the first sample is read.
+        out.flush()
+        summ.flush()
     except (FmuError, KeyError, OSError, ValueError) as e:
         print(f"twin.py: {e}", file=sys.stderr)
         return 2
 
-    src = sys.stdin if a.input == "-" else open(a.input)
-    n_since = 0
+    # Unbuffered reads: each returns what is available now (live), or a large block (replay).
+    src = sys.stdin.buffer.raw if a.input == "-" else open(a.input, "rb", buffering=0)
+    size = 1 << 16 if (a.live or a.follow or a.input == "-") else 1 << 20
 
     def emit(rows, sums):
-        for r in rows:
-            out.write(",".join(map(repr, r)) + "\n")
+        if len(rows):
+            out.write(format_csv(rows))
         for s in sums:
             summ.write(",".join(fmt(s[k]) for k in SUMMARY_FIELDS) + "\n")
-        if a.live and (rows or sums):
+        if a.live and (len(rows) or sums):
             out.flush()
             summ.flush()
 
@@ -115,26 +133,41 @@ def main(argv=None) -> int:
         cp["out_bytes"], cp["summary_bytes"] = out.tell(), summ.tell()
         save_checkpoint(a.checkpoint, cp)
 
-    lineno = 0
+    lineno = 0      # input lines consumed
+    n_since = 0     # lines since the last checkpoint
     try:
-        for line in lines_of(src, a.follow):
-            lineno += 1
-            if lineno <= skip:
+        for lines in chunks_of(src, a.follow, size):
+            if lineno + len(lines) <= skip:
+                lineno += len(lines)
                 continue
-            emit(*twin.push(line, lineno))
-            n_since += 1
-            if a.checkpoint and n_since >= a.checkpoint_every:
-                checkpoint()
-                n_since = 0
-            if a.stop_after and lineno >= a.stop_after:
+            if lineno < skip:
+                lines, lineno = lines[skip - lineno:], skip
+            while lines:
+                # Cut the chunk where a checkpoint or --stop-after falls.
+                take = len(lines)
                 if a.checkpoint:
+                    take = min(take, a.checkpoint_every - n_since)
+                if a.stop_after:
+                    take = min(take, a.stop_after - lineno)
+                emit(*twin.feed(lines[:take], lineno + 1))
+                lines, lineno, n_since = lines[take:], lineno + take, n_since + take
+                if a.checkpoint and n_since >= a.checkpoint_every:
                     checkpoint()
-                out.close()
-                summ.close()
-                print(f"stopped after line {lineno}" + (f"; checkpoint {a.checkpoint}" if a.checkpoint else ""))
-                return 0
+                    n_since = 0
+                if a.stop_after and lineno >= a.stop_after:
+                    if a.checkpoint:
+                        checkpoint()
+                    out.close()
+                    summ.close()
+                    print(f"stopped after line {lineno}" + (f"; checkpoint {a.checkpoint}" if a.checkpoint else ""))
+                    return 0
         emit(*twin.finish())
-    except (DataError, FmuError) as e:
+    except (DataError, FmuError, ValueError) as e:
+        # What was computed before the bad sample is written, then the run stops.
+        if getattr(e, "rows", None) is not None:
+            emit(e.rows, getattr(e, "summaries", []))
+        out.close()
+        summ.close()
         print(f"twin.py: {e}", file=sys.stderr)
         return 1
     if a.checkpoint:

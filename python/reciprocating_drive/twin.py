@@ -1,20 +1,24 @@
 """The drilling-pump digital twin (docs/twin.md): measured crank data in, the FMU's loads out, per
 sample and per revolution, replayed from a file or live.
 
-The pipeline, one sample at a time (`Twin.push`), so that replay and live mode run the same code
-and give the same numbers bit for bit:
+The pipeline works on chunks of input lines (`Twin.feed`): a whole block of a file in replay, the
+lines available now in live mode. Every sample's numbers are computed on their own, so the size of
+the chunks changes when rows appear, never their values: replay, live and resumed runs give the
+same numbers bit for bit.
 
-1. **Reader** (`parse_line`): a CSV with a header naming `time`, `crank_angle` and optionally
+1. **Reader** (`parse_lines`): a CSV with a header naming `time`, `crank_angle` and optionally
    `crank_speed` and `process_force`. A bad field, time going backwards, a duplicate timestamp
-   (dropped and counted, or an error) or an angle step faster than `max_speed` stops the run with
-   the line number (`DataError`).
-2. **Conditioning** (`conditioning.py`): angle to rad and unwrapped; ω and ε from a local cubic
-   over the smoothing window where they are not measured. A gap longer than `gap_limit` ends a
-   segment: the smoother does not bridge it, the gap is reported, and the FMU is re-initialized at
-   the first sample after it (its dynamic state, an elastic rod's cage, starts quasi-statically
-   again, docs/model.md §6), because the crank's motion inside the gap is unknown.
+   (dropped and counted, or an error), an angle step faster than `max_speed` or a crank turning
+   backwards stops the run with the line number (`DataError`), after the samples before it.
+2. **Conditioning** (`conditioning.py`, vectorised over the chunk): angle to rad and unwrapped;
+   ω and ε from a local cubic over the smoothing window where they are not measured. A gap longer
+   than `gap_limit` ends a segment: the smoother does not bridge it, the gap is reported, and the
+   FMU is re-initialized at the first sample after it (its dynamic state, an elastic rod's cage,
+   starts quasi-statically again, docs/model.md §6), because the crank's motion inside the gap is
+   unknown.
 3. **FMU**: the sample times are the communication points (variable step); at each sample the
-   crank inputs are set and every output is read.
+   crank inputs are set and every output is read, for a whole chunk in one call of the native
+   batch driver (`fmu.Channel.run`, tools/fmi2-batch).
 4. **Per revolution** (`revolution.py`): when the model angle completes a revolution its summary
    is emitted.
 
@@ -32,15 +36,22 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import conditioning as cond
-from .fmu import Fmu
+from .fmu import Fmu, FmuError
 from .presets import preset_values
 from .revolution import TWO_PI, summarize_revolutions
 
+INPUTS = ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")
+
+#: Samples conditioned and sent to the FMU per call at most (bounds the memory of the windows).
+BLOCK = 4096
+
 
 class DataError(ValueError):
-    """Bad measured data, with the input line number."""
+    """Bad measured data, with the input line number. `rows` and `summaries` are what the twin
+    computed from the samples before it (to be written before the run stops)."""
 
-
+    rows = None
+    summaries: list = []
 @dataclass
 class Options:
     angle_unit: str = "rad"           # rad | deg | counts
@@ -97,197 +108,313 @@ def parse_line(line: str, lineno: int, cols: dict) -> tuple[float, float, float 
     return t, a, w, f
 
 
+def parse_lines(lines: list[str], first_lineno: int, cols: dict):
+    """Consecutive data lines (the first is line `first_lineno`) as arrays: line numbers, time,
+    angle, speed (NaN where absent) and force (0 where absent), blank lines skipped. Returns the
+    arrays of the lines before the first bad one and its DataError (or None)."""
+    fields = [line.split(",") for line in lines]
+    it, ia, iw, ip = cols["time"], cols["crank_angle"], cols.get("crank_speed"), cols.get("process_force")
+    try:
+        if min(map(len, fields), default=len(cols)) < len(cols):
+            raise ValueError("a blank or short line")
+        t = np.array([float(f[it]) for f in fields])
+        a = np.array([float(f[ia]) for f in fields])
+        w = np.array([float(f[iw]) if f[iw].strip() else math.nan for f in fields]) if iw is not None else None
+        fo = np.array([float(f[ip]) if f[ip].strip() else 0.0 for f in fields]) if ip is not None else None
+        if not (np.isfinite(t).all() and np.isfinite(a).all() and (w is None or not np.isinf(w).any())
+                and (fo is None or np.isfinite(fo).all())):
+            raise ValueError("a number that is not finite")
+        if w is not None and np.isnan(w).any() and any(f[iw].strip() and math.isnan(float(f[iw])) for f in fields):
+            raise ValueError("a speed that is not a number")
+    except ValueError:
+        return _parse_slowly(lines, first_lineno, cols)
+    n = len(lines)
+    return (np.arange(first_lineno, first_lineno + n), t, a, np.full(n, math.nan) if w is None else w,
+            np.zeros(n) if fo is None else fo), None
+
+
+def _parse_slowly(lines, first_lineno, cols):
+    """parse_lines line by line: finds the first bad line and its message."""
+    out, err = [], None
+    for i, line in enumerate(lines):
+        if not line.strip():
+            continue
+        try:
+            t, a, w, f = parse_line(line, first_lineno + i, cols)
+        except DataError as e:
+            err = e
+            break
+        out.append((first_lineno + i, t, a, math.nan if w is None else w, 0.0 if f is None else f))
+    cols_ = list(zip(*out)) if out else [()] * 5
+    return (np.array(cols_[0], dtype=np.int64), *(np.array(c, dtype=float) for c in cols_[1:])), err
+
+
+def remainder_2pi(x: np.ndarray) -> np.ndarray:
+    """math.remainder(x, 2π) elementwise (IEEE remainder: exact, ties to an even quotient)."""
+    r = np.fmod(x, TWO_PI)
+    r = np.where(r > math.pi, r - TWO_PI, np.where(r < -math.pi, r + TWO_PI, r))
+    for i in np.flatnonzero(np.abs(r) == math.pi):
+        r[i] = math.remainder(float(x[i]), TWO_PI)
+    return r
+
+
 @dataclass
-class _Pending:
+class _Segment:
     """Samples of the current segment whose outputs are not computed yet, with the window
     history before them."""
-    t: list = field(default_factory=list)
-    theta: list = field(default_factory=list)
-    speed: list = field(default_factory=list)
-    force: list = field(default_factory=list)
-    line: list = field(default_factory=list)
+    t: np.ndarray = field(default_factory=lambda: np.empty(0))
+    theta: np.ndarray = field(default_factory=lambda: np.empty(0))
+    speed: np.ndarray = field(default_factory=lambda: np.empty(0))   # NaN: not measured
+    force: np.ndarray = field(default_factory=lambda: np.empty(0))
+    line: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
     done: int = 0          # samples of the buffer already sent to the FMU
     segment_start: bool = True
 
+    NAMES = ("t", "theta", "speed", "force", "line")
+
+    def append(self, **arrays) -> None:
+        for name in self.NAMES:
+            setattr(self, name, np.concatenate((getattr(self, name), arrays[name])))
+
+    def drop(self, k: int) -> None:
+        for name in self.NAMES:
+            setattr(self, name, getattr(self, name)[k:])
+        self.done -= k
+
 
 class Twin:
-    """One twin run. `push(line, lineno)` takes an input line; it returns the output rows now
-    ready (each a list of floats: time then the FMU's outputs) and the revolution summaries now
-    complete. `finish()` flushes the rest at the end of the input."""
+    """One twin run. `feed(lines, first_lineno)` takes consecutive input lines; it returns the
+    output rows now ready (a 2-D array: time then the FMU's outputs) and the revolution summaries
+    now complete. `finish()` flushes the rest at the end of the input."""
 
     def __init__(self, fmu_path: str, machine: str = "default", options: Options | None = None,
-                 extra_values: dict | None = None, batch: int = 1):
+                 extra_values: dict | None = None):
         self.o = options or Options()
-        # Samples conditioned together: 1 in live mode (each as soon as its window is complete),
-        # more in replay. Every sample's numbers are computed on their own (conditioning.fit), so
-        # the batch changes when rows appear, never their values.
-        self.batch = max(1, int(batch))
         self.machine = machine
-        self.values = {k: v for k, v in preset_values(machine).items()
-                       if k not in ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")}
+        self.values = {k: v for k, v in preset_values(machine).items() if k not in INPUTS}
         self.values.update(extra_values or {})
         self.fmu = Fmu(fmu_path)
         self.outputs = list(self.fmu.outputs)
+        self.i_angle = 1 + self.outputs.index("crank.model_angle")
         self.channel = None
         self.cols = None
         self.half = None
-        self.buf = _Pending()
+        self.buf = _Segment()
         self.last_raw = None       # previous accepted raw angle (rad), unwrapped angle, time
         self.last_unwrapped = None
         self.last_t = None
         self.duplicates = 0
         self.gaps: list = []
-        self.rev_rows: list = []   # rows of the current and previous revolution (summaries)
-        self.rev_next = None       # index of the next revolution boundary to complete
-        self.fmu_time = None
+        self.rev_parts: list = []  # rows of the revolution in progress (and the sample before it)
+        self.rev_next = None       # index of the next revolution to complete
         self.lines_read = 0        # input lines consumed (header included)
         self.rows_out = 0
         self.messages: list = []
-
-    # ---- output columns ------------------------------------------------------------------------
 
     @property
     def header(self) -> list[str]:
         return ["time", *self.outputs]
 
+    def _empty(self) -> np.ndarray:
+        return np.empty((0, 1 + len(self.outputs)))
+
     # ---- reading -------------------------------------------------------------------------------
 
-    def push(self, line: str, lineno: int) -> tuple[list, list]:
-        self.lines_read = lineno
-        if self.cols is None:
-            self.cols = parse_header(line)
-            return [], []
-        if not line.strip():
-            return [], []
-        t, a, w, f = parse_line(line, lineno, self.cols)
-        a = float(cond.to_radians(np.array([a]), self.o.angle_unit, self.o.counts_per_rev)[0])
-        if w is not None and self.o.use_measured_speed:
-            w = w * TWO_PI / 60.0 if self.o.speed_unit == "rpm" else w
-        else:
-            w = None
-        rows, sums = [], []
-        if self.last_t is not None:
-            if t < self.last_t:
-                raise DataError(f"line {lineno}: time {t!r} s goes backwards (previous sample at {self.last_t!r} s)")
-            if t == self.last_t:
-                if self.o.duplicates == "error":
-                    raise DataError(f"line {lineno}: duplicate timestamp {t!r} s")
-                self.duplicates += 1
-                return [], []
-            dt = t - self.last_t
-            if self.o.wrapped:
-                theta = cond.unwrap_step(self.last_raw, self.last_unwrapped, a)
-            else:
-                theta = a
-            if dt <= self.o.gap_limit and abs(theta - self.last_unwrapped) > self.o.max_speed * dt + 1e-9:
-                raise DataError(
-                    f"line {lineno}: the crank angle moves {theta - self.last_unwrapped:.6g} rad in {dt:.6g} s "
-                    f"(more than the largest possible crank speed, --max-speed {self.o.max_speed:g} rad/s, allows)")
-            if dt > self.o.gap_limit:
-                self.gaps.append((self.last_t, t))
-                self.messages.append(f"gap of {dt:.6g} s from t = {self.last_t!r} s to {t!r} s (line {lineno}): "
-                                     "the FMU is re-initialized after it")
-                r, s = self._drain(final=True)
-                rows += r
-                sums += s
-                self.buf = _Pending()
+    def feed(self, lines: list[str], first_lineno: int) -> tuple[np.ndarray, list]:
+        """Lines first_lineno, first_lineno + 1, ... of the input. On bad data the samples before
+        it are processed and DataError carries their rows and summaries."""
+        rows, sums = [self._empty()], []
+        if lines and self.cols is None:
+            self.cols = parse_header(lines[0])
+            lines, first_lineno = lines[1:], first_lineno + 1
+        self.lines_read = first_lineno + len(lines) - 1
+        if not lines:
+            return self._empty(), []
+        (ln, t, a, w, f), err = parse_lines(lines, first_lineno, self.cols)
+        try:
+            err = self._accept(ln, t, a, w, f, rows, sums) or err
+        except (DataError, FmuError) as e:
+            err = e
+        if err is not None:
+            err.rows, err.summaries = np.concatenate(rows), sums
+            raise err
+        return np.concatenate(rows), sums
+
+    def _accept(self, ln, t, a, w, f, rows, sums) -> DataError | None:
+        """Validates, unwraps and conditions parsed samples; returns the first DataError of the
+        checks that depend on the previous samples, after processing the samples before it."""
+        o = self.o
+        a = cond.to_radians(a, o.angle_unit, o.counts_per_rev)
+        if not o.use_measured_speed:
+            w = np.full(len(w), math.nan)
+        elif o.speed_unit == "rpm":
+            w = w * TWO_PI / 60.0
+        n = len(t)
+        err = None
+        if n == 0:
+            return err
+        # Intervals to the previous line (time never goes backwards up to the first error, so the
+        # previous accepted sample of a line is the line before it, duplicates included).
+        prev = np.concatenate(([self.last_t], t[:-1])) if self.last_t is not None else np.concatenate(([math.nan], t[:-1]))
+        with np.errstate(invalid="ignore"):
+            back = np.flatnonzero(t < prev)
+            dup = np.flatnonzero(t == prev)
+        stop = n
+        if back.size:
+            k = stop = int(back[0])
+            err = DataError(f"line {ln[k]}: time {float(t[k])!r} s goes backwards (previous sample at {float(prev[k])!r} s)")
+        dup = dup[dup < stop]
+        if dup.size and o.duplicates == "error":
+            k = stop = int(dup[0])
+            err = DataError(f"line {ln[k]}: duplicate timestamp {float(t[k])!r} s")
+            dup = dup[:0]
+        keep = np.ones(stop, dtype=bool)
+        keep[dup] = False
+        self.duplicates += int(dup.size)
+        ln, t, a, w, f = ln[:stop][keep], t[:stop][keep], a[:stop][keep], w[:stop][keep], f[:stop][keep]
+        if len(t) == 0:
+            return err
+        # Unwrap: each step is the smallest one modulo a revolution.
+        first = self.last_t is None
+        if o.wrapped:
+            steps = remainder_2pi(np.diff(a, prepend=a[0] if first else self.last_raw))
+            theta = np.cumsum(np.concatenate(([a[0] if first else self.last_unwrapped], steps[1:] if first else steps)))
+            theta = theta if first else theta[1:]
         else:
             theta = a
-        if self.half is None:
-            # The smoothing window in samples, from the first interval (1 kHz data: ±window/2).
-            self.half = None if self.last_t is None else cond.window_samples(self.o.window, t - self.last_t)
-        self.last_raw, self.last_unwrapped, self.last_t = a, theta, t
-        b = self.buf
-        b.t.append(t)
-        b.theta.append(theta)
-        b.speed.append(w)
-        b.force.append(f)
-        b.line.append(lineno)
+        tp = np.concatenate(([t[0] if first else self.last_t], t[:-1]))
+        thp = np.concatenate(([theta[0] if first else self.last_unwrapped], theta[:-1]))
+        dt, dth = t - tp, theta - thp
+        near = dt <= o.gap_limit
+        bad = np.flatnonzero(near & (np.abs(dth) > o.max_speed * dt + 1e-9))
+        if bad.size and (err is None or bad[0] < len(t)):
+            k = int(bad[0])
+            err = DataError(
+                f"line {ln[k]}: the crank angle moves {float(dth[k]):.6g} rad in {float(dt[k]):.6g} s "
+                f"(more than the largest possible crank speed, --max-speed {o.max_speed:g} rad/s, allows)")
+            ln, t, theta, w, f, dt, near, dth = (x[:k] for x in (ln, t, theta, w, f, dt, near, dth))
+            a = a[:k]
+        back = np.flatnonzero(near & (dth < 0))
+        if back.size:
+            k = int(back[0])
+            err = DataError(f"line {ln[k]}: the crank angle goes backwards by {float(-dth[k]):.6g} rad "
+                            "(the twin needs forward rotation)")
+            ln, t, theta, w, f, dt = (x[:k] for x in (ln, t, theta, w, f, dt))
+            a = a[:k]
+        if len(t) == 0:
+            return err
+        # Segments: a gap (an interval longer than gap_limit) starts a new one.
+        gaps = [k for k in np.flatnonzero(dt > o.gap_limit).tolist() if not (first and k == 0)]
+        for lo, hi in zip([0, *gaps], [*gaps, len(t)]):
+            if lo in gaps:
+                t0, t1 = (self.last_t if lo == 0 else float(t[lo - 1])), float(t[lo])
+                self.gaps.append((t0, t1))
+                self.messages.append(f"gap of {t1 - t0:.6g} s from t = {t0!r} s to {t1!r} s (line {ln[lo]}): "
+                                     "the FMU is re-initialized after it")
+                self._emit(self._drain(final=True), rows, sums)
+                self.buf = _Segment()
+            if hi > lo:
+                self.buf.append(t=t[lo:hi], theta=theta[lo:hi], speed=w[lo:hi], force=f[lo:hi], line=ln[lo:hi])
+                if self.half is None and (self.last_t is not None or hi - lo > 1):
+                    # The smoothing window in samples, from the first interval.
+                    d = float(t[1] - t[0]) if first else float(t[0]) - self.last_t
+                    self.half = cond.window_samples(o.window, d)
+                self.last_raw, self.last_unwrapped, self.last_t = float(a[hi - 1]), float(theta[hi - 1]), float(t[hi - 1])
         if self.half is not None:
-            r, s = self._drain(final=False)
-            rows += r
-            sums += s
-        return rows, sums
+            self._emit(self._drain(final=False), rows, sums)
+        return err
 
-    def finish(self) -> tuple[list, list]:
+    def finish(self) -> tuple[np.ndarray, list]:
         if self.half is None:
             self.half = 2
-        return self._drain(final=True)
+        rows, sums = [self._empty()], []
+        self._emit(self._drain(final=True), rows, sums)
+        return np.concatenate(rows), sums
+
+    def _emit(self, r: np.ndarray, rows: list, sums: list) -> None:
+        rows.append(r)
+        sums += self._revolutions(r)
 
     # ---- conditioning and the FMU ---------------------------------------------------------------
 
-    def _drain(self, final: bool) -> tuple[list, list]:
+    def _drain(self, final: bool) -> np.ndarray:
+        """Outputs of the samples whose smoothing window is complete (all of them when the segment
+        ends), in blocks of at most BLOCK."""
         b = self.buf
         n = len(b.t)
         half = self.half or 2
         width = 2 * half + 1
         # A sample's window is complete when `half` samples follow it (or the segment ended).
-        ready = n if final else max(0, n - half)
-        if n < width and not final:
-            ready = 0
-        if ready <= b.done or (not final and ready - b.done < self.batch):
-            return [], []
+        ready = n if final else (max(0, n - half) if n >= width else 0)
+        if ready <= b.done:
+            return self._empty()
         if n < cond.DEGREE + 1:
             raise DataError(f"line {b.line[0]}: a segment of {n} sample(s) between gaps is too short "
                             f"(at least {cond.DEGREE + 1} are needed)")
-        t = np.asarray(b.t)
-        th = np.asarray(b.theta)
-        centres = np.arange(b.done, ready)
-        idx = cond.windows(n, half, centres)
-        w_est, e_est = cond.fit(t[idx], th[idx], t[centres][:, None], th[centres][:, None])
-        rows, sums = [], []
-        for j, k in enumerate(centres):
-            w = b.speed[k] if b.speed[k] is not None else float(w_est[j])
-            e = float(e_est[j])
-            f = b.force[k] if b.force[k] is not None else 0.0
-            row = self._fmu_sample(float(t[k]), float(th[k]), w, e, f, b.segment_start and k == 0)
-            rows.append(row)
-            sums += self._revolution(row)
-        b.done = ready
+        out = []
+        for lo in range(b.done, ready, BLOCK):
+            centres = np.arange(lo, min(ready, lo + BLOCK))
+            idx = cond.windows(n, half, centres)
+            w_est, e_est = cond.fit(b.t[idx], b.theta[idx], b.t[centres][:, None], b.theta[centres][:, None])
+            w = np.where(np.isnan(b.speed[centres]), w_est, b.speed[centres])
+            inputs = np.column_stack([b.theta[centres], w, e_est, b.force[centres]])
+            rows = np.empty((len(centres), 1 + len(self.outputs)))
+            rows[:, 0] = b.t[centres]
+            try:
+                self._fmu_rows(rows, inputs, b.segment_start and lo == 0)
+            except FmuError as e:
+                out.append(rows[:getattr(e, "index", 0)])
+                e.rows = np.concatenate(out)
+                raise
+            out.append(rows)
+            b.done = int(centres[-1]) + 1
         # Keep only what later windows can still reach.
         keep_from = max(0, b.done - width)
         if keep_from > 0:
-            for name in ("t", "theta", "speed", "force", "line"):
-                del getattr(b, name)[:keep_from]
-            b.done -= keep_from
+            b.drop(keep_from)
             b.segment_start = False
-        return rows, sums
+        return np.concatenate(out)
 
-    def _fmu_sample(self, t, theta, w, e, f, new_segment) -> list:
+    def _fmu_rows(self, rows, inputs, new_segment) -> None:
+        """Outputs into rows[:, 1:] for the inputs at the times rows[:, 0]."""
+        first = 0
         if new_segment or self.channel is None:
-            self.fmu.start({**self.values, "crank.angle": theta, "crank.speed": w,
-                            "crank.acceleration": e, "link.external_force": f}, start_time=t)
-            self.channel = self.fmu.channel(["crank.angle", "crank.speed", "crank.acceleration", "link.external_force"],
-                                            self.outputs)
-            self._out = np.empty(len(self.outputs))
-            self.rev_rows = []
-            self.rev_next = None
-        else:
-            self.channel.advance(t)
-            self.channel.set_inputs([theta, w, e, f])
-        self.channel.read(self._out)
-        self.rows_out += 1
-        return [t, *self._out.tolist()]
+            self.fmu.start({**self.values, **dict(zip(INPUTS, map(float, inputs[0])))}, start_time=float(rows[0, 0]))
+            self.channel = self.fmu.channel(list(INPUTS), self.outputs)
+            self.channel.read(rows[0, 1:])
+            self.rev_parts, self.rev_next = [], None
+            self.rows_out += 1
+            first = 1
+        try:
+            self.channel.run(rows[first:, 0], inputs[first:], rows[first:, 1:])
+        except FmuError as e:
+            e.index = first + e.index
+            self.rows_out += e.index - first
+            raise
+        self.rows_out += len(rows) - first
 
-    def _revolution(self, row) -> list:
-        """Summary of a revolution of the model angle as soon as it is complete."""
-        ia = 1 + self.outputs.index("crank.model_angle")
-        ang = row[ia]
-        self.rev_rows.append(row)
+    def _revolutions(self, rows: np.ndarray) -> list:
+        """Summaries of the revolutions of the model angle completed by these rows."""
+        if len(rows) == 0:
+            return []
+        ang = rows[:, self.i_angle]
         if self.rev_next is None:
-            self.rev_next = math.ceil(ang / TWO_PI)  # the first revolution starts there
+            self.rev_next = math.ceil(ang[0] / TWO_PI)  # the first revolution starts there
+        self.rev_parts.append(rows)
+        last = self.rev_next
+        top = float(np.max(ang))
+        while TWO_PI * (last + 1) <= top:
+            last += 1
+        if last == self.rev_next:
             return []
-        if ang < TWO_PI * (self.rev_next + 1):
-            return []
-        arr = np.array(self.rev_rows)
+        arr = np.concatenate(self.rev_parts)
         series = {name: arr[:, 1 + i] for i, name in enumerate(self.outputs)}
-        revs = summarize_revolutions(arr[:, 0], arr[:, ia], series,
-                                     speed=series["crank.model_speed"])
-        out = [self._summary_row(r) for r in revs if r.index == self.rev_next]
+        revs = summarize_revolutions(arr[:, 0], arr[:, self.i_angle], series, speed=series["crank.model_speed"])
+        out = [self._summary_row(r) for r in revs if self.rev_next <= r.index < last]
         # Keep the samples from just before the next revolution's start.
-        start = np.searchsorted(arr[:, ia], TWO_PI * (self.rev_next + 1)) - 1
-        self.rev_rows = self.rev_rows[max(0, start):]
-        self.rev_next += 1
+        start = int(np.searchsorted(arr[:, self.i_angle], TWO_PI * last)) - 1
+        self.rev_parts = [arr[max(0, start):].copy()]
+        self.rev_next = last
         return out
 
     @staticmethod
@@ -307,8 +434,9 @@ class Twin:
         """Everything needed to continue exactly: the FMU's serialized state and time, the
         position in the input, and the twin's buffers."""
         b = self.buf
+        rev = np.concatenate(self.rev_parts) if self.rev_parts else self._empty()
         return {
-            "version": 1,
+            "version": 2,
             "machine": self.machine,
             "options": self.o.to_dict(),
             "fmu_state": base64.b64encode(self.fmu.serialize()).decode() if self.channel is not None else None,
@@ -317,29 +445,35 @@ class Twin:
             "rows_out": self.rows_out,
             "cols": self.cols,
             "half": self.half,
-            "buf": {"t": b.t, "theta": b.theta, "speed": b.speed, "force": b.force, "line": b.line,
-                    "done": b.done, "segment_start": b.segment_start},
+            "buf": {"t": b.t.tolist(), "theta": b.theta.tolist(),
+                    "speed": [None if math.isnan(v) else v for v in b.speed.tolist()], "force": b.force.tolist(),
+                    "line": b.line.tolist(), "done": b.done, "segment_start": b.segment_start},
             "last": [self.last_raw, self.last_unwrapped, self.last_t],
             "duplicates": self.duplicates,
             "gaps": self.gaps,
-            "rev_rows": self.rev_rows,
+            "rev_rows": rev.tolist(),
             "rev_next": self.rev_next,
         }
 
     @classmethod
-    def from_checkpoint(cls, fmu_path: str, cp: dict, extra_values: dict | None = None, batch: int = 1) -> "Twin":
-        tw = cls(fmu_path, cp["machine"], Options(**cp["options"]), extra_values, batch)
+    def from_checkpoint(cls, fmu_path: str, cp: dict, extra_values: dict | None = None) -> "Twin":
+        if cp.get("version") != 2:
+            raise ValueError(f"checkpoint version {cp.get('version')!r}; this twin reads version 2")
+        tw = cls(fmu_path, cp["machine"], Options(**cp["options"]), extra_values)
         tw.lines_read, tw.rows_out, tw.cols, tw.half = cp["lines_read"], cp["rows_out"], cp["cols"], cp["half"]
-        tw.buf = _Pending(**cp["buf"])
+        bb = cp["buf"]
+        tw.buf = _Segment(t=np.array(bb["t"], dtype=float), theta=np.array(bb["theta"], dtype=float),
+                          speed=np.array([math.nan if v is None else v for v in bb["speed"]], dtype=float),
+                          force=np.array(bb["force"], dtype=float), line=np.array(bb["line"], dtype=np.int64),
+                          done=bb["done"], segment_start=bb["segment_start"])
         tw.last_raw, tw.last_unwrapped, tw.last_t = cp["last"]
         tw.duplicates, tw.gaps = cp["duplicates"], [tuple(g) for g in cp["gaps"]]
-        tw.rev_rows, tw.rev_next = cp["rev_rows"], cp["rev_next"]
+        rev = np.array(cp["rev_rows"], dtype=float).reshape(-1, 1 + len(tw.outputs))
+        tw.rev_parts, tw.rev_next = ([rev] if len(rev) else []), cp["rev_next"]
         if cp["fmu_state"] is not None:
             tw.fmu.start(tw.values)
             tw.fmu.restore(base64.b64decode(cp["fmu_state"]), cp["fmu_time"])
-            tw.channel = tw.fmu.channel(["crank.angle", "crank.speed", "crank.acceleration", "link.external_force"],
-                                        tw.outputs)
-            tw._out = np.empty(len(tw.outputs))
+            tw.channel = tw.fmu.channel(list(INPUTS), tw.outputs)
         return tw
 
 
