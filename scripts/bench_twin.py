@@ -1,18 +1,29 @@
 #!/usr/bin/env python3
-"""Speed of the digital twin (docs/twin.md "Speed"): replay and live mode on 1 kHz data of the
-default machine (the shipped encoder sample) and of kvo630 (generated here: 1500 strokes/min,
-exact angles), as real-time factors (seconds of data per second of wall time, after start-up),
-with the cost of the FMU calls alone measured in the same run as the baseline.
+"""Speed of the digital twin (docs/twin.md "Speed"): replay and live mode of scripts/twin.py on
+1 kHz data of the default machine (the shipped encoder sample) and of kvo630 (generated here:
+1500 strokes/min, exact angles), as real-time factors (seconds of data per second of wall time),
+beside two baselines measured in the same run: the FMU calls alone through fmpy, one sample at a
+time (the path of the previous twin: fmi2DoStep, fmi2SetReal, fmi2GetReal from Python), and the
+FMU calls alone through the native batch driver (the floor of the twin).
 
-    .venv/bin/python scripts/bench_twin.py
+Each twin run is a separate `scripts/twin.py` process whose output file is a FIFO read here; the
+clock starts when the output header arrives (the FMU is loaded: start-up excluded) and stops at
+the last output line. Replay reads the file itself. Live gets the data through a pipe on standard
+input (`twin.py - --live`), written by a producer as fast as the twin takes it.
+
+    .venv/bin/python scripts/bench_twin.py [--repeat N]      # the best of N runs (default 3)
 """
 
 from __future__ import annotations
 
+import argparse
 import math
+import os
 import pathlib
+import subprocess
 import sys
 import tempfile
+import threading
 import time
 
 import numpy as np
@@ -20,60 +31,111 @@ import numpy as np
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
 from reciprocating_drive.fmu import Fmu  # noqa: E402
-from reciprocating_drive.twin import Options, Twin  # noqa: E402
+from reciprocating_drive.presets import preset_values  # noqa: E402
+from reciprocating_drive.twin import INPUTS  # noqa: E402
 
 FMU = str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu")
+TWIN = [sys.executable, str(ROOT / "scripts" / "twin.py")]
 
 
-def kvo_data(path: pathlib.Path, seconds=3.0):
+def kvo_data(path: pathlib.Path, seconds=10.0) -> None:
     w = 2 * math.pi * 1500 / 60
     t = np.arange(int(seconds * 1000) + 1) / 1000.0
     path.write_text("time,crank_angle\n" + "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(t, np.mod(w * t, 2 * math.pi))))
-    return t[-1]
 
 
-def run(path, machine, opts, live):
-    lines = path.read_text().splitlines(keepends=True)
-    twin = Twin(FMU, machine, opts, batch=1 if live else 4096)
-    t0 = time.perf_counter()
-    n = 0
-    for i, line in enumerate(lines, 1):
-        rows, _ = twin.push(line, i)
-        n += len(rows)
-    n += len(twin.finish()[0])
-    return time.perf_counter() - t0, n
+def twin_run(src: pathlib.Path, args: list, live: bool, work: pathlib.Path) -> tuple[float, int]:
+    """(wall time from the output header to the last output line, output lines) of one twin run."""
+    fifo = work / "out.fifo"
+    if fifo.exists():
+        fifo.unlink()
+    os.mkfifo(fifo)
+    ready, marks = threading.Event(), {}
+
+    def reader():
+        with open(fifo, "rb", buffering=0) as f:
+            lines = 0
+            while True:
+                data = f.read(1 << 16)
+                if not data:
+                    break
+                now = time.perf_counter()
+                if lines == 0:
+                    marks["ready"] = now
+                    ready.set()
+                lines += data.count(b"\n")
+                marks["last"] = now
+            marks["lines"] = lines
+        ready.set()
+
+    th = threading.Thread(target=reader)
+    th.start()
+    cmd = TWIN + (["-", "--live"] if live else [str(src)]) + list(args) + [
+        "--fmu", FMU, "--out", str(fifo), "--summary", str(work / "summary.csv")]
+    p = subprocess.Popen(cmd, stdin=subprocess.PIPE if live else subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                         stderr=subprocess.PIPE)
+    ready.wait()
+    if live:
+        # The producer: the whole data as fast as the pipe takes it.
+        marks["ready"] = time.perf_counter()
+        p.stdin.write(src.read_bytes())
+        p.stdin.close()
+    err = p.stderr.read().decode()
+    th.join()
+    if p.wait() != 0:
+        raise RuntimeError(f"twin.py failed: {err}")
+    return marks["last"] - marks["ready"], marks["lines"] - 1
 
 
-def fmu_only(machine_values, n, h=1e-3):
+def fmu_calls(values: dict, n: int, native: bool, h=1e-3) -> float:
+    """Wall time of n samples of the FMU calls alone (fmi2DoStep, fmi2SetReal of the 4 crank
+    inputs, fmi2GetReal of every output), per sample through fmpy or in one native batch."""
     f = Fmu(FMU)
-    f.start(machine_values)
-    ch = f.channel(["crank.angle", "crank.speed", "crank.acceleration", "link.external_force"], f.outputs)
-    out = np.empty(len(f.outputs))
+    f.start(values)
+    ch = f.channel(list(INPUTS), f.outputs)
+    t = np.arange(1, n + 1) * h
+    x = np.column_stack([6.8 * t, np.full(n, 6.8), np.zeros(n), np.zeros(n)])
+    out = np.empty((n, len(f.outputs)))
     t0 = time.perf_counter()
-    for k in range(1, n + 1):
-        ch.advance(k * h)
-        ch.set_inputs([0.001 * k, 6.8, 0.0, 0.0])
-        ch.read(out)
-    return time.perf_counter() - t0
+    if native:
+        ch.run(t, x, out)
+    else:
+        for k in range(n):
+            ch.advance(float(t[k]))
+            ch.set_inputs(x[k].tolist())
+            ch.read(out[k])
+    wall = time.perf_counter() - t0
+    f.close()
+    return wall
 
 
 def main() -> int:
-    from reciprocating_drive.presets import preset_values
-
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repeat", type=int, default=3, help="runs of each case; the best is reported")
+    a = ap.parse_args()
     with tempfile.TemporaryDirectory() as d:
-        kvo = pathlib.Path(d) / "kvo.csv"
-        kvo_seconds = kvo_data(kvo)
-        cases = [("default machine, encoder sample", ROOT / "data" / "twin" / "pump_encoder.csv", "default",
-                  Options(angle_unit="counts", counts_per_rev=4096), 12.0, {}),
-                 ("kvo630, exact angles", kvo, "kvo630", Options(window=0.006, max_speed=400.0), kvo_seconds,
-                  {k: v for k, v in preset_values("kvo630").items() if k != "crank.speed"})]
-        for name, path, machine, opts, seconds, values in cases:
+        work = pathlib.Path(d)
+        kvo = work / "kvo.csv"
+        kvo_data(kvo)
+        cases = [("default machine, encoder sample", ROOT / "data" / "twin" / "pump_encoder.csv",
+                  ["--angle-unit", "counts", "--counts-per-rev", "4096"], "default"),
+                 ("kvo630, exact angles", kvo, ["--machine", "kvo630", "--window", "0.006", "--max-speed", "400"],
+                  "kvo630")]
+        print(f"{'data':34s} {'path':44s} {'samples':>7s} {'µs/sample':>10s} {'× real time':>12s}")
+        for name, src, args, machine in cases:
+            times = np.loadtxt(src, delimiter=",", skiprows=1, usecols=0)
+            seconds, n = float(times[-1] - times[0]), len(times)
+
+            def show(path, wall, samples):
+                print(f"{name:34s} {path:44s} {samples:7d} {wall / samples * 1e6:10.2f} {seconds / wall * samples / n:11.1f}×")
+
             for live in (False, True):
-                wall, n = run(path, machine, opts, live)
-                print(f"{name:34s} {'live  ' if live else 'replay'}: {n} samples in {wall:.3f} s = "
-                      f"{seconds / wall:6.1f}× real time ({wall / n * 1e6:.1f} µs per sample)")
-            base = fmu_only(values, n)
-            print(f"{name:34s} FMU calls alone: {base / n * 1e6:.1f} µs per sample = {seconds / base:.1f}× real time")
+                best = min(twin_run(src, args, live, work) for _ in range(a.repeat))
+                show("twin.py - --live (stdin pipe)" if live else "twin.py replay (file)", *best)
+            values = {k: v for k, v in preset_values(machine).items() if k not in INPUTS}
+            for native in (False, True):
+                wall = min(fmu_calls(values, n, native) for _ in range(a.repeat))
+                show("baseline: FMU calls alone, " + ("native batch" if native else "fmpy per sample"), wall, n)
     return 0
 
 

@@ -1,6 +1,8 @@
-"""The native batch driver (tools/fmi2-batch, `libfmi2_batch.so`) through ctypes: many
-communication points of a loaded FMU in one call (`run`, used by `fmu.Channel.run`) and rows of
-numbers as CSV text exactly as Python's repr writes them (`format_csv`).
+"""The digital twin's native inner loops (tools/fmi2-batch, `libfmi2_batch.so`) through ctypes:
+many communication points of a loaded FMU in one call (`run`, used by `fmu.Channel.run`), rows of
+numbers as CSV text exactly as Python's repr writes them (`format_csv`), and the local-cubic
+estimate of speed and acceleration (`local_cubic`, the algorithm of `conditioning.fit`), and the
+clean lines of a CSV (`parse_csv`).
 
 The library is built by `cargo build --release --workspace --lib` (scripts/build-fmu.sh, which
 scripts/run.sh and scripts/test.sh call). RD_BATCH_LIB=/path/to/libfmi2_batch.so loads another
@@ -49,6 +51,10 @@ def library() -> ctypes.CDLL:
         lib.fmi2_batch_format_csv.argtypes = [dp, sz, sz, sz, vp, sz]
         lib.fmi2_batch_format_csv.restype = ctypes.c_ssize_t
         lib.fmi2_batch_max_number_len.restype = sz
+        lib.fmi2_batch_local_cubic.argtypes = [dp, dp, sz, sz, sz, sz, dp, dp]
+        lib.fmi2_batch_local_cubic.restype = ctypes.c_ssize_t
+        lib.fmi2_batch_parse_csv.argtypes = [ctypes.c_char_p, sz, sz, sz, vp, vp, vp, vp, sz]
+        lib.fmi2_batch_parse_csv.restype = ctypes.c_ssize_t
         _lib = lib
     return _lib
 
@@ -103,3 +109,36 @@ def format_csv(rows: np.ndarray) -> bytes:
     if n < 0:
         raise RuntimeError("fmi2_batch_format_csv failed")
     return buf[:n].tobytes()
+
+
+def local_cubic(t: np.ndarray, theta: np.ndarray, half: int, first: int, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """ω and ε at samples first .. first + count - 1 of a segment (conditioning.fit's estimate:
+    a cubic fitted by least squares to the 2·half+1 samples around each, shifted inward at the
+    ends). Raises ValueError naming the sample whose window is singular."""
+    t = np.ascontiguousarray(t, dtype=np.float64)
+    theta = np.ascontiguousarray(theta, dtype=np.float64)
+    w, e = np.empty(count), np.empty(count)
+    k = library().fmi2_batch_local_cubic(t.ctypes.data, theta.ctypes.data, len(t), half, first, count,
+                                         w.ctypes.data, e.ctypes.data)
+    if k < 0:
+        raise ValueError(f"local_cubic: bad arguments (n = {len(t)}, half = {half}, samples {first}..{first + count})")
+    if k < count:
+        raise ValueError(f"the smoothing window of sample {first + k} is singular")
+    return w, e
+
+
+def parse_csv(text: bytes, n_fields: int, columns: list[int], defaults: list[float | None], max_lines: int) -> list:
+    """The leading clean lines of `text` (lines of at least n_fields fields whose wanted fields,
+    at `columns`, are finite numbers; an empty field takes its default unless that is None): one
+    float64 array per column, as many rows as clean lines. Parsing stops at the first other line,
+    for the caller to read in Python (blank lines, bad fields and their messages)."""
+    m = len(columns)
+    out = [np.empty(max_lines) for _ in range(m)]
+    ptrs = (ctypes.c_void_p * m)(*[o.ctypes.data for o in out])
+    cols = (ctypes.c_size_t * m)(*columns)
+    req = (ctypes.c_int * m)(*[int(d is None) for d in defaults])
+    dft = (ctypes.c_double * m)(*[0.0 if d is None else d for d in defaults])
+    k = library().fmi2_batch_parse_csv(text, len(text), n_fields, m, cols, req, dft, ptrs, max_lines)
+    if k < 0:
+        raise ValueError("parse_csv: bad arguments")
+    return [o[:k] for o in out]

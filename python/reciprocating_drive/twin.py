@@ -11,7 +11,8 @@ same numbers bit for bit.
    (dropped and counted, or an error), an angle step faster than `max_speed` or a crank turning
    backwards stops the run with the line number (`DataError`), after the samples before it.
 2. **Conditioning** (`conditioning.py`, vectorised over the chunk): angle to rad and unwrapped;
-   ω and ε from a local cubic over the smoothing window where they are not measured. A gap longer
+   ω and ε from a local cubic over the smoothing window where they are not measured (natively,
+   `batch.local_cubic`, the algorithm of `conditioning.fit`). A gap longer
    than `gap_limit` ends a segment: the smoother does not bridge it, the gap is reported, and the
    FMU is re-initialized at the first sample after it (its dynamic state, an elastic rod's cage,
    starts quasi-statically again, docs/model.md §6), because the crank's motion inside the gap is
@@ -36,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import conditioning as cond
+from .batch import local_cubic, parse_csv
 from .fmu import Fmu, FmuError
 from .presets import preset_values
 from .revolution import TWO_PI, summarize_revolutions
@@ -111,26 +113,28 @@ def parse_line(line: str, lineno: int, cols: dict) -> tuple[float, float, float 
 def parse_lines(lines: list[str], first_lineno: int, cols: dict):
     """Consecutive data lines (the first is line `first_lineno`) as arrays: line numbers, time,
     angle, speed (NaN where absent) and force (0 where absent), blank lines skipped. Returns the
-    arrays of the lines before the first bad one and its DataError (or None)."""
-    fields = [line.split(",") for line in lines]
-    it, ia, iw, ip = cols["time"], cols["crank_angle"], cols.get("crank_speed"), cols.get("process_force")
-    try:
-        if min(map(len, fields), default=len(cols)) < len(cols):
-            raise ValueError("a blank or short line")
-        t = np.array([float(f[it]) for f in fields])
-        a = np.array([float(f[ia]) for f in fields])
-        w = np.array([float(f[iw]) if f[iw].strip() else math.nan for f in fields]) if iw is not None else None
-        fo = np.array([float(f[ip]) if f[ip].strip() else 0.0 for f in fields]) if ip is not None else None
-        if not (np.isfinite(t).all() and np.isfinite(a).all() and (w is None or not np.isinf(w).any())
-                and (fo is None or np.isfinite(fo).all())):
-            raise ValueError("a number that is not finite")
-        if w is not None and np.isnan(w).any() and any(f[iw].strip() and math.isnan(float(f[iw])) for f in fields):
-            raise ValueError("a speed that is not a number")
-    except ValueError:
-        return _parse_slowly(lines, first_lineno, cols)
-    n = len(lines)
-    return (np.arange(first_lineno, first_lineno + n), t, a, np.full(n, math.nan) if w is None else w,
-            np.zeros(n) if fo is None else fo), None
+    arrays of the lines before the first bad one and its DataError (or None). The clean lines are
+    parsed natively (`batch.parse_csv`), from the first other one on in Python."""
+    names = [c for c in ("time", "crank_angle", "crank_speed", "process_force") if c in cols]
+    defaults = [{"crank_speed": math.nan, "process_force": 0.0}.get(c) for c in names]
+    n, pos, parts = len(lines), 0, []
+    while pos < n:
+        got = parse_csv("\n".join(lines[pos:]).encode(), len(cols), [cols[c] for c in names], defaults, n - pos)
+        k = len(got[0])
+        parts.append((np.arange(first_lineno + pos, first_lineno + pos + k), got[0], got[1],
+                      got[names.index("crank_speed")] if "crank_speed" in cols else np.full(k, math.nan),
+                      got[names.index("process_force")] if "process_force" in cols else np.zeros(k)))
+        pos += k
+        if pos < n:
+            # One line for Python: blank, bad (the message), or a number only Python reads.
+            arrays, err = _parse_slowly(lines[pos:pos + 1], first_lineno + pos, cols)
+            parts.append(arrays)
+            pos += 1
+            if err is not None:
+                return tuple(np.concatenate(p) for p in zip(*parts)), err
+    if not parts:
+        return _parse_slowly([], first_lineno, cols)
+    return tuple(np.concatenate(p) for p in zip(*parts)), None
 
 
 def _parse_slowly(lines, first_lineno, cols):
@@ -354,8 +358,7 @@ class Twin:
         out = []
         for lo in range(b.done, ready, BLOCK):
             centres = np.arange(lo, min(ready, lo + BLOCK))
-            idx = cond.windows(n, half, centres)
-            w_est, e_est = cond.fit(b.t[idx], b.theta[idx], b.t[centres][:, None], b.theta[centres][:, None])
+            w_est, e_est = local_cubic(b.t, b.theta, half, lo, len(centres))
             w = np.where(np.isnan(b.speed[centres]), w_est, b.speed[centres])
             inputs = np.column_stack([b.theta[centres], w, e_est, b.force[centres]])
             rows = np.empty((len(centres), 1 + len(self.outputs)))

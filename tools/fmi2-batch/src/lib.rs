@@ -1,5 +1,8 @@
-//! Native batch driver of a loaded FMI 2.0 co-simulation FMU and a CSV formatter, called from
-//! Python through ctypes (python/reciprocating_drive/fmu.py, `Channel.run` and `format_csv`).
+//! The per-sample inner loops of the digital twin, called from Python through ctypes
+//! (python/reciprocating_drive/batch.py): a batch driver of any loaded FMI 2.0 co-simulation FMU
+//! (`fmi2_batch_run`), rows of numbers as CSV exactly as Python's repr writes them
+//! (`fmi2_batch_format_csv`), the local-cubic speed and acceleration estimate
+//! (`fmi2_batch_local_cubic`) and the clean lines of the input CSV (`fmi2_batch_parse_csv`).
 //!
 //! The driver knows nothing about the FMU it drives: the caller passes the FMU's own
 //! `fmi2DoStep`, `fmi2SetReal` and `fmi2GetReal` (as loaded by fmpy) and the component. Every
@@ -7,6 +10,8 @@
 //! boundary; failures are return codes.
 
 mod csv;
+pub mod fit;
+pub mod parse;
 
 use std::os::raw::{c_int, c_uint, c_void};
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -185,4 +190,69 @@ pub unsafe extern "C" fn fmi2_batch_format_csv(values: *const f64, rows: usize, 
 #[no_mangle]
 pub extern "C" fn fmi2_batch_max_number_len() -> usize {
     MAX_NUMBER_LEN
+}
+
+/// ω and ε (`fit::at`) at the centres `first .. first + count` of a segment of `n` samples (times
+/// `t`, unwrapped angles `theta`), windows of 2·half+1 samples, into `out_w` and `out_e`. Returns
+/// `count`, or the index of the first centre whose window is singular (its outputs NaN),
+/// `BAD_ARGUMENTS` for null pointers, `n` < 4 or a range outside the segment, `PANICKED` if a
+/// panic was caught.
+///
+/// # Safety
+/// `t` and `theta` must hold `n` values, `out_w` and `out_e` `count` writable values.
+#[no_mangle]
+pub unsafe extern "C" fn fmi2_batch_local_cubic(t: *const f64, theta: *const f64, n: usize, half: usize, first: usize,
+                                                count: usize, out_w: *mut f64, out_e: *mut f64) -> isize {
+    let result = catch_unwind(AssertUnwindSafe(|| {
+        if n < 4 || half < 2 || first.checked_add(count).map_or(true, |end| end > n) {
+            return BAD_ARGUMENTS;
+        }
+        let (Some(t), Some(theta), Some(w), Some(e)) =
+            (slice(t, n), slice(theta, n), slice_mut(out_w, count), slice_mut(out_e, count))
+        else {
+            return BAD_ARGUMENTS;
+        };
+        let mut singular = None;
+        for k in 0..count {
+            (w[k], e[k]) = fit::at(t, theta, half, first + k).unwrap_or_else(|| {
+                singular.get_or_insert(k);
+                (f64::NAN, f64::NAN)
+            });
+        }
+        singular.unwrap_or(count) as isize
+    }));
+    result.unwrap_or(PANICKED)
+}
+
+/// Parses the clean lines (`parse::clean_prefix`) of `text` (`len` bytes, lines separated by
+/// '\n', at most `max_lines`): `n_cols` wanted fields at indices `cols`, empty ones given
+/// `defaults[j]` when `required[j]` is 0, into `out[j]` (each `max_lines` values). Returns the
+/// number of lines parsed, `BAD_ARGUMENTS` for null pointers, `PANICKED` if a panic was caught.
+///
+/// # Safety
+/// The pointers must hold the values described; `out` `n_cols` pointers to `max_lines` values.
+#[no_mangle]
+pub unsafe extern "C" fn fmi2_batch_parse_csv(text: *const u8, len: usize, n_fields: usize, n_cols: usize,
+                                              cols: *const usize, required: *const c_int, defaults: *const f64,
+                                              out: *const *mut f64, max_lines: usize) -> isize {
+    let result = catch_unwind(AssertUnwindSafe(|| {
+        let (Some(text), Some(cols), Some(required), Some(defaults), Some(out)) = (
+            slice(text, len), slice(cols, n_cols), slice(required, n_cols), slice(defaults, n_cols), slice(out, n_cols),
+        ) else {
+            return BAD_ARGUMENTS;
+        };
+        if cols.iter().any(|&c| c >= n_fields) {
+            return BAD_ARGUMENTS;
+        }
+        let mut columns = Vec::with_capacity(n_cols);
+        for &p in out {
+            let Some(col) = slice_mut(p, max_lines) else {
+                return BAD_ARGUMENTS;
+            };
+            columns.push(col);
+        }
+        let defaults: Vec<Option<f64>> = required.iter().zip(defaults).map(|(&r, &d)| (r == 0).then_some(d)).collect();
+        parse::clean_prefix(text, n_fields, cols, &defaults, &mut columns) as isize
+    }));
+    result.unwrap_or(PANICKED)
 }
