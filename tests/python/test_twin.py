@@ -83,6 +83,8 @@ def test_encoder_data_within_one_percent_away_from_the_gap(fmu_path, tmp_path):
     ("time,crank_angle\n0,0\n0.001,0.01\n0.001,0.01\n", ["--duplicates", "error"], "line 4: duplicate timestamp"),
     ("time,crank_angle\n0,0\n0.001,0.01\n0.002,1.5\n", [], "line 4: the crank angle moves"),
     ("t,angle\n0,0\n", [], "line 1: the header must name 'time'"),
+    ("time,crank_angle\n0,0\n0.001,0.01\n\n0.002,0.005\n", [], "line 5: the crank angle goes backwards"),
+    ("time,crank_angle,crank_speed\n0,0,1\n0.001,0.01,inf\n", [], "line 3: crank_speed = 'inf' is not a finite number"),
 ])
 def test_bad_data_is_refused_with_its_line(fmu_path, tmp_path, text, args, message):
     src = tmp_path / "bad.csv"
@@ -106,6 +108,33 @@ def test_duplicates_are_dropped_and_counted(fmu_path, tmp_path):
 def test_live_equals_replay(fmu_path, tmp_path):
     run([SAMPLE, *ENCODER, "--out", tmp_path / "replay.csv"], fmu_path)
     run(["-", *ENCODER, "--live", "--out", tmp_path / "live.csv"], fmu_path, stdin=SAMPLE.read_text())
+    assert (tmp_path / "replay.csv").read_bytes() == (tmp_path / "live.csv").read_bytes()
+    assert (tmp_path / "replay-revolutions.csv").read_bytes() == (tmp_path / "live-revolutions.csv").read_bytes()
+
+
+def test_live_in_small_pieces_equals_replay(fmu_path, tmp_path):
+    """Live input arriving in pieces of random size (partial lines, single samples, bursts) gives
+    the replay's files byte for byte."""
+    import random
+    import time
+
+    text = "".join(SAMPLE.read_text().splitlines(keepends=True)[:1501]).encode()
+    src = tmp_path / "part.csv"
+    src.write_bytes(text)
+    run([src, *ENCODER, "--out", tmp_path / "replay.csv"], fmu_path)
+    p = subprocess.Popen(TWIN + ["-", *ENCODER, "--live", "--out", str(tmp_path / "live.csv"), "--fmu", fmu_path],
+                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    rng = random.Random(5)
+    pos = 0
+    while pos < len(text):
+        n = rng.choice([1, 7, 30, 41, 200, 3000])
+        p.stdin.write(text[pos:pos + n])
+        p.stdin.flush()
+        pos += n
+        time.sleep(rng.choice([0, 0, 0.0005, 0.002]))
+    p.stdin.close()
+    err = p.stderr.read().decode()
+    assert p.wait(timeout=300) == 0, err
     assert (tmp_path / "replay.csv").read_bytes() == (tmp_path / "live.csv").read_bytes()
     assert (tmp_path / "replay-revolutions.csv").read_bytes() == (tmp_path / "live-revolutions.csv").read_bytes()
 
