@@ -73,7 +73,15 @@ pub struct Core<S> {
     /// The model's state ([`FmuModel::State`]).
     pub state: S,
     /// Whether the model's output cache belongs to the current time, inputs, parameters and state.
+    /// A cache flag, not state: serialized as false (deserialized states recompute their outputs),
+    /// so that reading outputs, which may evaluate them on demand, never changes the serialized
+    /// state. The byte layout is that of a plain bool.
+    #[serde(serialize_with = "serialize_as_stale")]
     pub outputs_valid: bool,
+}
+
+fn serialize_as_stale<S: serde::Serializer>(_: &bool, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_bool(false)
 }
 
 impl<S> Core<S> {
@@ -319,19 +327,10 @@ impl<M: FmuModel> Instance<M> {
         Ok(())
     }
 
-    /// One output from the (valid) cache.
-    #[inline]
-    fn read_output(&mut self, output: M::Output) -> Result<f64, Failure> {
-        let (model, state) = match (&self.model, &self.provisional) {
-            (Some(m), _) => (m, &self.core.state),
-            (None, Some((m, s))) => (m, s),
-            (None, None) => return Err(Failure::error("output requested without a model (internal error)")),
-        };
-        Ok(M::output(model, &self.core.values, state, &mut self.outputs, output)?)
-    }
-
     /// fmi2GetReal/Integer/Boolean: `out(i, value)` receives the i-th requested value.
-    /// Outputs are evaluated at most once per change of time, inputs or parameters.
+    /// Every value reference is checked before anything is evaluated (a failing call changes
+    /// nothing); outputs are evaluated at most once per change of time, inputs or parameters (a
+    /// lazy model evaluates only what is read, `FmuModel::output`).
     pub fn get(&mut self, function: &str, ty: VarType, vrs: &[u32], mut out: impl FnMut(usize, f64)) -> Result<(), Failure> {
         let outputs_available = match self.core.mode {
             Mode::InitializationMode | Mode::StepComplete | Mode::Terminated => true,
@@ -340,28 +339,53 @@ impl<M: FmuModel> Instance<M> {
             Mode::Fatal => return Err(Failure::illegal(function, self.core.mode)),
         };
         let info = M::table().info();
+        let mut first_output = None;
+        for &vr in vrs {
+            match info.get(vr as usize) {
+                Some(v) if v.ty == ty => {
+                    if first_output.is_none() && v.output.is_some() {
+                        first_output = Some(vr as usize);
+                    }
+                }
+                _ => return Err(Self::lookup_failure(function, vr, ty)),
+            }
+        }
+        if let (Some(i), false) = (first_output, self.core.outputs_valid) {
+            if !outputs_available {
+                return Err(Failure::error(format!(
+                    "{function}: output \"{}\" is not available before fmi2EnterInitializationMode",
+                    M::table().variables[i].name
+                )));
+            }
+            self.refresh_outputs()?;
+        }
+        let Self { core, outputs, model, provisional, .. } = self;
+        let context = match (model.as_ref(), provisional.as_ref()) {
+            (Some(m), _) => Some((m, &core.state)),
+            (None, Some((m, s))) => Some((m, s)),
+            (None, None) => None,
+        };
         let mut non_finite: Vec<String> = Vec::new();
         for (k, &vr) in vrs.iter().enumerate() {
-            let i = self.lookup(function, vr, ty)?;
+            let i = vr as usize;
             match info[i].output {
                 Some(get) => {
-                    if !self.core.outputs_valid {
-                        if !outputs_available {
-                            return Err(Failure::error(format!(
-                                "{function}: output \"{}\" is not available before fmi2EnterInitializationMode",
-                                M::table().variables[i].name
-                            )));
+                    let v = match M::cached(outputs, get) {
+                        Some(v) => v,
+                        None => {
+                            let Some((m, state)) = context else {
+                                return Err(Failure::error("output requested without a model (internal error)"));
+                            };
+                            M::output(m, &core.values, state, outputs, get)?
                         }
-                        self.refresh_outputs()?;
-                    }
-                    let v = self.read_output(get)?;
+                    };
                     // No non-finite value leaves the FMU with fmi2OK (docs/hardening.md).
                     if !v.is_finite() && non_finite.len() < 8 {
                         non_finite.push(format!("{} = {}", M::table().variables[i].name, num(v)));
                     }
                     out(k, v);
                 }
-                None => out(k, self.core.values[i]),
+                None => out(k, core.values[i]),
             }
         }
         if !non_finite.is_empty() {
@@ -393,7 +417,11 @@ impl<M: FmuModel> Instance<M> {
         });
         if inputs_only {
             for (k, &vr) in vrs.iter().enumerate() {
-                self.store_value(vr as usize, value(k));
+                let (i, v) = (vr as usize, value(k));
+                self.core.values[i] = v;
+                if let Some(slot) = info[i].slot {
+                    M::input_changed(&mut self.core.state, slot, v);
+                }
             }
             self.invalidate_outputs();
             return Ok(());
@@ -479,8 +507,14 @@ impl<M: FmuModel> Instance<M> {
         let warning = M::step_warning(model, &self.core.state, &state);
         self.core.state = state;
         self.core.time = current + h;
-        std::mem::swap(&mut self.outputs, &mut self.scratch);
-        self.core.outputs_valid = true;
+        if M::step_evaluates(model) {
+            std::mem::swap(&mut self.outputs, &mut self.scratch);
+            self.core.outputs_valid = true;
+        } else {
+            // Nothing was evaluated: the cache is brought up to date (marked stale by a lazy
+            // model) when an output is read.
+            self.core.outputs_valid = false;
+        }
         self.stats = stats;
         if let Some(w) = warning {
             self.warn("fmi2DoStep", &w);

@@ -102,8 +102,16 @@ pub trait FmuModel: Sized + 'static {
     fn output(built: &Self::Built, values: &[f64], state: &Self::State, cache: &mut Self::Outputs, output: Self::Output)
         -> Result<f64, ModelError>;
 
+    /// The value of `output` when the cache already holds it (no evaluation, cannot fail): the
+    /// glue's fast path before [`FmuModel::output`]. An eager model's valid cache always does.
+    #[inline]
+    fn cached(_cache: &Self::Outputs, _output: Self::Output) -> Option<f64> {
+        None
+    }
+
     /// One communication step of size `h` from `state`, to the tolerance `tol`; returns the new
-    /// state and brings `out` up to date for it (as `update_outputs` would). An error changes
+    /// state and, when [`FmuModel::step_evaluates`], brings `out` up to date for it (as
+    /// `update_outputs` would). An error changes
     /// nothing the caller keeps.
     #[allow(clippy::too_many_arguments)]
     fn step(
@@ -115,6 +123,12 @@ pub trait FmuModel: Sized + 'static {
         stats: &mut Self::Stats,
         out: &mut Self::Outputs,
     ) -> Result<Self::State, ModelError>;
+
+    /// Whether [`FmuModel::step`] brings `out` up to date (else it leaves `out` alone and the
+    /// outputs are evaluated when read; the glue then skips taking `out` over).
+    fn step_evaluates(_built: &Self::Built) -> bool {
+        true
+    }
 
     /// The integrator tolerance when fmi2SetupExperiment gives none.
     fn default_tolerance(built: &Self::Built) -> f64;

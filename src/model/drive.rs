@@ -451,7 +451,17 @@ impl Model {
     }
 
     /// Inputs (and the crank state carried forward from them) must be finite.
+    #[inline]
     pub fn check_inputs(crank: &CrankState, inputs: &Inputs) -> Result<(), ModelError> {
+        if (crank.angle + crank.speed + crank.acceleration + inputs.external_force).is_finite() {
+            // The sum of finite numbers can overflow; then the checks below tell which is not.
+            return Ok(());
+        }
+        Self::name_non_finite_input(crank, inputs)
+    }
+
+    #[cold]
+    fn name_non_finite_input(crank: &CrankState, inputs: &Inputs) -> Result<(), ModelError> {
         require_finite("crank.angle", crank.angle)?;
         require_finite("crank.speed", crank.speed)?;
         require_finite("crank.acceleration", crank.acceleration)?;
@@ -481,23 +491,26 @@ impl Model {
     /// those of evaluating every group at once, bit for bit: each group does the same
     /// arithmetic in the same order whenever it runs. A group that fails (a self-locking guide)
     /// leaves the groups before it ready and itself not ready, so it fails again when asked again.
-    #[inline]
+    #[inline(always)]
     pub fn evaluate_groups(&self, crank: &CrankState, inputs: &Inputs, rod: &RodState, out: &mut Outputs, want: u8) -> Result<(), ModelError> {
-        let missing = want & !out.ready;
-        if missing == 0 {
+        if want & !out.ready == 0 {
             return Ok(());
         }
+        self.evaluate_missing(crank, inputs, rod, out, want)
+    }
+
+    /// [`Model::evaluate_groups`] when something is missing.
+    #[inline(never)]
+    fn evaluate_missing(&self, crank: &CrankState, inputs: &Inputs, rod: &RodState, out: &mut Outputs, want: u8) -> Result<(), ModelError> {
+        let missing = want & !out.ready;
         if out.ready == 0 {
             Self::check_inputs(crank, inputs)?;
         }
         let theta = self.model_angle(crank);
         let (w, eps) = (crank.speed, crank.acceleration);
-        let rigid_rod_tan_beta = match &self.mechanism {
-            Mechanism::CrankSlider(m) => m.tan_beta(theta),
-            // A beam unit's polished rod hangs from the horsehead arc: no side force (§5.4).
-            Mechanism::BeamUnit(_) => 0.0,
-            Mechanism::ElasticRodSlider(_, elastic) => return self.evaluate_elastic(crank, inputs, rod, elastic, out),
-        };
+        if let Mechanism::ElasticRodSlider(_, elastic) = &self.mechanism {
+            return self.evaluate_elastic(crank, inputs, rod, elastic, out);
+        }
         if out.ready & groups::KINEMATICS == 0 {
             let k = self.kinematics_at(theta);
             out.model_angle = theta;
@@ -524,7 +537,15 @@ impl Model {
             // The rigid slider rod pushes the crosshead sideways with −P·tanβ (§5.4); P is
             // solved exactly (piecewise linear in P).
             let guide = match &self.guide {
-                Some(g) => g.solve_rigid(out.position, out.velocity, out.p_base, rigid_rod_tan_beta)?,
+                Some(g) => {
+                    let tan_beta = match &self.mechanism {
+                        Mechanism::CrankSlider(m) => m.tan_beta(theta),
+                        // A beam unit's polished rod hangs from the horsehead arc: no side
+                        // force (§5.4).
+                        _ => 0.0,
+                    };
+                    g.solve_rigid(out.position, out.velocity, out.p_base, tan_beta)?
+                }
                 None => GuideOutputs { rod_force: out.p_base, ..GuideOutputs::default() },
             };
             out.guide = guide;

@@ -109,6 +109,10 @@ impl FmuModel for ReciprocatingDrive {
     }
 
     #[inline]
+    fn cached(cache: &Outputs, output: GroupedOutput<Outputs>) -> Option<f64> {
+        (output.group & !cache.ready == 0).then(|| (output.get)(cache))
+    }
+
     fn output(model: &Model, values: &[f64], state: &State, cache: &mut Outputs, output: GroupedOutput<Outputs>) -> Result<f64, ModelError> {
         model.evaluate_groups(&state.crank, &inputs(values), &state.rod, cache, output.group)?;
         Ok((output.get)(cache))
@@ -135,9 +139,14 @@ impl FmuModel for ReciprocatingDrive {
             Ok(State { crank, rod })
         } else {
             Model::check_inputs(&crank, &inputs)?;
-            out.ready = 0;
             Ok(State { crank, rod: state.rod })
         }
+    }
+
+    /// Only an elastic rod's step evaluates its outputs (see the module doc).
+    #[inline]
+    fn step_evaluates(model: &Model) -> bool {
+        model.has_state()
     }
 
     fn default_tolerance(model: &Model) -> f64 {

@@ -1,0 +1,165 @@
+/* Native host loop of scripts/bench_ratio.py: loads two FMI 2.0 co-simulation FMUs' shared objects
+ * with dlopen, as an importer does, and times the same loop on both, alternating runs so that both
+ * see the same machine state:
+ *   loop:   per step fmi2SetReal of 3 inputs, fmi2DoStep (h = 1 ms), fmi2GetReal of N outputs
+ *   dostep: fmi2DoStep alone
+ * It prints the median ns per step of each and their ratio. Written for this project.
+ *
+ * usage: host_loop BASE.so BASE_GUID BASE_IN BASE_OUT  FMU.so FMU_GUID FMU_IN FMU_OUT  SPEED STEPS ROUNDS [SET...]
+ *   *_IN, *_OUT: comma-separated value references (3 inputs; the outputs read each step)
+ *   SET: r:VR=VALUE, i:VR=VALUE or b:VR=VALUE, set on the FMU (not the base) in initialization mode
+ *   The FMU's inputs are (crank angle, speed, acceleration) = (SPEED*t, SPEED, 0). */
+#include <dlfcn.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include "fmi2Functions.h"
+
+typedef struct {
+    void *lib;
+    fmi2InstantiateTYPE *instantiate;
+    fmi2FreeInstanceTYPE *free_instance;
+    fmi2SetupExperimentTYPE *setup;
+    fmi2EnterInitializationModeTYPE *enter;
+    fmi2ExitInitializationModeTYPE *exit_init;
+    fmi2SetRealTYPE *set_real;
+    fmi2SetIntegerTYPE *set_integer;
+    fmi2SetBooleanTYPE *set_boolean;
+    fmi2GetRealTYPE *get_real;
+    fmi2DoStepTYPE *do_step;
+    const char *guid;
+    fmi2ValueReference in[3];
+    fmi2ValueReference out[64];
+    size_t n_out;
+} Fmu;
+
+static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status, fmi2String category,
+                   fmi2String message, ...) {
+    (void)env; (void)category;
+    va_list ap;
+    va_start(ap, message);
+    fprintf(stderr, "[%s %d] ", name, (int)status);
+    vfprintf(stderr, message, ap);
+    fprintf(stderr, "\n");
+    va_end(ap);
+}
+
+static void *sym(void *lib, const char *name) {
+    void *p = dlsym(lib, name);
+    if (!p) { fprintf(stderr, "missing %s\n", name); exit(2); }
+    return p;
+}
+
+static size_t parse_vrs(const char *s, fmi2ValueReference *v, size_t max) {
+    size_t n = 0;
+    char *copy = strdup(s), *save = NULL;
+    for (char *t = strtok_r(copy, ",", &save); t && n < max; t = strtok_r(NULL, ",", &save)) v[n++] = (fmi2ValueReference)strtoul(t, NULL, 10);
+    free(copy);
+    return n;
+}
+
+static void load(Fmu *f, const char *path, const char *guid, const char *in, const char *out) {
+    f->lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!f->lib) { fprintf(stderr, "%s\n", dlerror()); exit(2); }
+    f->instantiate = sym(f->lib, "fmi2Instantiate");
+    f->free_instance = sym(f->lib, "fmi2FreeInstance");
+    f->setup = sym(f->lib, "fmi2SetupExperiment");
+    f->enter = sym(f->lib, "fmi2EnterInitializationMode");
+    f->exit_init = sym(f->lib, "fmi2ExitInitializationMode");
+    f->set_real = sym(f->lib, "fmi2SetReal");
+    f->set_integer = dlsym(f->lib, "fmi2SetInteger");
+    f->set_boolean = dlsym(f->lib, "fmi2SetBoolean");
+    f->get_real = sym(f->lib, "fmi2GetReal");
+    f->do_step = sym(f->lib, "fmi2DoStep");
+    f->guid = guid;
+    if (parse_vrs(in, f->in, 3) != 3) { fprintf(stderr, "need 3 inputs\n"); exit(2); }
+    f->n_out = parse_vrs(out, f->out, 64);
+}
+
+static fmi2CallbackFunctions callbacks = { logger, calloc, free, NULL, NULL };
+
+static fmi2Component start(Fmu *f, int nset, char **set) {
+    fmi2Component c = f->instantiate("bench", fmi2CoSimulation, f->guid, "", &callbacks, fmi2False, fmi2False);
+    if (!c || f->setup(c, fmi2False, 0.0, 0.0, fmi2False, 0.0) != fmi2OK || f->enter(c) != fmi2OK) { fprintf(stderr, "start failed\n"); exit(3); }
+    for (int i = 0; i < nset; i++) {
+        char kind = set[i][0];
+        fmi2ValueReference vr = (fmi2ValueReference)strtoul(set[i] + 2, NULL, 10);
+        const char *eq = strchr(set[i], '=');
+        fmi2Status st;
+        if (!eq) { fprintf(stderr, "bad SET %s\n", set[i]); exit(2); }
+        if (kind == 'r') { double v = strtod(eq + 1, NULL); st = f->set_real(c, &vr, 1, &v); }
+        else if (kind == 'i') { fmi2Integer v = atoi(eq + 1); st = f->set_integer(c, &vr, 1, &v); }
+        else { fmi2Boolean v = atoi(eq + 1); st = f->set_boolean(c, &vr, 1, &v); }
+        if (st != fmi2OK) { fprintf(stderr, "set %s failed\n", set[i]); exit(3); }
+    }
+    if (f->exit_init(c) != fmi2OK) { fprintf(stderr, "exit init failed\n"); exit(3); }
+    return c;
+}
+
+static double now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec * 1e9 + ts.tv_nsec;
+}
+
+static volatile double sink;
+
+/* ns per step of one run from a fresh instance. */
+static double run(Fmu *f, int nset, char **set, double speed, long steps, int dostep_only) {
+    fmi2Component c = start(f, nset, set);
+    double out[64], acc = 0.0;
+    const double h = 1e-3;
+    double t0 = now();
+    for (long k = 0; k < steps; k++) {
+        double t = k * h;
+        if (!dostep_only) {
+            double in[3] = { speed * t, speed, 0.0 };
+            fmi2Status s1 = f->set_real(c, f->in, 3, in);
+            fmi2Status s2 = f->do_step(c, t, h, fmi2True);
+            fmi2Status s3 = f->get_real(c, f->out, f->n_out, out);
+            if (s1 | s2 | s3) { fprintf(stderr, "step %ld failed (set %d, step %d, get %d)\n", k, (int)s1, (int)s2, (int)s3); exit(4); }
+            acc += out[f->n_out - 1];
+        } else if (f->do_step(c, t, h, fmi2True) != fmi2OK) {
+            fprintf(stderr, "step %ld failed\n", k); exit(4);
+        }
+    }
+    double ns = (now() - t0) / steps;
+    sink = acc;
+    f->free_instance(c);
+    return ns;
+}
+
+static int cmp(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+int main(int argc, char **argv) {
+    if (argc < 12) { fprintf(stderr, "usage: see host_loop.c\n"); return 2; }
+    Fmu base, fmu;
+    load(&base, argv[1], argv[2], argv[3], argv[4]);
+    load(&fmu, argv[5], argv[6], argv[7], argv[8]);
+    double speed = strtod(argv[9], NULL);
+    long steps = strtol(argv[10], NULL, 10);
+    int rounds = atoi(argv[11]);
+    int nset = argc - 12;
+    char **set = argv + 12;
+    if (rounds < 1 || rounds > 99) return 2;
+    for (int mode = 0; mode < 2; mode++) {
+        double b[99], f[99];
+        run(&base, 0, NULL, speed, steps / 10, mode);  /* warm-up */
+        run(&fmu, nset, set, speed, steps / 10, mode);
+        for (int r = 0; r < rounds; r++) {
+            b[r] = run(&base, 0, NULL, speed, steps, mode);
+            f[r] = run(&fmu, nset, set, speed, steps, mode);
+        }
+        qsort(b, rounds, sizeof(double), cmp);
+        qsort(f, rounds, sizeof(double), cmp);
+        printf("%s base %.2f fmu %.2f ratio %.3f\n", mode ? "dostep" : "loop", b[rounds / 2], f[rounds / 2],
+               f[rounds / 2] / b[rounds / 2]);
+    }
+    return 0;
+}

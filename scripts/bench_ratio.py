@@ -1,0 +1,131 @@
+#!/usr/bin/env python3
+"""The FMU's cost against an FMU that computes nothing (docs/performance.md), measured side by side
+in one run by a native C host (benches/c/host_loop.c) that loads both shared objects with dlopen:
+
+* the baseline, benches/c/feedthrough.c, an FMI 2.0 co-simulation FMU equivalent in the work of
+  each call to the Modelica Reference FMUs' Feedthrough, built here with gcc -O3;
+* target/release/libReciprocatingDrive.so (built here with cargo build --release).
+
+Per step: fmi2SetReal of the 3 crank inputs, fmi2DoStep (h = 1 ms), fmi2GetReal of 8 outputs;
+and fmi2DoStep alone. Runs of both FMUs alternate; each figure is the median of ROUNDS runs.
+Ratios hold across machines; absolute times do not (the machines are noisy).
+
+    python3 scripts/bench_ratio.py [--steps 200000] [--rounds 9] [scenario name filter]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+OUT = ROOT / "target" / "bench-c"
+
+# The outputs the issue's loop reads (the same as benches/host_loop.rs), and the kinematics only.
+EIGHT = ["suspension.position", "suspension.velocity", "suspension.acceleration", "kinematics.torque_factor",
+         "inertia.force", "rod.force", "crank.torque", "rod.angle"]
+KINEMATICS = ["suspension.position", "suspension.velocity", "suspension.acceleration", "kinematics.torque_factor",
+              "rod.angle", "rod.angular_velocity", "crank.model_angle", "crank.model_speed"]
+NO_SUPPORTS = {"support_A.kind": 0, "support_B.kind": 0, "support_C.kind": 0}
+
+# (name, preset or None, overrides, outputs read, target ratio of the loop)
+SCENARIOS = [
+    ("crank-slider, friction off", None, NO_SUPPORTS, EIGHT, 0.7),
+    ("beam unit sk8-3.5-4000 (a single clamp: no friction)", "sk8-3.5-4000", {}, EIGHT, 0.8),
+    ("default machine, friction on, friction outputs read", None, {}, EIGHT, 1.2),
+    ("default machine, friction on, kinematics read", None, {}, KINEMATICS, 0.8),
+    ("kvo630, elastic rod, tolerance 1e-8", "kvo630", {}, EIGHT, 10.0),
+]
+
+
+def fmi_headers() -> pathlib.Path:
+    """The FMI 2.0 headers shipped in the fmi-sys crate the FMU is built with."""
+    meta = json.loads(subprocess.run(["cargo", "metadata", "--format-version", "1"], cwd=ROOT, check=True,
+                                     capture_output=True, text=True).stdout)
+    pkg = next(p for p in meta["packages"] if p["name"] == "fmi-sys")
+    return pathlib.Path(pkg["manifest_path"]).parent / "fmi-standard2" / "headers"
+
+
+def build() -> tuple[pathlib.Path, pathlib.Path, pathlib.Path]:
+    subprocess.run(["cargo", "build", "--release", "-q", "-p", "fmu-reciprocating-drive"], cwd=ROOT, check=True)
+    OUT.mkdir(parents=True, exist_ok=True)
+    inc = fmi_headers()
+    base = OUT / "libFeedthrough.so"
+    host = OUT / "host_loop"
+    cc = ["gcc", "-O3", "-std=c11", "-D_GNU_SOURCE", f"-I{inc}"]
+    subprocess.run(cc + ["-shared", "-fPIC", "-o", base, ROOT / "benches/c/feedthrough.c"], check=True)
+    subprocess.run(cc + ["-o", host, ROOT / "benches/c/host_loop.c", "-ldl"], check=True)
+    return host, base, ROOT / "target" / "release" / "libReciprocatingDrive.so"
+
+
+def model_description():
+    root = ET.parse(ROOT / "modelDescription" / "modelDescription.xml").getroot()
+    kinds = {}
+    for v in root.iter("ScalarVariable"):
+        t = next(iter(v))
+        kinds[v.get("name")] = (int(v.get("valueReference")), t.tag)
+    return root.get("guid"), kinds
+
+
+def preset(name: str) -> dict:
+    ns = {"ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues"}
+    root = ET.parse(ROOT / "resources" / "presets" / f"{name}.ssv").getroot()
+    out = {}
+    for p in root.iter(f"{{{ns['ssv']}}}Parameter"):
+        v = next(iter(p))
+        tag = v.tag.split("}")[1]
+        raw = v.get("value")
+        out[p.get("name")] = (raw == "true") if tag == "Boolean" else int(raw) if tag == "Integer" else float(raw)
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("filter", nargs="?", default="")
+    ap.add_argument("--steps", type=int, default=200_000)
+    ap.add_argument("--rounds", type=int, default=9)
+    ap.add_argument("--fmu", type=pathlib.Path, default=None,
+                    help="another build of libReciprocatingDrive.so to measure (e.g. of an earlier commit)")
+    a = ap.parse_args(argv)
+    host, base, lib = build()
+    lib = a.fmu.resolve() if a.fmu else lib
+    guid, kinds = model_description()
+    vr = {n: k[0] for n, k in kinds.items()}
+    inputs = ",".join(str(vr[n]) for n in ("crank.angle", "crank.speed", "crank.acceleration"))
+    print(f"baseline: {base.relative_to(ROOT)} (gcc -O3); FMU: {lib}; "
+          f"{a.rounds} alternating runs of {a.steps} steps, medians")
+    print("| scenario | loop ns/step (Feedthrough / FMU) | loop ratio | target | fmi2DoStep ns (Feedthrough / FMU) | fmi2DoStep ratio |")
+    print("|---|---|---|---|---|---|")
+    for name, pre, overrides, outputs, target in SCENARIOS:
+        if a.filter not in name:
+            continue
+        values = {k: v for k, v in (preset(pre) if pre else {}).items()}
+        speed = values.pop("crank.speed", 2 * 3.141592653589793 * 65 / 60)
+        values.update(overrides)
+        sets = []
+        for n, v in values.items():
+            tag = kinds[n][1]
+            sets.append(f"r:{vr[n]}={v!r}" if tag == "Real" else f"i:{vr[n]}={int(v)}" if tag == "Integer"
+                        else f"b:{vr[n]}={int(bool(v))}")
+        out = subprocess.run([str(host), str(base), "base", "0,1,2", "3,4,5,6,7,8,9,10",
+                              str(lib), guid, inputs, ",".join(str(vr[n]) for n in outputs),
+                              repr(speed), str(a.steps), str(a.rounds), *sets],
+                             check=True, capture_output=True, text=True).stdout
+        res = {}
+        for line in out.splitlines():
+            mode, _, b, _, f, _, r = line.split()
+            res[mode] = (float(b), float(f), float(r))
+        lb, lf, lr = res["loop"]
+        db, df, dr = res["dostep"]
+        mark = "met" if lr <= target else "NOT met"
+        print(f"| {name} | {lb:.1f} / {lf:.1f} | **{lr:.2f}** | ≤ {target} ({mark}) | {db:.1f} / {df:.1f} | {dr:.2f} |",
+              flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
