@@ -87,14 +87,15 @@ def twin_run(src: pathlib.Path, args: list, live: bool, work: pathlib.Path) -> t
     return marks["last"] - marks["ready"], marks["lines"] - 1
 
 
-def fmu_calls(values: dict, n: int, native: bool, h=1e-3) -> float:
+def fmu_calls(values: dict, n: int, native: bool, w: float, h=1e-3) -> float:
     """Wall time of n samples of the FMU calls alone (fmi2DoStep, fmi2SetReal of the 4 crank
-    inputs, fmi2GetReal of every output), per sample through fmpy or in one native batch."""
+    inputs, fmi2GetReal of every output) at the data's crank speed w, per sample through fmpy or
+    in one native batch."""
     f = Fmu(FMU)
     f.start(values)
     ch = f.channel(list(INPUTS), f.outputs)
     t = np.arange(1, n + 1) * h
-    x = np.column_stack([6.8 * t, np.full(n, 6.8), np.zeros(n), np.zeros(n)])
+    x = np.column_stack([w * t, np.full(n, w), np.zeros(n), np.zeros(n)])
     out = np.empty((n, len(f.outputs)))
     t0 = time.perf_counter()
     if native:
@@ -118,11 +119,11 @@ def main() -> int:
         kvo = work / "kvo.csv"
         kvo_data(kvo)
         cases = [("default machine, encoder sample", ROOT / "data" / "twin" / "pump_encoder.csv",
-                  ["--angle-unit", "counts", "--counts-per-rev", "4096"], "default"),
+                  ["--angle-unit", "counts", "--counts-per-rev", "4096"], "default", 2 * math.pi * 65 / 60),
                  ("kvo630, exact angles", kvo, ["--machine", "kvo630", "--window", "0.006", "--max-speed", "400"],
-                  "kvo630")]
+                  "kvo630", 2 * math.pi * 1500 / 60)]
         print(f"{'data':34s} {'path':44s} {'samples':>7s} {'µs/sample':>10s} {'× real time':>12s}")
-        for name, src, args, machine in cases:
+        for name, src, args, machine, speed in cases:
             times = np.loadtxt(src, delimiter=",", skiprows=1, usecols=0)
             seconds, n = float(times[-1] - times[0]), len(times)
 
@@ -134,7 +135,7 @@ def main() -> int:
                 show("twin.py - --live (stdin pipe)" if live else "twin.py replay (file)", *best)
             values = {k: v for k, v in preset_values(machine).items() if k not in INPUTS}
             for native in (False, True):
-                wall = min(fmu_calls(values, n, native) for _ in range(a.repeat))
+                wall = min(fmu_calls(values, n, native, speed) for _ in range(a.repeat))
                 show("baseline: FMU calls alone, " + ("native batch" if native else "fmpy per sample"), wall, n)
     return 0
 

@@ -9,16 +9,15 @@ pub const MAX_NUMBER_LEN: usize = 24;
 
 /// Writes `x` into `out` (at least MAX_NUMBER_LEN bytes); returns the length.
 pub fn format_number(x: f64, out: &mut [u8]) -> usize {
-    if x.is_finite() {
+    if x.is_finite() && out.len() >= MAX_NUMBER_LEN {
         // Ryū's positional notation ("123.45", "100.0", "0.001") is Python's too, except with
         // four zeros after the point ("0.0000123", Python "1.23e-05"); its scientific notation
         // ("1e16", "1.5e-7") differs in the exponent. Those few are laid out again below.
-        let mut rb = ryu::Buffer::new();
-        let s = rb.format_finite(x).as_bytes();
-        let body = if s[0] == b'-' { &s[1..] } else { s };
+        // SAFETY: format64 writes at most 24 bytes (MAX_NUMBER_LEN) of a finite f64 into `out`.
+        let n = unsafe { ryu::raw::format64(x, out.as_mut_ptr()) };
+        let body = &out[usize::from(out[0] == b'-')..n];
         if !body.contains(&b'e') && !body.starts_with(b"0.0000") {
-            out[..s.len()].copy_from_slice(s);
-            return s.len();
+            return n;
         }
     }
     layout(x, out)
