@@ -8,9 +8,11 @@ in one run by a native C host (benches/c/host_loop.c) that loads both shared obj
 
 Per step: fmi2SetReal of the 3 crank inputs, fmi2DoStep (h = 1 ms), fmi2GetReal of 8 outputs;
 and fmi2DoStep alone. Runs of both FMUs alternate; each figure is the median of ROUNDS runs.
-Ratios hold across machines; absolute times do not (the machines are noisy).
+Ratios hold across machines; absolute times do not (the machines are noisy). With --instructions
+the same loop runs under valgrind's callgrind, which counts the instructions each FMU's functions
+execute per step: repeatable to the instruction, whatever else the machine is doing.
 
-    python3 scripts/bench_ratio.py [--steps 200000] [--rounds 9] [scenario name filter]
+    python3 scripts/bench_ratio.py [--steps 200000] [--rounds 9] [--instructions] [--fmu LIB] [filter]
 """
 
 from __future__ import annotations
@@ -18,8 +20,10 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
+import re
 import subprocess
 import sys
+import tempfile
 import xml.etree.ElementTree as ET
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -83,11 +87,46 @@ def preset(name: str) -> dict:
     return out
 
 
+def _fmi_instructions(cmd: list[str]) -> dict:
+    """Inclusive instructions of fmi2SetReal, fmi2DoStep and fmi2GetReal in one callgrind run of
+    the host (callgrind_annotate adds up same-named functions of both libraries)."""
+    with tempfile.TemporaryDirectory() as d:
+        out = pathlib.Path(d) / "callgrind.out"
+        subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *cmd],
+                       check=True, capture_output=True)
+        text = subprocess.run(["callgrind_annotate", "--inclusive=yes", "--threshold=100", str(out)],
+                              check=True, capture_output=True, text=True).stdout
+    count = {}
+    for f in ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal"):
+        pat = re.compile(r"^\s*([\d,]+)\s.*:" + f + r"( \[|$)", re.M)
+        count[f] = sum(int(m.group(1).replace(",", "")) for m in pat.finditer(text))
+    return count
+
+
+def instructions(base_cmd: list[str], cmd: list[str], steps: int) -> tuple:
+    """Instructions per step of the loop (fmi2SetReal + fmi2DoStep + fmi2GetReal) and of
+    fmi2DoStep alone, for the baseline and the FMU. The host makes steps/10 warm-up steps and one
+    round of `steps` in each mode (loop, then fmi2DoStep alone) on each of its two libraries;
+    `base_cmd` runs the baseline twice, `cmd` the baseline and the FMU, and the FMU's counts are
+    the difference."""
+    both_base, mixed = _fmi_instructions(base_cmd), _fmi_instructions(cmd)
+    calls = steps + steps // 10
+
+    def per_step(c):
+        dostep = c["fmi2DoStep"] / (2 * calls)
+        return (c["fmi2SetReal"] + c["fmi2GetReal"]) / calls + dostep, dostep
+
+    base = {f: v / 2 for f, v in both_base.items()}
+    fmu = {f: mixed[f] - base[f] for f in mixed}
+    return per_step(base), per_step(fmu)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("filter", nargs="?", default="")
     ap.add_argument("--steps", type=int, default=200_000)
     ap.add_argument("--rounds", type=int, default=9)
+    ap.add_argument("--instructions", action="store_true", help="count instructions under callgrind instead")
     ap.add_argument("--fmu", type=pathlib.Path, default=None,
                     help="another build of libReciprocatingDrive.so to measure (e.g. of an earlier commit)")
     a = ap.parse_args(argv)
@@ -96,9 +135,15 @@ def main(argv=None) -> int:
     guid, kinds = model_description()
     vr = {n: k[0] for n, k in kinds.items()}
     inputs = ",".join(str(vr[n]) for n in ("crank.angle", "crank.speed", "crank.acceleration"))
-    print(f"baseline: {base.relative_to(ROOT)} (gcc -O3); FMU: {lib}; "
-          f"{a.rounds} alternating runs of {a.steps} steps, medians")
-    print("| scenario | loop ns/step (Feedthrough / FMU) | loop ratio | target | fmi2DoStep ns (Feedthrough / FMU) | fmi2DoStep ratio |")
+    if a.instructions:
+        a.rounds = 1
+        print(f"baseline: {base.relative_to(ROOT)} (gcc -O3); FMU: {lib}; instructions per step (callgrind), "
+              f"{a.steps} steps")
+        print("| scenario | loop instructions/step (Feedthrough / FMU) | loop ratio | target | fmi2DoStep (Feedthrough / FMU) | fmi2DoStep ratio |")
+    else:
+        print(f"baseline: {base.relative_to(ROOT)} (gcc -O3); FMU: {lib}; "
+              f"{a.rounds} alternating runs of {a.steps} steps, medians")
+        print("| scenario | loop ns/step (Feedthrough / FMU) | loop ratio | target | fmi2DoStep ns (Feedthrough / FMU) | fmi2DoStep ratio |")
     print("|---|---|---|---|---|---|")
     for name, pre, overrides, outputs, target in SCENARIOS:
         if a.filter not in name:
@@ -111,16 +156,20 @@ def main(argv=None) -> int:
             tag = kinds[n][1]
             sets.append(f"r:{vr[n]}={v!r}" if tag == "Real" else f"i:{vr[n]}={int(v)}" if tag == "Integer"
                         else f"b:{vr[n]}={int(bool(v))}")
-        out = subprocess.run([str(host), str(base), "base", "0,1,2", "3,4,5,6,7,8,9,10",
-                              str(lib), guid, inputs, ",".join(str(vr[n]) for n in outputs),
-                              repr(speed), str(a.steps), str(a.rounds), *sets],
-                             check=True, capture_output=True, text=True).stdout
-        res = {}
-        for line in out.splitlines():
-            mode, _, b, _, f, _, r = line.split()
-            res[mode] = (float(b), float(f), float(r))
-        lb, lf, lr = res["loop"]
-        db, df, dr = res["dostep"]
+        cmd = [str(host), str(base), "base", "0,1,2", "3,4,5,6,7,8,9,10",
+               str(lib), guid, inputs, ",".join(str(vr[n]) for n in outputs),
+               repr(speed), str(a.steps), str(a.rounds), *sets]
+        if a.instructions:
+            base_cmd = cmd[:5] + cmd[1:5] + cmd[9:12]
+            (lb, db), (lf, df) = instructions(base_cmd, cmd, a.steps)
+            lr, dr = lf / lb, df / db
+        else:
+            res = {}
+            for line in subprocess.run(cmd, check=True, capture_output=True, text=True).stdout.splitlines():
+                mode, _, b, _, f, _, r = line.split()
+                res[mode] = (float(b), float(f), float(r))
+            lb, lf, lr = res["loop"]
+            db, df, dr = res["dostep"]
         mark = "met" if lr <= target else "NOT met"
         print(f"| {name} | {lb:.1f} / {lf:.1f} | **{lr:.2f}** | ≤ {target} ({mark}) | {db:.1f} / {df:.1f} | {dr:.2f} |",
               flush=True)

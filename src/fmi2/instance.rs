@@ -49,6 +49,8 @@ impl Failure {
     pub fn discard(message: impl Into<String>) -> Failure {
         Failure { severity: Severity::Discard, message: message.into() }
     }
+    #[cold]
+    #[inline(never)]
     pub fn illegal(function: &str, mode: Mode) -> Failure {
         Failure::error(format!("{function}: illegal call sequence: not allowed in state {mode:?}"))
     }
@@ -340,11 +342,15 @@ impl<M: FmuModel> Instance<M> {
         };
         let info = M::table().info();
         let mut first_output = None;
+        let mut need = 0u8;
         for &vr in vrs {
             match info.get(vr as usize) {
                 Some(v) if v.ty == ty => {
-                    if first_output.is_none() && v.output.is_some() {
-                        first_output = Some(vr as usize);
+                    if let Some(o) = v.output {
+                        need |= M::needs(o);
+                        if first_output.is_none() {
+                            first_output = Some(vr as usize);
+                        }
                     }
                 }
                 _ => return Err(Self::lookup_failure(function, vr, ty)),
@@ -365,6 +371,11 @@ impl<M: FmuModel> Instance<M> {
             (None, Some((m, s))) => Some((m, s)),
             (None, None) => None,
         };
+        if need != 0 {
+            if let Some((m, state)) = context {
+                M::prepare(m, &core.values, state, outputs, need)?;
+            }
+        }
         let mut non_finite: Vec<String> = Vec::new();
         for (k, &vr) in vrs.iter().enumerate() {
             let i = vr as usize;
@@ -482,28 +493,23 @@ impl<M: FmuModel> Instance<M> {
     /// fmi2DoStep: advances the model's state over [t, t+h] and brings the outputs to the new
     /// communication point. Nothing changes unless everything succeeds.
     pub fn do_step(&mut self, current: f64, h: f64) -> Result<(), Failure> {
-        self.require("fmi2DoStep", &[Mode::StepComplete])?;
-        if !(h > 0.0 && h.is_finite()) {
-            return Err(Failure::error(format!(
-                "fmi2DoStep: communicationStepSize = {h}; allowed: a finite number > 0"
-            )));
+        if self.core.mode != Mode::StepComplete {
+            return Err(Failure::illegal("fmi2DoStep", self.core.mode));
         }
         // Masters accumulate time in floating point; accept their point within a small fraction
         // of the step, but reject a skipped or repeated step.
         let slack = 1e-6 * h + 1e-12 * self.core.time.abs();
-        if !current.is_finite() || (current - self.core.time).abs() > slack {
-            return Err(Failure::error(format!(
-                "fmi2DoStep: currentCommunicationPoint = {current} does not match the FMU's time {} \
-                 (roll back with fmi2SetFMUstate to repeat a step)",
-                self.core.time
-            )));
+        if !(h > 0.0 && h.is_finite() && current.is_finite() && (current - self.core.time).abs() <= slack) {
+            return Err(self.step_arguments_failure(current, h));
         }
-        let model = self.model.as_ref().ok_or_else(|| Failure::illegal("fmi2DoStep", self.core.mode))?;
-        let fail = |e: ModelError| Failure::error(format!("fmi2DoStep from t = {current} s with h = {h} s failed: {e}"));
+        let Some(model) = self.model.as_ref() else { return Err(Failure::illegal("fmi2DoStep", self.core.mode)) };
         // The master's tolerance (fmi2SetupExperiment) wins over the model's own (§6).
         let tol = self.core.tolerance.unwrap_or_else(|| M::default_tolerance(model));
         let mut stats = self.stats;
-        let state = M::step(model, &self.core.values, &self.core.state, h, tol, &mut stats, &mut self.scratch).map_err(fail)?;
+        let state = match M::step(model, &self.core.values, &self.core.state, h, tol, &mut stats, &mut self.scratch) {
+            Ok(state) => state,
+            Err(e) => return Err(Self::step_failure(current, h, e)),
+        };
         let warning = M::step_warning(model, &self.core.state, &state);
         self.core.state = state;
         self.core.time = current + h;
@@ -520,6 +526,26 @@ impl<M: FmuModel> Instance<M> {
             self.warn("fmi2DoStep", &w);
         }
         Ok(())
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn step_arguments_failure(&self, current: f64, h: f64) -> Failure {
+        if !(h > 0.0 && h.is_finite()) {
+            Failure::error(format!("fmi2DoStep: communicationStepSize = {h}; allowed: a finite number > 0"))
+        } else {
+            Failure::error(format!(
+                "fmi2DoStep: currentCommunicationPoint = {current} does not match the FMU's time {} \
+                 (roll back with fmi2SetFMUstate to repeat a step)",
+                self.core.time
+            ))
+        }
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn step_failure(current: f64, h: f64, e: ModelError) -> Failure {
+        Failure::error(format!("fmi2DoStep from t = {current} s with h = {h} s failed: {e}"))
     }
 
     /// A model warning, with the function and the FMU's time.

@@ -102,6 +102,22 @@ pub trait FmuModel: Sized + 'static {
     fn output(built: &Self::Built, values: &[f64], state: &Self::State, cache: &mut Self::Outputs, output: Self::Output)
         -> Result<f64, ModelError>;
 
+    /// The model's mark of what `output` needs evaluated (a bit set; 0 for an eager model). The
+    /// glue ORs the marks of every output one fmi2GetReal asks for and passes them to
+    /// [`FmuModel::prepare`] once.
+    #[inline]
+    fn needs(_output: Self::Output) -> u8 {
+        0
+    }
+
+    /// Evaluates in one go what the outputs of one call need (`need`, from [`FmuModel::needs`]),
+    /// so that reading them finds them cached. An error fails the call.
+    #[inline]
+    fn prepare(_built: &Self::Built, _values: &[f64], _state: &Self::State, _cache: &mut Self::Outputs, _need: u8)
+        -> Result<(), ModelError> {
+        Ok(())
+    }
+
     /// The value of `output` when the cache already holds it (no evaluation, cannot fail): the
     /// glue's fast path before [`FmuModel::output`]. An eager model's valid cache always does.
     #[inline]

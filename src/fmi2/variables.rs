@@ -305,30 +305,25 @@ macro_rules! input {
     };
 }
 
-/// A Real output read from a field (path) of an eagerly evaluated outputs struct: the model's
-/// `Output` type is then `fn(&Outputs) -> f64`.
+/// A Real output read from a field (path) of the model's outputs struct: `output!(...)` for an
+/// eagerly evaluated struct (the model's `Output` type is then `fn(&Outputs) -> f64`), or
+/// `output!(GROUP => ...)` for a model that evaluates its outputs on demand by groups (`Output`
+/// is then `GroupedOutput<Outputs>`).
 macro_rules! output {
     ($name:literal, $($field:ident).+, $unit:literal, [$($dep:ident),*], $desc:literal) => {
         output!(Output, Continuous, $name, $($field).+, $unit, [$($dep),*], $desc)
     };
     ($causality:ident, $variability:ident, $name:literal, $($field:ident).+, $unit:literal, [$($dep:ident),*], $desc:literal) => {
-        $crate::fmi2::variables::Var {
-            name: $name,
-            ty: $crate::fmi2::variables::VarType::Real,
-            causality: $crate::fmi2::variables::Causality::$causality,
-            variability: $crate::fmi2::variables::Variability::$variability,
-            unit: $unit,
-            description: $desc,
-            range: $crate::fmi2::variables::Range::ANY,
-            binding: $crate::fmi2::variables::Binding::Output { get: |o| o.$($field).+, depends_on: &[$($dep),*] },
-        }
+        output!(@var $causality, $variability, $name, |o| o.$($field).+, $unit, [$($dep),*], $desc)
     };
-    // An output of a model evaluated on demand by groups: `GROUP => ...` (the model's
-    // `Output` type is then `GroupedOutput<Outputs>`).
     ($group:path => $name:literal, $($field:ident).+, $unit:literal, [$($dep:ident),*], $desc:literal) => {
         output!($group => Output, Continuous, $name, $($field).+, $unit, [$($dep),*], $desc)
     };
     ($group:path => $causality:ident, $variability:ident, $name:literal, $($field:ident).+, $unit:literal, [$($dep:ident),*], $desc:literal) => {
+        output!(@var $causality, $variability, $name,
+            $crate::fmi2::model::GroupedOutput { group: $group, get: |o| o.$($field).+ }, $unit, [$($dep),*], $desc)
+    };
+    (@var $causality:ident, $variability:ident, $name:literal, $get:expr, $unit:literal, [$($dep:ident),*], $desc:literal) => {
         $crate::fmi2::variables::Var {
             name: $name,
             ty: $crate::fmi2::variables::VarType::Real,
@@ -337,10 +332,7 @@ macro_rules! output {
             unit: $unit,
             description: $desc,
             range: $crate::fmi2::variables::Range::ANY,
-            binding: $crate::fmi2::variables::Binding::Output {
-                get: $crate::fmi2::model::GroupedOutput { group: $group, get: |o| o.$($field).+ },
-                depends_on: &[$($dep),*],
-            },
+            binding: $crate::fmi2::variables::Binding::Output { get: $get, depends_on: &[$($dep),*] },
         }
     };
 }
