@@ -44,8 +44,22 @@ class FmuError(RuntimeError):
         self.messages = list(messages)
 
 
+# The FMI 2.0 logger with the one variadic argument this project's FMUs pass (see _Log).
+_LOGGER6 = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p,
+                            ctypes.c_char_p, ctypes.c_char_p)
+
+
 class _Log:
-    """Keeps the FMU's log messages (fmpy's native proxy formats the printf arguments)."""
+    """Keeps the FMU's log messages.
+
+    The FMI logger is variadic, which ctypes cannot receive. fmpy's native proxy
+    (`fmpy.logging.addLoggerProxy`) formats the message but forwards it to one process-wide
+    Python callback: every instance that registers replaces it, so messages go to the last
+    instance registered, and once that instance is freed the next message calls freed memory.
+    This FMU's loggers are therefore taken directly: the FMUs of this project always call them as
+    (env, name, status, category, "%s", message), and on x86-64 (System V and Windows) the variadic
+    argument arrives where a sixth fixed argument would. Another FMU's format string is kept as
+    it is, unformatted."""
 
     def __init__(self, echo: bool):
         from fmpy.fmi2 import (
@@ -54,26 +68,26 @@ class _Log:
             fmi2CallbackFunctions,
             fmi2CallbackLoggerTYPE,
         )
-        from fmpy.logging import addLoggerProxy
 
         self.lines: list[tuple[int, str, str]] = []
         self.echo = echo
 
-        def logger(env, name, status, category, message):
-            text = message.decode("utf-8", "replace") if message else ""
+        def logger(env, name, status, category, fmt, arg):
+            raw = arg if fmt == b"%s" else fmt
+            text = raw.decode("utf-8", "replace") if raw else ""
             cat = category.decode() if category else ""
             self.lines.append((status, cat, text))
             if self.echo and status > 0:
                 print(f"[{_STATUS[status] if status < len(_STATUS) else status}] {text}")
 
         self.callbacks = fmi2CallbackFunctions()
-        self._fn = fmi2CallbackLoggerTYPE(logger)  # ctypes keeps no reference of its own
-        self.callbacks.logger = self._fn
+        # Kept with the instance: ctypes keeps no reference of its own.
+        self._fn = _LOGGER6(logger)
+        self.callbacks.logger = fmi2CallbackLoggerTYPE(ctypes.cast(self._fn, ctypes.c_void_p).value)
         libc = ctypes.CDLL(None)
         self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(libc.calloc)
         self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(libc.free)
         self.callbacks.componentEnvironment = None
-        addLoggerProxy(ctypes.byref(self.callbacks))
 
     def mark(self) -> int:
         return len(self.lines)

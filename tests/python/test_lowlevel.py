@@ -2,8 +2,8 @@
 after an error, several instances in one process, instance names, resource locations
 (docs/fmi-interface.md, "What importers pass" and "State machine").
 
-Every log message is captured by our own logger callback (fmpy's native proxy formats the
-variadic printf arguments first, as fmpy.simulate_fmu does for its `logger`).
+Every log message is captured by our own logger callback, which takes the FMU's "%s" format and
+its one variadic argument directly (see `Log`).
 """
 
 from __future__ import annotations
@@ -30,29 +30,39 @@ from reference import OUTPUTS, Machine
 OMEGA = 2 * math.pi * 65 / 60
 
 
+# The FMI 2.0 logger with its one variadic argument (see Log).
+LOGGER6 = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p,
+                           ctypes.c_char_p, ctypes.c_char_p)
+
+
 class Log:
-    """Collects (componentEnvironment, instanceName, status, category, message)."""
+    """Collects (componentEnvironment, instanceName, status, category, message).
+
+    The logger is received with the one variadic argument the FMU passes (it always logs through
+    a "%s" format, asserted here), not through fmpy's native proxy, whose single process-wide
+    callback would be left pointing at this object after it is freed."""
 
     def __init__(self, environment: int | None = None):
         self.lines: list[tuple] = []
+        self.formats: set = set()
 
-        def logger(env, name, status, category, message):
+        def logger(env, name, status, category, fmt, message):
+            self.formats.add(fmt)
             self.lines.append(
                 (env, name.decode() if name else None, status,
-                 category.decode() if category else None, message.decode() if message else "")
+                 category.decode() if category else None,
+                 message.decode() if fmt == b"%s" and message else "")
             )
 
         self.callbacks = fmi2CallbackFunctions()
-        self._fn = fmi2CallbackLoggerTYPE(logger)  # keep a reference: ctypes does not
-        self.callbacks.logger = self._fn
+        self._fn = LOGGER6(logger)  # keep a reference: ctypes does not
+        self.callbacks.logger = fmi2CallbackLoggerTYPE(ctypes.cast(self._fn, ctypes.c_void_p).value)
         self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(ctypes.CDLL(None).calloc)
         self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(ctypes.CDLL(None).free)
         self.callbacks.componentEnvironment = environment
-        from fmpy.logging import addLoggerProxy
-
-        addLoggerProxy(ctypes.byref(self.callbacks))
 
     def messages(self, status=None):
+        assert self.formats <= {b"%s"}, f"the FMU logged through formats {self.formats}"
         return [m for (_, _, s, _, m) in self.lines if status is None or s == status]
 
     def text(self):
