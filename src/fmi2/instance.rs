@@ -332,7 +332,7 @@ impl<M: FmuModel> Instance<M> {
     /// fmi2GetReal/Integer/Boolean: `out(i, value)` receives the i-th requested value.
     /// Every value reference is checked before anything is evaluated (a failing call changes
     /// nothing); outputs are evaluated at most once per change of time, inputs or parameters (a
-    /// lazy model evaluates only what is read, `FmuModel::output`).
+    /// lazy model evaluates, in one `FmuModel::prepare`, only what the call reads).
     pub fn get(&mut self, function: &str, ty: VarType, vrs: &[u32], mut out: impl FnMut(usize, f64)) -> Result<(), Failure> {
         let outputs_available = match self.core.mode {
             Mode::InitializationMode | Mode::StepComplete | Mode::Terminated => true,
@@ -491,7 +491,9 @@ impl<M: FmuModel> Instance<M> {
     }
 
     /// fmi2DoStep: advances the model's state over [t, t+h] and brings the outputs to the new
-    /// communication point. Nothing changes unless everything succeeds.
+    /// communication point, or, for a model whose step does not evaluate them
+    /// ([`FmuModel::step_evaluates`]), marks them stale to be evaluated when read. Nothing changes
+    /// unless everything succeeds.
     pub fn do_step(&mut self, current: f64, h: f64) -> Result<(), Failure> {
         if self.core.mode != Mode::StepComplete {
             return Err(Failure::illegal("fmi2DoStep", self.core.mode));
