@@ -332,7 +332,7 @@ impl<M: FmuModel> Instance<M> {
     /// fmi2GetReal/Integer/Boolean: `out(i, value)` receives the i-th requested value.
     /// Every value reference is checked before anything is evaluated (a failing call changes
     /// nothing); outputs are evaluated at most once per change of time, inputs or parameters (a
-    /// lazy model evaluates, in one `FmuModel::prepare`, only what the call reads).
+    /// lazy model evaluates, in one [`FmuModel::prepare`], only what the call reads).
     pub fn get(&mut self, function: &str, ty: VarType, vrs: &[u32], mut out: impl FnMut(usize, f64)) -> Result<(), Failure> {
         let outputs_available = match self.core.mode {
             Mode::InitializationMode | Mode::StepComplete | Mode::Terminated => true,
@@ -371,24 +371,16 @@ impl<M: FmuModel> Instance<M> {
             (None, Some((m, s))) => Some((m, s)),
             (None, None) => None,
         };
-        if need != 0 {
-            if let Some((m, state)) = context {
-                M::prepare(m, &core.values, state, outputs, need)?;
-            }
+        if let (Some((m, state)), true) = (context, need != 0) {
+            M::prepare(m, &core.values, state, outputs, need)?;
         }
         let mut non_finite: Vec<String> = Vec::new();
         for (k, &vr) in vrs.iter().enumerate() {
             let i = vr as usize;
             match info[i].output {
                 Some(get) => {
-                    let v = match M::cached(outputs, get) {
-                        Some(v) => v,
-                        None => {
-                            let Some((m, state)) = context else {
-                                return Err(Failure::error("output requested without a model (internal error)"));
-                            };
-                            M::output(m, &core.values, state, outputs, get)?
-                        }
+                    let Some(v) = M::read(outputs, get) else {
+                        return Err(Failure::error("output requested but not evaluated (internal error)"));
                     };
                     // No non-finite value leaves the FMU with fmi2OK (docs/hardening.md).
                     if !v.is_finite() && non_finite.len() < 8 {

@@ -7,10 +7,10 @@
 //! FMI types, and the glue never computes physics.
 //!
 //! Outputs: the glue does not hold an `Outputs` struct. It tells the model when its inputs or
-//! state changed ([`FmuModel::update_outputs`]) and asks for one output at a time
-//! ([`FmuModel::output`]); the model owns the cache in between. A model may evaluate everything
-//! at once in `update_outputs` (eager) or only mark its cache stale there and evaluate what an
-//! output needs on demand (lazy).
+//! state changed ([`FmuModel::update_outputs`]), lets it evaluate what one fmi2GetReal needs
+//! ([`FmuModel::prepare`]) and reads one output at a time ([`FmuModel::read`]); the model owns
+//! the cache in between. A model may evaluate everything at once in `update_outputs` (eager) or
+//! only mark its cache stale there and evaluate in `prepare` what the outputs read need (lazy).
 
 use std::fmt::Debug;
 
@@ -65,7 +65,7 @@ pub trait FmuModel: Sized + 'static {
     type Outputs: Default + Clone;
     /// Names an input of the table (where `fmi2SetReal` delivers it in the model).
     type Input: Copy + PartialEq + Debug + Send + Sync + 'static;
-    /// Names an output (or calculated parameter) of the table, as [`FmuModel::output`] reads it.
+    /// Names an output (or calculated parameter) of the table, as [`FmuModel::read`] reads it.
     type Output: Copy + Send + Sync + 'static;
     /// Work counters kept per instance (diagnostics only, not part of the FMU state).
     type Stats: Default + Copy;
@@ -98,10 +98,6 @@ pub trait FmuModel: Sized + 'static {
     fn update_outputs(built: &Self::Built, values: &[f64], state: &Self::State, cache: &mut Self::Outputs)
         -> Result<(), ModelError>;
 
-    /// The value of one output from an up-to-date cache (evaluating on demand if the model is lazy).
-    fn output(built: &Self::Built, values: &[f64], state: &Self::State, cache: &mut Self::Outputs, output: Self::Output)
-        -> Result<f64, ModelError>;
-
     /// The model's mark of what `output` needs evaluated (a bit set; 0 for an eager model). The
     /// glue ORs the marks of every output one fmi2GetReal asks for and passes them to
     /// [`FmuModel::prepare`] once.
@@ -118,17 +114,13 @@ pub trait FmuModel: Sized + 'static {
         Ok(())
     }
 
-    /// The value of `output` when the cache already holds it (no evaluation, cannot fail): the
-    /// glue's fast path before [`FmuModel::output`]. An eager model's valid cache always does.
-    #[inline]
-    fn cached(_cache: &Self::Outputs, _output: Self::Output) -> Option<f64> {
-        None
-    }
+    /// The value of `output` from the cache; None if the cache does not hold it (after
+    /// [`FmuModel::prepare`] of what `output` needs, it always does).
+    fn read(cache: &Self::Outputs, output: Self::Output) -> Option<f64>;
 
     /// One communication step of size `h` from `state`, to the tolerance `tol`; returns the new
     /// state and, when [`FmuModel::step_evaluates`], brings `out` up to date for it (as
-    /// `update_outputs` would). An error changes
-    /// nothing the caller keeps.
+    /// `update_outputs` would). An error changes nothing the caller keeps.
     #[allow(clippy::too_many_arguments)]
     fn step(
         built: &Self::Built,

@@ -39,7 +39,7 @@ pub enum Variability {
 pub enum Binding<M: FmuModel> {
     Param { get: fn(&M::Params) -> f64, set: fn(&mut M::Params, f64) },
     Input { slot: M::Input, start: f64 },
-    /// Outputs and calculated parameters: read through [`FmuModel::output`].
+    /// Outputs and calculated parameters: read through [`FmuModel::read`].
     Output { get: M::Output, depends_on: &'static [M::Input] },
 }
 

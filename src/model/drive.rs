@@ -382,7 +382,7 @@ impl Model {
 
     /// Kinematics, loads and the rod force of an elastic rod at one instant (§2–§6). P is
     /// implicit through the friction: found by the guide's contracting iteration, as the clamp
-    /// loads depend on P and ϑ. The starts from P solved on the stiffness table (its error is that of the friction
+    /// loads depend on P and ϑ. The iteration starts from P solved on the stiffness table (its error is that of the friction
     /// from the table, ~1e-13·|F_fr|, far inside the iteration's 1e-14 relative test), so it
     /// usually needs a single beam column, which is then reused for the outputs.
     // Always inlined: `Instant` is large (it carries the beam column of an elastic rod), and
@@ -506,11 +506,11 @@ impl Model {
         if out.ready == 0 {
             Self::check_inputs(crank, inputs)?;
         }
-        let theta = self.model_angle(crank);
-        let (w, eps) = (crank.speed, crank.acceleration);
         if let Mechanism::ElasticRodSlider(_, elastic) = &self.mechanism {
             return self.evaluate_elastic(crank, inputs, rod, elastic, out);
         }
+        let theta = self.model_angle(crank);
+        let (w, eps) = (crank.speed, crank.acceleration);
         if out.ready & groups::KINEMATICS == 0 {
             let k = self.kinematics_at(theta);
             out.model_angle = theta;

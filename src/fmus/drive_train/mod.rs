@@ -71,14 +71,9 @@ impl FmuModel for DriveTrainFmu {
         Ok(())
     }
 
-    #[inline]
-    fn output(_: &DriveTrain, _: &[f64], _: &DriveState, cache: &mut DriveOutputs, get: fn(&DriveOutputs) -> f64) -> Result<f64, ModelError> {
-        Ok(get(cache))
-    }
-
     /// Eager: a valid cache holds every output.
     #[inline]
-    fn cached(cache: &DriveOutputs, get: fn(&DriveOutputs) -> f64) -> Option<f64> {
+    fn read(cache: &DriveOutputs, get: fn(&DriveOutputs) -> f64) -> Option<f64> {
         Some(get(cache))
     }
 

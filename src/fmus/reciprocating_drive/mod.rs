@@ -101,7 +101,7 @@ impl FmuModel for ReciprocatingDrive {
         Ok(State { crank: state.crank, rod })
     }
 
-    /// Lazy: only marks the cache stale; [`Self::output`] evaluates what is read.
+    /// Lazy: only marks the cache stale; [`Self::prepare`] evaluates what is read.
     #[inline]
     fn update_outputs(_: &Model, _: &[f64], _: &State, cache: &mut Outputs) -> Result<(), ModelError> {
         cache.ready = 0;
@@ -116,20 +116,12 @@ impl FmuModel for ReciprocatingDrive {
     /// The groups of every output of one fmi2GetReal, evaluated in one call.
     #[inline]
     fn prepare(model: &Model, values: &[f64], state: &State, cache: &mut Outputs, need: u8) -> Result<(), ModelError> {
-        if need & !cache.ready != 0 {
-            model.evaluate_groups(&state.crank, &inputs(values), &state.rod, cache, need)?;
-        }
-        Ok(())
+        model.evaluate_groups(&state.crank, &inputs(values), &state.rod, cache, need)
     }
 
     #[inline]
-    fn cached(cache: &Outputs, output: GroupedOutput<Outputs>) -> Option<f64> {
+    fn read(cache: &Outputs, output: GroupedOutput<Outputs>) -> Option<f64> {
         (output.group & !cache.ready == 0).then(|| (output.get)(cache))
-    }
-
-    fn output(model: &Model, values: &[f64], state: &State, cache: &mut Outputs, output: GroupedOutput<Outputs>) -> Result<f64, ModelError> {
-        model.evaluate_groups(&state.crank, &inputs(values), &state.rod, cache, output.group)?;
-        Ok((output.get)(cache))
     }
 
     /// Advances the crank by the in-step extrapolation of docs/model.md §2 and an elastic rod's
