@@ -16,7 +16,9 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
+import queue
 import sys
+import threading
 import time
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -55,6 +57,48 @@ def chunks_of(raw, follow: bool, size: int, poll: float = 0.05):
                     yield lines[:ends[0]]
                 return
         yield lines
+
+
+class Writer:
+    """Writes the output rows (CSV formatted natively) and summaries on a worker thread, in order:
+    the formatting of one chunk runs on the second core while the FMU computes the next (both
+    native calls release the GIL). With `live` every chunk is flushed once written. `wait()`
+    returns when everything put is written and re-raises a failure of the worker."""
+
+    def __init__(self, out, summ, live: bool):
+        self.out, self.summ, self.live = out, summ, live
+        self.q: queue.Queue = queue.Queue(maxsize=8)
+        self.error = None
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def put(self, rows, sums) -> None:
+        if self.error is not None:
+            self.wait()
+        if len(rows) or sums:
+            self.q.put((rows, sums))
+
+    def _run(self) -> None:
+        while True:
+            rows, sums = self.q.get()
+            try:
+                if self.error is None:
+                    if len(rows):
+                        self.out.write(format_csv(rows))
+                    for s in sums:
+                        self.summ.write(",".join(fmt(s[k]) for k in SUMMARY_FIELDS) + "\n")
+                    if self.live:
+                        self.out.flush()
+                        self.summ.flush()
+            except BaseException as e:  # noqa: BLE001 - re-raised in the main thread by wait()
+                self.error = e
+            finally:
+                self.q.task_done()
+
+    def wait(self) -> None:
+        self.q.join()
+        if self.error is not None:
+            raise self.error
 
 
 def fmt(v) -> str:
@@ -115,19 +159,14 @@ def main(argv=None) -> int:
 
     # Unbuffered reads: each returns what is available now (live), or a large block (replay).
     src = sys.stdin.buffer.raw if a.input == "-" else open(a.input, "rb", buffering=0)
-    # Blocks of at most 64 KiB (about 2000 lines): what a pipe holds; bounded memory in replay.
+    # Blocks of at most 64 KiB (about 2000 lines): what a pipe holds, bounded memory in replay,
+    # and chunks small enough that writing one overlaps computing the next.
     size = 1 << 16
-
-    def emit(rows, sums):
-        if len(rows):
-            out.write(format_csv(rows))
-        for s in sums:
-            summ.write(",".join(fmt(s[k]) for k in SUMMARY_FIELDS) + "\n")
-        if a.live and (len(rows) or sums):
-            out.flush()
-            summ.flush()
+    writer = Writer(out, summ, a.live)
+    emit = writer.put
 
     def checkpoint():
+        writer.wait()
         out.flush()
         summ.flush()
         cp = twin.checkpoint()
@@ -158,15 +197,18 @@ def main(argv=None) -> int:
                 if a.stop_after and lineno >= a.stop_after:
                     if a.checkpoint:
                         checkpoint()
+                    writer.wait()
                     out.close()
                     summ.close()
                     print(f"stopped after line {lineno}" + (f"; checkpoint {a.checkpoint}" if a.checkpoint else ""))
                     return 0
         emit(*twin.finish())
+        writer.wait()
     except (DataError, FmuError, ValueError) as e:
         # What was computed before the bad sample is written, then the run stops.
         if getattr(e, "rows", None) is not None:
             emit(e.rows, getattr(e, "summaries", []))
+        writer.wait()
         out.close()
         summ.close()
         print(f"twin.py: {e}", file=sys.stderr)
