@@ -60,29 +60,32 @@ def chunks_of(raw, follow: bool, size: int, poll: float = 0.05):
 
 
 class Writer:
-    """Writes the output rows (CSV formatted natively) and summaries on a worker thread, in order:
-    the formatting of one chunk runs on the second core while the FMU computes the next (both
-    native calls release the GIL). With `live` every chunk is flushed once written. `wait()`
-    returns when everything put is written and re-raises a failure of the worker."""
+    """Writes the output rows (CSV formatted natively) and makes and writes the revolution
+    summaries on a worker thread, in order: this runs on the second core while the FMU computes
+    the next chunk (the native calls release the GIL, and the FMU's is most of the main thread's
+    time). With `live` every chunk is flushed once written. `wait()` returns when everything put
+    is written and re-raises a failure of the worker."""
 
-    def __init__(self, out, summ, live: bool):
-        self.out, self.summ, self.live = out, summ, live
+    def __init__(self, twin, out, summ, live: bool):
+        self.twin, self.out, self.summ, self.live = twin, out, summ, live
         self.q: queue.Queue = queue.Queue(maxsize=8)
         self.error = None
         self.thread = threading.Thread(target=self._run, daemon=True)
         self.thread.start()
 
-    def put(self, rows, sums) -> None:
+    def put(self, rows, pieces) -> None:
+        """Rows to write, and the pieces of the summaries (Twin.defer_summaries)."""
         if self.error is not None:
             self.wait()
-        if len(rows) or sums:
-            self.q.put((rows, sums))
+        if len(rows) or pieces:
+            self.q.put((rows, pieces))
 
     def _run(self) -> None:
         while True:
-            rows, sums = self.q.get()
+            rows, pieces = self.q.get()
             try:
                 if self.error is None:
+                    sums = self.twin.summaries(pieces)
                     if len(rows):
                         self.out.write(format_csv(rows))
                     for s in sums:
@@ -162,7 +165,8 @@ def main(argv=None) -> int:
     # Blocks of at most 64 KiB (about 2000 lines): what a pipe holds, bounded memory in replay,
     # and chunks small enough that writing one overlaps computing the next.
     size = 1 << 16
-    writer = Writer(out, summ, a.live)
+    twin.defer_summaries = True  # made on the writer's thread
+    writer = Writer(twin, out, summ, a.live)
     emit = writer.put
 
     def checkpoint():

@@ -189,7 +189,12 @@ class _Segment:
 class Twin:
     """One twin run. `feed(lines, first_lineno)` takes consecutive input lines; it returns the
     output rows now ready (a 2-D array: time then the FMU's outputs) and the revolution summaries
-    now complete. `finish()` flushes the rest at the end of the input."""
+    now complete. `finish()` flushes the rest at the end of the input.
+
+    With `defer_summaries` set, `feed` and `finish` return, instead of the summaries, the pieces
+    they are made from, and `summaries(pieces)` makes them: on another thread, in order, while
+    this one goes on with the next input (scripts/twin.py does so). The revolution state is then
+    only touched by `summaries`, so `checkpoint()` must wait until every piece is summarized."""
 
     def __init__(self, fmu_path: str, machine: str = "default", options: Options | None = None,
                  extra_values: dict | None = None):
@@ -211,6 +216,8 @@ class Twin:
         self.gaps: list = []
         self.rev_parts: list = []  # rows of the revolution in progress (and the sample before it)
         self.rev_next = None       # index of the next revolution to complete
+        self.defer_summaries = False
+        self._pending: list = []   # rows for the summaries, None where a segment starts
         self.lines_read = 0        # input lines consumed (header included)
         self.rows_out = 0
         self.messages: list = []
@@ -227,24 +234,24 @@ class Twin:
     def feed(self, lines: list[str], first_lineno: int) -> tuple[np.ndarray, list]:
         """Lines first_lineno, first_lineno + 1, ... of the input. On bad data the samples before
         it are processed and DataError carries their rows and summaries."""
-        rows, sums = [self._empty()], []
+        rows = [self._empty()]
         if lines and self.cols is None:
             self.cols = parse_header(lines[0])
             lines, first_lineno = lines[1:], first_lineno + 1
         self.lines_read = first_lineno + len(lines) - 1
         if not lines:
-            return self._empty(), []
+            return self._empty(), self._take_summaries()
         (ln, t, a, w, f), err = parse_lines(lines, first_lineno, self.cols)
         try:
-            err = self._accept(ln, t, a, w, f, rows, sums) or err
+            err = self._accept(ln, t, a, w, f, rows) or err
         except (DataError, FmuError) as e:
             err = e
         if err is not None:
-            err.rows, err.summaries = np.concatenate(rows), sums
+            err.rows, err.summaries = np.concatenate(rows), self._take_summaries()
             raise err
-        return np.concatenate(rows), sums
+        return np.concatenate(rows), self._take_summaries()
 
-    def _accept(self, ln, t, a, w, f, rows, sums) -> DataError | None:
+    def _accept(self, ln, t, a, w, f, rows) -> DataError | None:
         """Validates, unwraps and conditions parsed samples; returns the first DataError of the
         checks that depend on the previous samples, after processing the samples before it."""
         o = self.o
@@ -315,7 +322,7 @@ class Twin:
                 self.gaps.append((t0, t1))
                 self.messages.append(f"gap of {t1 - t0:.6g} s from t = {t0!r} s to {t1!r} s (line {ln[lo]}): "
                                      "the FMU is re-initialized after it")
-                self._emit(self._drain(final=True), rows, sums)
+                self._emit(self._drain(final=True), rows)
                 self.buf = _Segment()
             if hi > lo:
                 self.buf.append(t=t[lo:hi], theta=theta[lo:hi], speed=w[lo:hi], force=f[lo:hi], line=ln[lo:hi])
@@ -325,19 +332,35 @@ class Twin:
                     self.half = cond.window_samples(o.window, d)
                 self.last_raw, self.last_unwrapped, self.last_t = float(a[hi - 1]), float(theta[hi - 1]), float(t[hi - 1])
         if self.half is not None:
-            self._emit(self._drain(final=False), rows, sums)
+            self._emit(self._drain(final=False), rows)
         return err
 
     def finish(self) -> tuple[np.ndarray, list]:
         if self.half is None:
             self.half = 2
-        rows, sums = [self._empty()], []
-        self._emit(self._drain(final=True), rows, sums)
-        return np.concatenate(rows), sums
+        rows = [self._empty()]
+        self._emit(self._drain(final=True), rows)
+        return np.concatenate(rows), self._take_summaries()
 
-    def _emit(self, r: np.ndarray, rows: list, sums: list) -> None:
+    def _emit(self, r: np.ndarray, rows: list) -> None:
         rows.append(r)
-        sums += self._revolutions(r)
+        if len(r):
+            self._pending.append(r)
+
+    def _take_summaries(self) -> list:
+        """The summaries of what was emitted since the last call (or its pieces, when deferred)."""
+        pieces, self._pending = self._pending, []
+        return pieces if self.defer_summaries else self.summaries(pieces)
+
+    def summaries(self, pieces: list) -> list:
+        """Summaries of the revolutions completed by these pieces (rows; None starts a segment)."""
+        out = []
+        for r in pieces:
+            if r is None:
+                self.rev_parts, self.rev_next = [], None
+            else:
+                out += self._revolutions(r)
+        return out
 
     # ---- conditioning and the FMU ---------------------------------------------------------------
 
@@ -385,7 +408,7 @@ class Twin:
             self.fmu.start({**self.values, **dict(zip(INPUTS, map(float, inputs[0])))}, start_time=float(rows[0, 0]))
             self.channel = self.fmu.channel(list(INPUTS), self.outputs)
             self.channel.read(rows[0, 1:])
-            self.rev_parts, self.rev_next = [], None
+            self._pending.append(None)  # the summaries start again with this segment
             self.rows_out += 1
             first = 1
         try:
@@ -436,6 +459,8 @@ class Twin:
     def checkpoint(self) -> dict:
         """Everything needed to continue exactly: the FMU's serialized state and time, the
         position in the input, and the twin's buffers."""
+        if self._pending:
+            raise RuntimeError("checkpoint with revolution summaries still pending")
         b = self.buf
         rev = np.concatenate(self.rev_parts) if self.rev_parts else self._empty()
         return {
