@@ -64,19 +64,20 @@ class Writer:
     summaries on a worker thread, in order: this runs on the second core while the FMU computes
     the next chunk (the native calls release the GIL, and the FMU's is most of the main thread's
     time). With `live` every chunk is flushed once written. `wait()` returns when everything put
-    is written and re-raises a failure of the worker."""
+    is written. A failure of the worker is raised once, in the main thread, by the next `put` or
+    `wait`; after it nothing more is written."""
 
     def __init__(self, twin, out, summ, live: bool):
         self.twin, self.out, self.summ, self.live = twin, out, summ, live
         self.q: queue.Queue = queue.Queue(maxsize=8)
         self.error = None
+        self.reported = False
         self.thread = threading.Thread(target=self._run, daemon=True)
         self.thread.start()
 
     def put(self, rows, pieces) -> None:
         """Rows to write, and the pieces of the summaries (Twin.defer_summaries)."""
-        if self.error is not None:
-            self.wait()
+        self._raise()
         if len(rows) or pieces:
             self.q.put((rows, pieces))
 
@@ -100,7 +101,11 @@ class Writer:
 
     def wait(self) -> None:
         self.q.join()
-        if self.error is not None:
+        self._raise()
+
+    def _raise(self) -> None:
+        if self.error is not None and not self.reported:
+            self.reported = True
             raise self.error
 
 
@@ -208,7 +213,7 @@ def main(argv=None) -> int:
                     return 0
         emit(*twin.finish())
         writer.wait()
-    except (DataError, FmuError, ValueError) as e:
+    except (DataError, FmuError, ValueError, OSError) as e:
         # What was computed before the bad sample is written, then the run stops.
         if getattr(e, "rows", None) is not None:
             emit(e.rows, getattr(e, "summaries", []))
