@@ -194,7 +194,8 @@ class Twin:
     With `defer_summaries` set, `feed` and `finish` return, instead of the summaries, the pieces
     they are made from, and `summaries(pieces)` makes them: on another thread, in order, while
     this one goes on with the next input (scripts/twin.py does so). The revolution state is then
-    only touched by `summaries`, so `checkpoint()` must wait until every piece is summarized."""
+    only touched by `summaries`, so the caller takes `checkpoint()` only once every piece handed
+    out has been summarized (feed and finish hand out all they emitted)."""
 
     def __init__(self, fmu_path: str, machine: str = "default", options: Options | None = None,
                  extra_values: dict | None = None):
@@ -233,7 +234,7 @@ class Twin:
 
     def feed(self, lines: list[str], first_lineno: int) -> tuple[np.ndarray, list]:
         """Lines first_lineno, first_lineno + 1, ... of the input. On bad data the samples before
-        it are processed and DataError carries their rows and summaries."""
+        it are processed and DataError carries their rows and summaries (pieces, when deferred)."""
         rows = [self._empty()]
         if lines and self.cols is None:
             self.cols = parse_header(lines[0])
@@ -459,8 +460,6 @@ class Twin:
     def checkpoint(self) -> dict:
         """Everything needed to continue exactly: the FMU's serialized state and time, the
         position in the input, and the twin's buffers."""
-        if self._pending:
-            raise RuntimeError("checkpoint with revolution summaries still pending")
         b = self.buf
         rev = np.concatenate(self.rev_parts) if self.rev_parts else self._empty()
         return {

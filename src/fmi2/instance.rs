@@ -371,8 +371,9 @@ impl<M: FmuModel> Instance<M> {
             (None, Some((m, s))) => Some((m, s)),
             (None, None) => None,
         };
-        if let (Some((m, state)), true) = (context, need != 0) {
-            M::prepare(m, &core.values, state, outputs, need)?;
+        match context {
+            Some((m, state)) if need != 0 => M::prepare(m, &core.values, state, outputs, need)?,
+            _ => {}
         }
         let mut non_finite: Vec<String> = Vec::new();
         for (k, &vr) in vrs.iter().enumerate() {
