@@ -247,10 +247,7 @@ class Twin:
             err = self._accept(ln, t, a, w, f, rows) or err
         except (DataError, FmuError) as e:
             err = e
-        if err is not None:
-            err.rows, err.summaries = np.concatenate(rows), self._take_summaries()
-            raise err
-        return np.concatenate(rows), self._take_summaries()
+        return self._hand_out(rows, err)
 
     def _accept(self, ln, t, a, w, f, rows) -> DataError | None:
         """Validates, unwraps and conditions parsed samples; returns the first DataError of the
@@ -323,7 +320,7 @@ class Twin:
                 self.gaps.append((t0, t1))
                 self.messages.append(f"gap of {t1 - t0:.6g} s from t = {t0!r} s to {t1!r} s (line {ln[lo]}): "
                                      "the FMU is re-initialized after it")
-                self._emit(self._drain(final=True), rows)
+                self._drain(True, rows)
                 self.buf = _Segment()
             if hi > lo:
                 self.buf.append(t=t[lo:hi], theta=theta[lo:hi], speed=w[lo:hi], force=f[lo:hi], line=ln[lo:hi])
@@ -333,15 +330,26 @@ class Twin:
                     self.half = cond.window_samples(o.window, d)
                 self.last_raw, self.last_unwrapped, self.last_t = float(a[hi - 1]), float(theta[hi - 1]), float(t[hi - 1])
         if self.half is not None:
-            self._emit(self._drain(final=False), rows)
+            self._drain(False, rows)
         return err
 
     def finish(self) -> tuple[np.ndarray, list]:
         if self.half is None:
             self.half = 2
-        rows = [self._empty()]
-        self._emit(self._drain(final=True), rows)
-        return np.concatenate(rows), self._take_summaries()
+        rows, err = [self._empty()], None
+        try:
+            self._drain(True, rows)
+        except (DataError, FmuError) as e:
+            err = e
+        return self._hand_out(rows, err)
+
+    def _hand_out(self, rows: list, err: Exception | None) -> tuple[np.ndarray, list]:
+        """The rows emitted and their summaries; with an error, raises it carrying them."""
+        out = np.concatenate(rows), self._take_summaries()
+        if err is not None:
+            err.rows, err.summaries = out
+            raise err
+        return out
 
     def _emit(self, r: np.ndarray, rows: list) -> None:
         rows.append(r)
@@ -365,9 +373,10 @@ class Twin:
 
     # ---- conditioning and the FMU ---------------------------------------------------------------
 
-    def _drain(self, final: bool) -> np.ndarray:
-        """Outputs of the samples whose smoothing window is complete (all of them when the segment
-        ends), in blocks of at most BLOCK."""
+    def _drain(self, final: bool, rows: list) -> None:
+        """Emits into `rows` the outputs of the samples whose smoothing window is complete (all of
+        them when the segment ends), in blocks of at most BLOCK. When the FMU fails, the samples
+        before the failing one are emitted before the error goes on."""
         b = self.buf
         n = len(b.t)
         half = self.half or 2
@@ -375,32 +384,32 @@ class Twin:
         # A sample's window is complete when `half` samples follow it (or the segment ended).
         ready = n if final else (max(0, n - half) if n >= width else 0)
         if ready <= b.done:
-            return self._empty()
+            return
         if n < cond.DEGREE + 1:
             raise DataError(f"line {b.line[0]}: a segment of {n} sample(s) between gaps is too short "
                             f"(at least {cond.DEGREE + 1} are needed)")
-        out = []
         for lo in range(b.done, ready, BLOCK):
             centres = np.arange(lo, min(ready, lo + BLOCK))
             w_est, e_est = local_cubic(b.t, b.theta, half, lo, len(centres))
             w = np.where(np.isnan(b.speed[centres]), w_est, b.speed[centres])
             inputs = np.column_stack([b.theta[centres], w, e_est, b.force[centres]])
-            rows = np.empty((len(centres), 1 + len(self.outputs)))
-            rows[:, 0] = b.t[centres]
+            block = np.empty((len(centres), 1 + len(self.outputs)))
+            block[:, 0] = b.t[centres]
             try:
-                self._fmu_rows(rows, inputs, b.segment_start and lo == 0)
+                self._fmu_rows(block, inputs, b.segment_start and lo == 0)
             except FmuError as e:
-                out.append(rows[:getattr(e, "index", 0)])
-                e.rows = np.concatenate(out)
+                k = getattr(e, "index", 0)
+                self._emit(block[:k], rows)
+                if k < len(centres):
+                    e.args = (f"line {int(b.line[centres[k]])} (t = {float(b.t[centres[k]])!r} s): {e}",)
                 raise
-            out.append(rows)
+            self._emit(block, rows)
             b.done = int(centres[-1]) + 1
         # Keep only what later windows can still reach.
         keep_from = max(0, b.done - width)
         if keep_from > 0:
             b.drop(keep_from)
             b.segment_start = False
-        return np.concatenate(out)
 
     def _fmu_rows(self, rows, inputs, new_segment) -> None:
         """Outputs into rows[:, 1:] for the inputs at the times rows[:, 0]."""

@@ -7,6 +7,8 @@ crank-slider's acceleration a = TF·ε + TF′·ω² in closed form (docs/model.
 * the shipped encoder data (4096 counts/rev, jitter, a gap): within 1 % of its peak away from the
   gap (and the smoothing window around it);
 * every bad-data case stops with its message and line number;
+* an FMU that fails in the middle of a chunk: the samples before the failing one are written,
+  equal to a run where nothing fails, and the message names the failing line;
 * live mode (standard input, each line flushed) and replay give identical files;
 * a run stopped with a checkpoint and resumed gives files identical to an uninterrupted run.
 """
@@ -91,6 +93,31 @@ def test_bad_data_is_refused_with_its_line(fmu_path, tmp_path, text, args, messa
     src.write_text(text)
     p = run([src, "--out", tmp_path / "o.csv", *args], fmu_path, check=False)
     assert p.returncode != 0 and message in p.stderr, p.stderr
+
+
+def test_fmu_failure_keeps_the_samples_before_it(fmu_path, tmp_path):
+    """kvo630 whose process force jumps to 1e5 N at sample 2000 (line 2002): the elastic rod
+    buckles there. All 2000 samples before it are in one input block with it; their rows and the
+    summaries of the revolutions they complete must equal those of the same data without the
+    jump, and the message must name the line."""
+    w = 2 * math.pi * 1500 / 60
+    t = np.arange(3001) / 1000.0
+    angle = np.mod(w * t, 2 * math.pi)
+    common = ["--machine", "kvo630", "--window", "0.006", "--max-speed", "400"]
+    outs = {}
+    for name, jump in (("calm", 0.0), ("buckled", 1e5)):
+        src = tmp_path / f"{name}.csv"
+        src.write_text("time,crank_angle,process_force\n" + "".join(
+            f"{float(a)!r},{float(b)!r},{(jump if k >= 2000 else 0.0)!r}\n" for k, (a, b) in enumerate(zip(t, angle))))
+        outs[name] = run([src, *common, "--out", tmp_path / f"{name}-out.csv"], fmu_path, check=jump == 0.0)
+    p = outs["buckled"]
+    assert p.returncode == 1 and "line 2002 (t = 2.0 s)" in p.stderr and "buckled" in p.stderr, p.stderr
+    calm = (tmp_path / "calm-out.csv").read_text().splitlines()
+    buckled = (tmp_path / "buckled-out.csv").read_text().splitlines()
+    assert len(buckled) == 1 + 2000 and buckled == calm[:len(buckled)]
+    calm_s = (tmp_path / "calm-out-revolutions.csv").read_text().splitlines()
+    buckled_s = (tmp_path / "buckled-out-revolutions.csv").read_text().splitlines()
+    assert len(buckled_s) > 40 and buckled_s == calm_s[:len(buckled_s)]
 
 
 def test_duplicates_are_dropped_and_counted(fmu_path, tmp_path):
