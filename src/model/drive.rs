@@ -709,16 +709,20 @@ struct TableSolution {
 
 /// Solves `P = p_base + F_fr(P)` (§4, §5.4) with the clamp loads `M0 = m_Δ(P)·Δ + m_ϑ(P)·ϑ`,
 /// `V = v_Δ(P)·Δ − K_Δ(P)·ϑ` from the stiffness table, by Newton's method from `guess`; P = p_base
-/// without guide. Stops when the Newton step is ≤ `rel_tol`·max(|P|, |p_base|, |F_fr|) (or
-/// exactly zero), and then moves K_ϑ, K_Δ to the new P to first order (the remaining error is
-/// second order in a step that small). None when P leaves the table or Newton does not settle
-/// (the caller then solves exactly, which also reports buckling and non-convergence).
+/// without guide. Stops when a step is ≤ `rel_tol`·max(|P|, |p_base|, |F_fr|) (or exactly
+/// zero), and then moves K_ϑ, K_Δ to the new P to first order (the remaining error is second
+/// order in a step that small). None when P leaves the table or Newton does not settle (the
+/// caller then solves exactly, which also reports buckling and non-convergence).
 ///
 /// WHY Newton: the residual `p_base + F_fr(P) − P` is piecewise smooth with slope −1 + F_fr'
 /// (|F_fr'| ~ 1e-3 for kvo630), so from the previous stage's friction the first step leaves an
 /// error ~F_fr''·e0² (~1e-12 N) and the second step meets the test; the slope comes with the
 /// values (table.rs gives d/dP). At a kink of the friction law the one-sided slope still
-/// contracts.
+/// contracts. WHY the second step with the first one's slope (a simplified Newton step): the
+/// slope changes by ~F_fr''·e0 across the first step, which changes a step of ~1e-12 N by a
+/// relative ~1e-8, so only the values are evaluated there (`StiffnessTable::values`,
+/// `ClampFriction::total`), at about half the cost of values and slopes; a step that does not
+/// yet meet the test continues as a full Newton iteration from its end.
 // `!(d > 0)` also catches NaN.
 #[allow(clippy::too_many_arguments, clippy::neg_cmp_op_on_partial_ord)]
 #[inline]
@@ -738,6 +742,7 @@ fn solve_on_table(
         let c = table.eval(cell, p_base);
         return Some(TableSolution { p: p_base, k_theta: c.value[K_THETA], k_delta: c.value[K_DELTA], cell });
     };
+    let converged = |step: f64, p: f64, f: f64| step.abs() <= rel_tol * p.abs().max(p_base.abs()).max(f.abs());
     let mut p = guess;
     let mut cell = hint;
     for _ in 0..MAX_TABLE_NEWTON_STEPS {
@@ -755,7 +760,21 @@ fn solve_on_table(
             return None;
         }
         let step = (p_base + f - p) / denominator;
-        if step.abs() <= rel_tol * p.abs().max(p_base.abs()).max(f.abs()) {
+        if converged(step, p, f) {
+            return Some(TableSolution {
+                p: p + step,
+                k_theta: v[K_THETA] + d[K_THETA] * step,
+                k_delta: v[K_DELTA] + d[K_DELTA] * step,
+                cell,
+            });
+        }
+        // The simplified Newton step from the end of this one.
+        p += step;
+        cell = table.find(p, cell)?;
+        let v = table.values(cell, p);
+        let f = cf.total(v[M_DELTA] * delta + v[M_THETA] * theta, v[V_DELTA] * delta - v[K_DELTA] * theta);
+        let step = (p_base + f - p) / denominator;
+        if converged(step, p, f) {
             return Some(TableSolution {
                 p: p + step,
                 k_theta: v[K_THETA] + d[K_THETA] * step,
