@@ -17,8 +17,11 @@ use reciprocating_drive::model::crank::CrankState;
 use reciprocating_drive::model::drive::{Inputs, Model, Outputs, RodState};
 use reciprocating_drive::model::params::Params;
 
+/// Reads one output from `Outputs`.
+type Reader = fn(&Outputs) -> f64;
+
 /// Every Real output and calculated parameter, in table order, with its value in `Outputs`.
-fn outputs() -> Vec<(&'static str, fn(&Outputs) -> f64)> {
+fn outputs() -> Vec<(&'static str, Reader)> {
     VARIABLES
         .iter()
         .filter(|v| matches!(v.causality, Causality::Output | Causality::CalculatedParameter))

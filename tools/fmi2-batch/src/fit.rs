@@ -46,6 +46,8 @@ pub fn at(t: &[f64], theta: &[f64], half: usize, c: usize) -> Option<(f64, f64)>
 }
 
 /// Gaussian elimination with partial pivoting of an augmented N×(N+1) system.
+// Index loops mirror the elimination's formulas; `!(x > 0)` also rejects NaN.
+#[allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 fn solve(mut m: [[f64; N + 1]; N]) -> Option<[f64; N]> {
     for k in 0..N {
         let p = (k..N).max_by(|&i, &j| m[i][k].abs().total_cmp(&m[j][k].abs()))?;

@@ -204,7 +204,7 @@ pub extern "C" fn fmi2_batch_max_number_len() -> usize {
 pub unsafe extern "C" fn fmi2_batch_local_cubic(t: *const f64, theta: *const f64, n: usize, half: usize, first: usize,
                                                 count: usize, out_w: *mut f64, out_e: *mut f64) -> isize {
     let result = catch_unwind(AssertUnwindSafe(|| {
-        if n < 4 || half < 2 || first.checked_add(count).map_or(true, |end| end > n) {
+        if n < 4 || half < 2 || first.checked_add(count).is_none_or(|end| end > n) {
             return BAD_ARGUMENTS;
         }
         let (Some(t), Some(theta), Some(w), Some(e)) =
