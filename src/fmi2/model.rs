@@ -138,6 +138,14 @@ pub trait FmuModel: Sized + 'static {
         true
     }
 
+    /// A step with nothing to integrate, made in place: `Some` when the built model has no
+    /// continuous state (the glue then skips [`FmuModel::step`], the integrator's statistics,
+    /// the tolerance and the step warning, and reads the outputs when asked), `None` when
+    /// [`FmuModel::step`] must run. On `Some(Err)` the state is unchanged.
+    fn step_without_state(_built: &Self::Built, _values: &[f64], _state: &mut Self::State, _h: f64) -> Option<Result<(), ModelError>> {
+        None
+    }
+
     /// The integrator tolerance when fmi2SetupExperiment gives none.
     fn default_tolerance(built: &Self::Built) -> f64;
 

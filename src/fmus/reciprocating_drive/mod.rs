@@ -137,25 +137,38 @@ impl FmuModel for ReciprocatingDrive {
         stats: &mut IntegratorStats,
         out: &mut Outputs,
     ) -> Result<State, ModelError> {
-        let crank = state.crank.extrapolate(h);
-        if model.has_state() {
-            let inputs = inputs(values);
-            let rod = model.step(&state.crank, &inputs, &state.rod, h, tol, stats)?;
-            model.evaluate_into(&crank, &inputs, &rod, out)?;
-            Ok(State { crank, rod })
-        } else {
-            // The inputs were checked when set; the crank carried forward may still overflow.
-            if !(crank.angle + crank.speed + crank.acceleration).is_finite() {
-                Model::check_inputs(&crank, &inputs(values))?;
-            }
-            Ok(State { crank, rod: state.rod })
+        let mut next = *state;
+        if let Some(done) = Self::step_without_state(model, values, &mut next, h) {
+            return done.map(|()| next);
         }
+        let crank = state.crank.extrapolate(h);
+        let inputs = inputs(values);
+        let rod = model.step(&state.crank, &inputs, &state.rod, h, tol, stats)?;
+        model.evaluate_into(&crank, &inputs, &rod, out)?;
+        Ok(State { crank, rod })
     }
 
     /// Only an elastic rod's step evaluates its outputs (see the module doc).
     #[inline]
     fn step_evaluates(model: &Model) -> bool {
         model.has_state()
+    }
+
+    /// A rigid rod: the step only carries the crank forward (§2).
+    #[inline]
+    fn step_without_state(model: &Model, values: &[f64], state: &mut State, h: f64) -> Option<Result<(), ModelError>> {
+        if model.has_state() {
+            return None;
+        }
+        let crank = state.crank.extrapolate(h);
+        // The inputs were checked when set; the crank carried forward may still overflow.
+        if !(crank.angle + crank.speed + crank.acceleration).is_finite() {
+            if let Err(e) = Model::check_inputs(&crank, &inputs(values)) {
+                return Some(Err(e));
+            }
+        }
+        state.crank = crank;
+        Some(Ok(()))
     }
 
     fn default_tolerance(model: &Model) -> f64 {
