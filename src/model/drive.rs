@@ -736,13 +736,21 @@ fn solve_on_table(
     hint: usize,
     rel_tol: f64,
 ) -> Option<TableSolution> {
-    use table::{K_DELTA, K_THETA, M_DELTA, M_THETA, V_DELTA};
+    use table::{FUNCTIONS, K_DELTA, K_THETA, M_DELTA, M_THETA, V_DELTA};
     let Some(cf) = friction else {
         let cell = table.find(p_base, hint)?;
         let c = table.eval(cell, p_base);
         return Some(TableSolution { p: p_base, k_theta: c.value[K_THETA], k_delta: c.value[K_DELTA], cell });
     };
-    let converged = |step: f64, p: f64, f: f64| step.abs() <= rel_tol * p.abs().max(p_base.abs()).max(f.abs());
+    // The solution when the step from p meets the stopping test, K_ϑ and K_Δ moved along it.
+    let settled = |p: f64, step: f64, f: f64, v: &[f64; FUNCTIONS], d: &[f64; FUNCTIONS], cell: usize| {
+        (step.abs() <= rel_tol * p.abs().max(p_base.abs()).max(f.abs())).then(|| TableSolution {
+            p: p + step,
+            k_theta: v[K_THETA] + d[K_THETA] * step,
+            k_delta: v[K_DELTA] + d[K_DELTA] * step,
+            cell,
+        })
+    };
     let mut p = guess;
     let mut cell = hint;
     for _ in 0..MAX_TABLE_NEWTON_STEPS {
@@ -760,13 +768,8 @@ fn solve_on_table(
             return None;
         }
         let step = (p_base + f - p) / denominator;
-        if converged(step, p, f) {
-            return Some(TableSolution {
-                p: p + step,
-                k_theta: v[K_THETA] + d[K_THETA] * step,
-                k_delta: v[K_DELTA] + d[K_DELTA] * step,
-                cell,
-            });
+        if let Some(solution) = settled(p, step, f, v, d, cell) {
+            return Some(solution);
         }
         // The simplified Newton step from the end of this one.
         p += step;
@@ -774,13 +777,8 @@ fn solve_on_table(
         let v = table.values(cell, p);
         let f = cf.total(v[M_DELTA] * delta + v[M_THETA] * theta, v[V_DELTA] * delta - v[K_DELTA] * theta);
         let step = (p_base + f - p) / denominator;
-        if converged(step, p, f) {
-            return Some(TableSolution {
-                p: p + step,
-                k_theta: v[K_THETA] + d[K_THETA] * step,
-                k_delta: v[K_DELTA] + d[K_DELTA] * step,
-                cell,
-            });
+        if let Some(solution) = settled(p, step, f, &v, d, cell) {
+            return Some(solution);
         }
         p += step;
     }
