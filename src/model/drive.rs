@@ -695,7 +695,8 @@ const STAGE_P_TOLERANCE_FACTOR: f64 = 1e-3;
 /// 1e-13 is then STAGE_P_TOLERANCE_FACTOR·tol or better); tighter tolerances use the exact
 /// beam column in every stage.
 const TABLE_MIN_TOLERANCE: f64 = table::ACCURACY / STAGE_P_TOLERANCE_FACTOR;
-/// Newton steps on the table before a stage falls back to the exact solve.
+/// Newton iterations on the table (each a full step and a simplified one) before a stage falls
+/// back to the exact solve.
 const MAX_TABLE_NEWTON_STEPS: usize = 8;
 
 /// P, K_ϑ(P), K_Δ(P) solved on the stiffness table.

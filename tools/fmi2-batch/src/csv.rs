@@ -17,7 +17,7 @@ pub fn format_number(x: f64, out: &mut [u8]) -> usize {
         let n = unsafe { ryu::raw::format64(x, out.as_mut_ptr()) };
         // Between 1e-4 and 1e16 (and at zero) Ryū's shortest digits have 0.0001 ≤ value < 1e16,
         // where both write positional notation: no need to look (the search for an 'e' was a
-        // fifth of the time of a number).
+        // fifth of the instructions of a number).
         let a = x.abs();
         if (1e-4..1e16).contains(&a) || a == 0.0 {
             return n;
