@@ -484,9 +484,9 @@ impl<M: FmuModel> Instance<M> {
     }
 
     /// fmi2DoStep: advances the model's state over [t, t+h] and brings the outputs to the new
-    /// communication point, or, for a model whose step does not evaluate them
-    /// ([`FmuModel::step_evaluates`]), marks them stale to be evaluated when read. Nothing changes
-    /// unless everything succeeds.
+    /// communication point, or, for a model without continuous state
+    /// ([`FmuModel::step_without_state`]), marks them stale to be evaluated when read. Nothing
+    /// changes unless everything succeeds.
     pub fn do_step(&mut self, current: f64, h: f64) -> Result<(), Failure> {
         if self.core.mode != Mode::StepComplete {
             return Err(Failure::illegal("fmi2DoStep", self.core.mode));
@@ -529,14 +529,8 @@ impl<M: FmuModel> Instance<M> {
         let warning = M::step_warning(model, &self.core.state, &state);
         self.core.state = state;
         self.core.time = current + h;
-        if M::step_evaluates(model) {
-            std::mem::swap(&mut self.outputs, &mut self.scratch);
-            self.core.outputs_valid = true;
-        } else {
-            // Nothing was evaluated: the cache is brought up to date (marked stale by a lazy
-            // model) when an output is read.
-            self.core.outputs_valid = false;
-        }
+        std::mem::swap(&mut self.outputs, &mut self.scratch);
+        self.core.outputs_valid = true;
         self.stats = stats;
         if let Some(w) = warning {
             self.warn("fmi2DoStep", &w);

@@ -118,9 +118,11 @@ pub trait FmuModel: Sized + 'static {
     /// [`FmuModel::prepare`] of what `output` needs, it always does).
     fn read(cache: &Self::Outputs, output: Self::Output) -> Option<f64>;
 
-    /// One communication step of size `h` from `state`, to the tolerance `tol`; returns the new
-    /// state and, when [`FmuModel::step_evaluates`], brings `out` up to date for it (as
-    /// `update_outputs` would). An error changes nothing the caller keeps.
+    /// One communication step of size `h` from `state`, to the tolerance `tol`, for a model with
+    /// continuous state ([`FmuModel::step_without_state`] gave None): returns the new state and
+    /// brings `out` up to date for it (as `update_outputs` would), so that a step to a state
+    /// whose outputs cannot be evaluated fails as a step. An error changes nothing the caller
+    /// keeps.
     #[allow(clippy::too_many_arguments)]
     fn step(
         built: &Self::Built,
@@ -131,12 +133,6 @@ pub trait FmuModel: Sized + 'static {
         stats: &mut Self::Stats,
         out: &mut Self::Outputs,
     ) -> Result<Self::State, ModelError>;
-
-    /// Whether [`FmuModel::step`] brings `out` up to date (else it leaves `out` alone and the
-    /// outputs are evaluated when read; the glue then skips taking `out` over).
-    fn step_evaluates(_built: &Self::Built) -> bool {
-        true
-    }
 
     /// A step with nothing to integrate, made in place: `Some` when the built model has no
     /// continuous state (the glue then skips [`FmuModel::step`], the integrator's statistics,

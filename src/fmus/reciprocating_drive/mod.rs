@@ -125,8 +125,9 @@ impl FmuModel for ReciprocatingDrive {
     }
 
     /// Advances the crank by the in-step extrapolation of docs/model.md §2 and an elastic rod's
-    /// cage state by its integrator. A rigid mechanism's outputs are left to be evaluated when read
-    /// (the new crank state is only checked to be finite); an elastic rod's are evaluated here.
+    /// cage state by its integrator, and evaluates every output at the end (the glue steps a rigid
+    /// mechanism with [`Self::step_without_state`]; given one, `Model::step` leaves its rod state
+    /// alone and this is still a correct, eager step).
     #[inline]
     fn step(
         model: &Model,
@@ -137,21 +138,11 @@ impl FmuModel for ReciprocatingDrive {
         stats: &mut IntegratorStats,
         out: &mut Outputs,
     ) -> Result<State, ModelError> {
-        let mut next = *state;
-        if let Some(done) = Self::step_without_state(model, values, &mut next, h) {
-            return done.map(|()| next);
-        }
         let crank = state.crank.extrapolate(h);
         let inputs = inputs(values);
         let rod = model.step(&state.crank, &inputs, &state.rod, h, tol, stats)?;
         model.evaluate_into(&crank, &inputs, &rod, out)?;
         Ok(State { crank, rod })
-    }
-
-    /// Only an elastic rod's step evaluates its outputs (see the module doc).
-    #[inline]
-    fn step_evaluates(model: &Model) -> bool {
-        model.has_state()
     }
 
     /// A rigid rod: the step only carries the crank forward (§2).
