@@ -70,6 +70,7 @@ class Writer:
     def __init__(self, twin, out, summ, live: bool):
         self.twin, self.out, self.summ, self.live = twin, out, summ, live
         self.q: queue.Queue = queue.Queue(maxsize=8)
+        self.text = bytearray()  # format_csv's buffer, reused
         self.error = None
         self.reported = False
         self.thread = threading.Thread(target=self._run, daemon=True)
@@ -86,9 +87,12 @@ class Writer:
             rows, pieces = self.q.get()
             try:
                 if self.error is None:
-                    sums = self.twin.summaries(pieces)
+                    # The rows first: formatting them is native and leaves Python's lock to the
+                    # main thread, which is parsing and conditioning the next chunk; the summaries
+                    # (Python) then run while the main thread is in the FMU's native batch.
                     if len(rows):
-                        self.out.write(format_csv(rows))
+                        self.out.write(format_csv(rows, self.text))
+                    sums = self.twin.summaries(pieces)
                     for s in sums:
                         self.summ.write(",".join(fmt(s[k]) for k in SUMMARY_FIELDS) + "\n")
                     if self.live:

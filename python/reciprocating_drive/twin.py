@@ -40,7 +40,7 @@ from . import conditioning as cond
 from .batch import local_cubic, parse_csv
 from .fmu import Fmu, FmuError
 from .presets import preset_values
-from .revolution import TWO_PI, summarize_revolutions
+from .revolution import TWO_PI, revolution_table
 
 INPUTS = ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")
 
@@ -78,6 +78,9 @@ SUMMARY_FIELDS = ("revolution", "start_time", "mean_speed", "speed_fluctuation",
 
 _EXTREMES = (("suspension.acceleration", "acceleration"), ("inertia.force", "inertia_force"),
              ("guide.friction", "guide_friction"), ("rod.force", "rod_force"), ("crank.torque", "crank_torque"))
+#: The column of revolution_table behind each of SUMMARY_FIELDS.
+_EXTREME_KEYS = {f"{key}_{m}": f"{q}.{m}" for q, key in _EXTREMES for m in ("max", "min")}
+_SUMMARY_KEYS = tuple(_EXTREME_KEYS.get(f, f) for f in SUMMARY_FIELDS)
 
 
 def parse_header(line: str) -> dict:
@@ -345,7 +348,9 @@ class Twin:
 
     def _hand_out(self, rows: list, err: Exception | None) -> tuple[np.ndarray, list]:
         """The rows emitted and their summaries; with an error, raises it carrying them."""
-        out = np.concatenate(rows), self._take_summaries()
+        parts = [r for r in rows if len(r)] or rows[:1]
+        # One block (the usual case) goes out as it is: nothing writes to it any more.
+        out = (parts[0] if len(parts) == 1 else np.concatenate(parts)), self._take_summaries()
         if err is not None:
             err.rows, err.summaries = out
             raise err
@@ -445,24 +450,16 @@ class Twin:
             return []
         arr = np.concatenate(self.rev_parts)
         series = {name: arr[:, 1 + i] for i, name in enumerate(self.outputs)}
-        revs = summarize_revolutions(arr[:, 0], arr[:, self.i_angle], series, speed=series["crank.model_speed"])
-        out = [self._summary_row(r) for r in revs if self.rev_next <= r.index < last]
+        tab = revolution_table(arr[:, 0], arr[:, self.i_angle], series, speed=series["crank.model_speed"])
+        pick = (tab["revolution"] >= self.rev_next) & (tab["revolution"] < last)
+        n = int(np.count_nonzero(pick))
+        columns = [tab[key][pick].tolist() if key in tab else [None] * n for key in _SUMMARY_KEYS]
+        out = [dict(zip(SUMMARY_FIELDS, values)) for values in zip(*columns)]
         # Keep the samples from just before the next revolution's start.
         start = int(np.searchsorted(arr[:, self.i_angle], TWO_PI * last)) - 1
         self.rev_parts = [arr[max(0, start):].copy()]
         self.rev_next = last
         return out
-
-    @staticmethod
-    def _summary_row(r) -> dict:
-        d = {"revolution": r.index, "start_time": r.start_time, "mean_speed": r.mean_speed,
-             "speed_fluctuation": r.speed_fluctuation, "friction_work": r.friction_work,
-             "rod_angle_amplitude": r.rod_angle_amplitude, "stress_max": r.stress_max}
-        for q, key in _EXTREMES:
-            e = r.extremes.get(q)
-            d[f"{key}_max"] = None if e is None else e.max
-            d[f"{key}_min"] = None if e is None else e.min
-        return d
 
     # ---- checkpoints ---------------------------------------------------------------------------
 
