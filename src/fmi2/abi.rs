@@ -458,7 +458,18 @@ pub unsafe fn fmi2DoStep<M: FmuModel>(
     communicationStepSize: fmi2Real,
     _noSetFMUStatePriorToCurrentPoint: fmi2Boolean,
 ) -> fmi2Status {
-    call::<M>(c, "fmi2DoStep", |inst| inst.do_step(currentCommunicationPoint, communicationStepSize))
+    // A rigid mechanism's ordinary step cannot panic (proved at link time, `Instance::quick_step`)
+    // and needs no barrier; anything else takes the general path.
+    if !c.is_null() && (*(c as *mut Instance<M>)).quick_step(currentCommunicationPoint, communicationStepSize) {
+        return fmi2Status_fmi2OK;
+    }
+    do_step::<M>(c, currentCommunicationPoint, communicationStepSize)
+}
+
+/// fmi2DoStep's general path, out of line so that the fast path sets up no stack frame for it.
+#[inline(never)]
+unsafe fn do_step<M: FmuModel>(c: fmi2Component, current: fmi2Real, h: fmi2Real) -> fmi2Status {
+    call::<M>(c, "fmi2DoStep", |inst| inst.do_step(current, h))
 }
 
 #[inline]

@@ -491,13 +491,7 @@ impl<M: FmuModel> Instance<M> {
         if self.core.mode != Mode::StepComplete {
             return Err(Failure::illegal("fmi2DoStep", self.core.mode));
         }
-        // Masters accumulate time in floating point; accept their point within a small fraction
-        // of the step, but reject a skipped or repeated step.
-        let slack = 1e-6 * h + 1e-12 * self.core.time.abs();
-        // One branch over all conditions (NaN fails each; h·0 and current·0 are 0 only when
-        // finite), which keeps the test on the floating-point side.
-        let ok = (h > 0.0) & (h * 0.0 == 0.0) & (current * 0.0 == 0.0) & ((current - self.core.time).abs() <= slack);
-        if !ok {
+        if !self.step_arguments_ok(current, h) {
             return Err(self.step_arguments_failure(current, h));
         }
         let Some(model) = self.model.as_ref() else { return Err(Failure::illegal("fmi2DoStep", self.core.mode)) };
@@ -512,6 +506,40 @@ impl<M: FmuModel> Instance<M> {
             return Ok(());
         }
         self.integrate_step(current, h)
+    }
+
+    /// `do_step` when nothing needs a message: a model without continuous state
+    /// ([`FmuModel::carry_without_state`]) in `StepComplete`, valid arguments, a crank carried
+    /// forward that stays finite, and no debug log of the call. Returns false, having changed
+    /// nothing, in every other case: the general path (`do_step`, behind the panic barrier) then
+    /// decides, reports and logs. WHY: a rigid mechanism's step only moves the crank, and the
+    /// panic barrier with the plumbing of its result was a third of the step's cost. It cannot
+    /// panic, which release builds prove at link time (`no_panic`: a path that could panic fails
+    /// to link); debug builds, which cannot prove it, leave it unchecked.
+    #[cfg_attr(not(debug_assertions), no_panic::no_panic)]
+    #[inline]
+    pub fn quick_step(&mut self, current: f64, h: f64) -> bool {
+        if self.core.mode != Mode::StepComplete || self.logger.wants(Category::All) || !self.step_arguments_ok(current, h) {
+            return false;
+        }
+        let Some(model) = self.model.as_ref() else { return false };
+        if !M::carry_without_state(model, &mut self.core.state, h) {
+            return false;
+        }
+        self.core.time = current + h;
+        self.core.outputs_valid = false;
+        true
+    }
+
+    /// fmi2DoStep's arguments: h > 0 and finite, the current point finite and at the FMU's time
+    /// within a small fraction of the step (masters accumulate time in floating point; a skipped
+    /// or repeated step is rejected).
+    #[inline]
+    fn step_arguments_ok(&self, current: f64, h: f64) -> bool {
+        let slack = 1e-6 * h + 1e-12 * self.core.time.abs();
+        // One expression over all conditions (NaN fails each; h·0 and current·0 are 0 only when
+        // finite), which keeps the test on the floating-point side.
+        (h > 0.0) & (h * 0.0 == 0.0) & (current * 0.0 == 0.0) & ((current - self.core.time).abs() <= slack)
     }
 
     /// The step of a model with continuous state, after `do_step`'s checks. Out of line: its

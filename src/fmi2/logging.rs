@@ -57,7 +57,7 @@ impl Logger {
     }
 
     #[inline]
-    fn wants(&self, category: Category) -> bool {
+    pub fn wants(&self, category: Category) -> bool {
         category == Category::Error
             || (self.debug_logging && (self.enabled[category as usize] || self.enabled[Category::All as usize]))
     }

@@ -142,6 +142,14 @@ pub trait FmuModel: Sized + 'static {
         None
     }
 
+    /// [`FmuModel::step_without_state`]'s ordinary case, run without the panic barrier (it must
+    /// not panic: the caller proves that at link time): true when the built model has no
+    /// continuous state and the step was made in place, false, with the state unchanged, when
+    /// the general path must run (a state to integrate, or anything to report).
+    fn carry_without_state(_built: &Self::Built, _state: &mut Self::State, _h: f64) -> bool {
+        false
+    }
+
     /// The integrator tolerance when fmi2SetupExperiment gives none.
     fn default_tolerance(built: &Self::Built) -> f64;
 

@@ -151,15 +151,26 @@ impl FmuModel for ReciprocatingDrive {
         if model.has_state() {
             return None;
         }
+        if Self::carry_without_state(model, state, h) {
+            return Some(Ok(()));
+        }
+        // The crank carried forward overflowed: the message names the input.
+        let crank = state.crank.extrapolate(h);
+        Some(Model::check_inputs(&crank, &inputs(values)).map(|()| state.crank = crank))
+    }
+
+    #[inline]
+    fn carry_without_state(model: &Model, state: &mut State, h: f64) -> bool {
+        if model.has_state() {
+            return false;
+        }
         let crank = state.crank.extrapolate(h);
         // The inputs were checked when set; the crank carried forward may still overflow.
         if !(crank.angle + crank.speed + crank.acceleration).is_finite() {
-            if let Err(e) = Model::check_inputs(&crank, &inputs(values)) {
-                return Some(Err(e));
-            }
+            return false;
         }
         state.crank = crank;
-        Some(Ok(()))
+        true
     }
 
     fn default_tolerance(model: &Model) -> f64 {
