@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
 """Speed of the digital twin (docs/twin.md "Speed"): replay and live mode of scripts/twin.py on
 1 kHz data of the default machine (the shipped encoder sample) and of kvo630 (generated here:
-1500 strokes/min, exact angles; 10 s, and 100 s for the sustained rate), as real-time factors (seconds of data per second of wall time),
-beside two baselines measured in the same run: the FMU calls alone through fmpy, one sample at a
-time (the path of the previous twin: fmi2DoStep, fmi2SetReal, fmi2GetReal from Python), and the
-FMU calls alone through the native batch driver (the floor of the twin).
+1500 strokes/min, exact angles; 10 s, and 100 s for the sustained rate), as real-time factors
+(seconds of data per second of wall time), beside two baselines measured in the same run: the FMU
+calls alone through fmpy, one sample at a time (the path of the previous twin: fmi2DoStep,
+fmi2SetReal, fmi2GetReal from Python), and the FMU calls alone through the native batch driver
+(the floor of the twin).
 
 Each twin run is a separate `scripts/twin.py` process whose output file is a FIFO read here; the
 clock starts when the output header arrives (the FMU is loaded: start-up excluded) and stops at

@@ -96,7 +96,9 @@ def format_csv(rows: np.ndarray, buffer: bytearray | None = None) -> bytes | mem
     """CSV lines of a 2-D float64 array, each number as repr() writes it (reads back exactly).
     With `buffer`, the text is written into it (grown as needed) and a view of it is returned,
     valid until the buffer's next use: no allocation of a fresh buffer and no copy per call (the
-    twin's writer formats ~2000 rows of ~40 numbers per call)."""
+    twin's writer formats ~2000 rows of ~40 numbers per call). Release the view before the next
+    call (as `out.write(format_csv(rows, buffer))` does): a bytearray with a live view cannot
+    grow."""
     lib = library()
     rows = np.asarray(rows, dtype=np.float64)
     if rows.ndim != 2:
