@@ -68,3 +68,19 @@ fn deserialized_states_are_validated_like_set_calls() {
     f.free_state(ok);
     f.free_state(s);
 }
+
+#[test]
+fn a_crank_carried_forward_past_the_largest_double_fails_the_step_and_changes_nothing() {
+    // The inputs are finite, but θ + ω·h overflows (docs/model.md §2): the rigid mechanism's
+    // step reports it, naming the input, and the instance steps on from where it was.
+    let api = Api::load();
+    let f = running(&api);
+    let before = f.get("crank.model_angle");
+    assert_eq!(f.set("crank.speed", 1e308), OK);
+    assert_eq!(f.step(5e-3, 10.0), ERROR);
+    let m = f.log.last();
+    assert!(m.contains("fmi2DoStep") && m.contains("crank.angle"), "{m}");
+    assert_eq!(f.set("crank.speed", 6.8), OK);
+    assert_eq!(f.get("crank.model_angle"), before);
+    assert_eq!(f.step(5e-3, 1e-3), OK);
+}

@@ -485,7 +485,7 @@ impl<M: FmuModel> Instance<M> {
 
     /// fmi2DoStep: advances the model's state over [t, t+h] and brings the outputs to the new
     /// communication point, or, for a model without continuous state
-    /// ([`FmuModel::step_without_state`]), marks them stale to be evaluated when read. Nothing
+    /// ([`FmuModel::carry_without_state`]), marks them stale to be evaluated when read. Nothing
     /// changes unless everything succeeds.
     pub fn do_step(&mut self, current: f64, h: f64) -> Result<(), Failure> {
         if self.core.mode != Mode::StepComplete {
@@ -494,34 +494,36 @@ impl<M: FmuModel> Instance<M> {
         if !self.step_arguments_ok(current, h) {
             return Err(self.step_arguments_failure(current, h));
         }
-        let Some(model) = self.model.as_ref() else { return Err(Failure::illegal("fmi2DoStep", self.core.mode)) };
-        // Nothing to integrate (a rigid mechanism): the state moves in place, the outputs are
-        // evaluated when read.
-        if let Some(done) = M::step_without_state(model, &self.core.values, &mut self.core.state, h) {
-            if let Err(e) = done {
-                return Err(Self::step_failure(current, h, e));
-            }
-            self.core.time = current + h;
-            self.core.outputs_valid = false;
+        if self.carry(current, h) {
             return Ok(());
         }
+        // A state to integrate, or a carried-forward state the model refuses: the model's step
+        // integrates it, or fails naming what is wrong.
         self.integrate_step(current, h)
     }
 
-    /// `do_step` when nothing needs a message: a model without continuous state
-    /// ([`FmuModel::carry_without_state`]) in `StepComplete`, valid arguments, a crank carried
-    /// forward that stays finite, and no debug log of the call. Returns false, having changed
-    /// nothing, in every other case: the general path (`do_step`, behind the panic barrier) then
-    /// decides, reports and logs. WHY: a rigid mechanism's step only moves the crank, and the
-    /// panic barrier with the plumbing of its result was a third of the step's cost. It cannot
-    /// panic, which release builds prove at link time (`no_panic`: a path that could panic fails
-    /// to link); debug builds, which cannot prove it, leave it unchecked.
+    /// `do_step` when nothing needs a message: a model without continuous state in
+    /// `StepComplete`, valid arguments, a crank carried forward that stays finite, and no debug
+    /// log of the call. Returns false, having changed nothing, in every other case: the general
+    /// path (`do_step`, behind the panic barrier) then decides, reports and logs. WHY: a rigid
+    /// mechanism's step only moves the crank, and the panic barrier with the plumbing of its
+    /// result was a third of the step's cost. It cannot panic, which release builds prove at
+    /// link time (`no_panic`: a path that could panic fails to link); debug builds, which cannot
+    /// prove it, leave it unchecked.
     #[cfg_attr(not(debug_assertions), no_panic::no_panic)]
     #[inline]
     pub fn quick_step(&mut self, current: f64, h: f64) -> bool {
-        if self.core.mode != Mode::StepComplete || self.logger.wants(Category::All) || !self.step_arguments_ok(current, h) {
-            return false;
-        }
+        self.core.mode == Mode::StepComplete
+            && !self.logger.wants(Category::All)
+            && self.step_arguments_ok(current, h)
+            && self.carry(current, h)
+    }
+
+    /// The step of a model without continuous state ([`FmuModel::carry_without_state`]), after
+    /// the checks: the state moves in place, the outputs are evaluated when read. False, with
+    /// nothing changed, when the model has a state to integrate or refuses the step.
+    #[inline]
+    fn carry(&mut self, current: f64, h: f64) -> bool {
         let Some(model) = self.model.as_ref() else { return false };
         if !M::carry_without_state(model, &mut self.core.state, h) {
             return false;

@@ -118,11 +118,11 @@ pub trait FmuModel: Sized + 'static {
     /// [`FmuModel::prepare`] of what `output` needs, it always does).
     fn read(cache: &Self::Outputs, output: Self::Output) -> Option<f64>;
 
-    /// One communication step of size `h` from `state`, to the tolerance `tol`, for a model with
-    /// continuous state ([`FmuModel::step_without_state`] gave None): returns the new state and
-    /// brings `out` up to date for it (as `update_outputs` would), so that a step to a state
-    /// whose outputs cannot be evaluated fails as a step. An error changes nothing the caller
-    /// keeps.
+    /// One communication step of size `h` from `state`, to the tolerance `tol`, when
+    /// [`FmuModel::carry_without_state`] did not make it: returns the new state and brings `out`
+    /// up to date for it (as `update_outputs` would), so that a step to a state whose outputs
+    /// cannot be evaluated fails as a step, with the message that names why. An error changes
+    /// nothing the caller keeps.
     #[allow(clippy::too_many_arguments)]
     fn step(
         built: &Self::Built,
@@ -134,18 +134,12 @@ pub trait FmuModel: Sized + 'static {
         out: &mut Self::Outputs,
     ) -> Result<Self::State, ModelError>;
 
-    /// A step with nothing to integrate, made in place: `Some` when the built model has no
-    /// continuous state (the glue then skips [`FmuModel::step`], the integrator's statistics,
-    /// the tolerance and the step warning, and reads the outputs when asked), `None` when
-    /// [`FmuModel::step`] must run. On `Some(Err)` the state is unchanged.
-    fn step_without_state(_built: &Self::Built, _values: &[f64], _state: &mut Self::State, _h: f64) -> Option<Result<(), ModelError>> {
-        None
-    }
-
-    /// [`FmuModel::step_without_state`]'s ordinary case, run without the panic barrier (it must
-    /// not panic: the caller proves that at link time): true when the built model has no
-    /// continuous state and the step was made in place, false, with the state unchanged, when
-    /// the general path must run (a state to integrate, or anything to report).
+    /// A step with nothing to integrate, made in place: true when the built model has no
+    /// continuous state and the state carried forward is valid (the glue then skips
+    /// [`FmuModel::step`], the integrator's statistics, the tolerance and the step warning, and
+    /// evaluates the outputs when read); false, with the state unchanged, when
+    /// [`FmuModel::step`] must run (a state to integrate, or a step to refuse with a message).
+    /// It runs without the panic barrier and must not panic (the glue proves that at link time).
     fn carry_without_state(_built: &Self::Built, _state: &mut Self::State, _h: f64) -> bool {
         false
     }

@@ -125,9 +125,10 @@ impl FmuModel for ReciprocatingDrive {
     }
 
     /// Advances the crank by the in-step extrapolation of docs/model.md §2 and an elastic rod's
-    /// cage state by its integrator, and evaluates every output at the end (the glue steps a rigid
-    /// mechanism with [`Self::step_without_state`]; given one, `Model::step` leaves its rod state
-    /// alone and this is still a correct, eager step).
+    /// cage state by its integrator, and evaluates every output at the end. The glue steps a rigid
+    /// mechanism with [`Self::carry_without_state`] and comes here only when that refuses: a crank
+    /// carried forward that overflows, which the evaluation reports naming the input
+    /// (`Model::step` leaves a rigid mechanism's rod state alone).
     #[inline]
     fn step(
         model: &Model,
@@ -146,19 +147,6 @@ impl FmuModel for ReciprocatingDrive {
     }
 
     /// A rigid rod: the step only carries the crank forward (§2).
-    #[inline]
-    fn step_without_state(model: &Model, values: &[f64], state: &mut State, h: f64) -> Option<Result<(), ModelError>> {
-        if model.has_state() {
-            return None;
-        }
-        if Self::carry_without_state(model, state, h) {
-            return Some(Ok(()));
-        }
-        // The crank carried forward overflowed: the message names the input.
-        let crank = state.crank.extrapolate(h);
-        Some(Model::check_inputs(&crank, &inputs(values)).map(|()| state.crank = crank))
-    }
-
     #[inline]
     fn carry_without_state(model: &Model, state: &mut State, h: f64) -> bool {
         if model.has_state() {
