@@ -118,7 +118,8 @@ def format_csv(rows: np.ndarray, buffer: bytearray | None = None) -> bytes | mem
     n = lib.fmi2_batch_format_csv(ptr, rows.shape[0], rows.shape[1], stride, address, cap)
     if n < 0:
         raise RuntimeError("fmi2_batch_format_csv failed")
-    return bytes(buffer[:n]) if own else memoryview(buffer)[:n]
+    view = memoryview(buffer)[:n]
+    return bytes(view) if own else view
 
 
 def local_cubic(t: np.ndarray, theta: np.ndarray, half: int, first: int, count: int) -> tuple[np.ndarray, np.ndarray]:

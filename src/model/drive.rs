@@ -109,6 +109,7 @@ pub struct Model {
 }
 
 /// Kinematics and the loads on the link that do not depend on P, at one instant.
+#[derive(Clone, Copy)]
 struct LinkLoads {
     k: Kinematics,
     velocity: f64,
@@ -656,11 +657,13 @@ impl Model {
             cell_hint: 0,
             sin_cos0: self.model_angle(crank).sin_cos(),
             shift: 0.0,
+            start: None,
         };
         // The integrator follows φ = ϑ − c·Δ(τ) (`CageRhs::shift`).
         let (crank0, start) = rhs.link_at(0.0);
         rhs.shift = rhs.quasi_static_ratio(start.p_base);
         let g0 = rhs.offset(&crank0, &start);
+        rhs.start = Some((crank0, start));
         let mut integ = state.integrator;
         let y = integrator::advance(
             &mut rhs,
@@ -823,6 +826,8 @@ struct CageRhs<'a> {
     /// the relative one on |φ| instead of |ϑ|; they differ by |c·Δ| (≲ 0.05 rad), which moves the
     /// bound by rtol·|c·Δ|, a few per cent of the absolute tolerance.
     shift: f64,
+    /// The crank and the link's loads at τ = 0, made for the shift and reused by the stages there.
+    start: Option<(CrankState, LinkLoads)>,
 }
 
 impl CageRhs<'_> {
@@ -852,6 +857,7 @@ impl CageRhs<'_> {
     }
 
     /// (c·Δ, c·Δ̇) at the instant of `crank` and `ll`: ϑ = φ + c·Δ, ϑ̇ = φ̇ + c·Δ̇.
+    #[inline]
     fn offset(&self, crank: &CrankState, ll: &LinkLoads) -> [f64; 2] {
         match ll.piston {
             Some(pp) => [self.shift * pp.delta, self.shift * pp.delta_rate * crank.speed],
@@ -894,12 +900,13 @@ impl SecondOrderRhs for CageRhs<'_> {
     /// φ̈ at (τ, φ, φ̇): ϑ̈ at ϑ = φ + c·Δ, ϑ̇ = φ̇ + c·Δ̇, less c·Δ̈.
     #[inline]
     fn accel(&mut self, tau: f64, phi: f64, phi_rate: f64) -> Result<f64, ModelError> {
-        let (crank, ll) = self.link_at(tau);
-        let (delta, delta_dot, delta_ddot) = match ll.piston {
-            Some(pp) => (pp.delta, pp.delta_rate * crank.speed, pp.delta_ddot),
-            None => (0.0, 0.0, 0.0),
+        let (crank, ll) = match self.start {
+            Some(start) if tau == 0.0 => start,
+            _ => self.link_at(tau),
         };
-        let cage = CageState { theta: phi + self.shift * delta, rate: phi_rate + self.shift * delta_dot };
+        let g = self.offset(&crank, &ll);
+        let cage = CageState { theta: phi + g[0], rate: phi_rate + g[1] };
+        let delta_ddot = ll.piston.map_or(0.0, |pp| pp.delta_ddot);
         Ok(self.theta_ddot(&crank, &ll, &cage)? - self.shift * delta_ddot)
     }
 }
@@ -1001,6 +1008,7 @@ mod tests {
                     cell_hint: 0,
                     sin_cos0: (crank.angle + params.crank_angle_offset).sin_cos(),
                     shift: 41.9,
+                    start: None,
                 };
                 for i in 0..=400 {
                     let tau = i as f64 * 1e-4; // 0.04 s: 1.5 revolutions
