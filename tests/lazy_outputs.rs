@@ -205,3 +205,93 @@ fn outputs_read_in_any_order_and_subset_equal_the_eager_evaluation_bit_for_bit()
     }
     println!("{compared} lazily read values compared");
 }
+
+/// fmi2GetReal and fmi2SetReal keep, per instance, the value references of the array a master
+/// passes at every step resolved (docs/performance.md "Read and input plans"). One array of the
+/// caller's, changed in place between calls (the same address with new contents and lengths),
+/// must read and set exactly what a second instance reads and sets that resolves every value
+/// reference at every call (debug logging on: the general path), and a value reference or a
+/// value that is wrong fails naming it, also where the array it replaced had been resolved.
+#[test]
+fn an_array_of_value_references_changed_in_place_is_resolved_again() {
+    let api = Api::load();
+    let planned = Inst::with(&api, "planned", None, false);
+    let general = Inst::with(&api, "general", None, true);
+    for f in [&planned, &general] {
+        f.init();
+    }
+    let vrs_of = |names: &[&str]| names.iter().map(|n| vr(n)).collect::<Vec<u32>>();
+    // Arrays of the same and of other lengths, of outputs of every group, inputs and parameters.
+    let reads: [&[&str]; 6] = [
+        &["suspension.position", "suspension.velocity", "rod.force", "crank.torque"],
+        &["suspension.position", "suspension.velocity", "rod.force", "guide.friction"],
+        &["crank.speed", "geometry.crank_radius", "rod.angle", "inertia.force"],
+        &["suspension.position", "suspension.velocity"],
+        &["guide.reaction", "support_A.reaction", "load.mean", "crank.acceleration", "rod.stress_max"],
+        &["suspension.position", "suspension.velocity", "rod.force", "crank.torque"],
+    ];
+    let mut buffer = [0u32; 8];
+    let mut values = [0.0f64; 8];
+    let get = |f: &Inst, buffer: &[u32; 8], n: usize, out: &mut [f64; 8]| unsafe {
+        (f.api.fmi2GetReal)(f.c, buffer.as_ptr(), n, out.as_mut_ptr())
+    };
+    let set = |f: &Inst, buffer: &[u32; 8], n: usize, v: &[f64; 8]| unsafe {
+        (f.api.fmi2SetReal)(f.c, buffer.as_ptr(), n, v.as_ptr())
+    };
+    let h = 1e-3;
+    let mut compared = 0;
+    for k in 0..60 {
+        let t = k as f64 * h;
+        // The crank inputs in one array, sometimes in another order or with the process force.
+        let inputs: &[(&str, f64)] = match k % 3 {
+            0 => &[("crank.angle", 6.8 * t), ("crank.speed", 6.8), ("crank.acceleration", 0.1)],
+            1 => &[("crank.speed", 6.9), ("crank.angle", 6.8 * t), ("crank.acceleration", -0.2)],
+            _ => &[("crank.angle", 6.8 * t), ("crank.speed", 6.7), ("crank.acceleration", 0.0), ("link.external_force", 1e3)],
+        };
+        for (i, (n, v)) in inputs.iter().enumerate() {
+            buffer[i] = vr(n);
+            values[i] = *v;
+        }
+        for f in [&planned, &general] {
+            assert_eq!(set(f, &buffer, inputs.len(), &values), OK, "{}", f.log.last());
+        }
+        let names = reads[k % reads.len()];
+        buffer[..names.len()].copy_from_slice(&vrs_of(names));
+        let (mut a, mut b) = ([f64::NAN; 8], [f64::NAN; 8]);
+        assert_eq!(get(&planned, &buffer, names.len(), &mut a), OK, "{}", planned.log.last());
+        assert_eq!(get(&general, &buffer, names.len(), &mut b), OK, "{}", general.log.last());
+        for (i, n) in names.iter().enumerate() {
+            assert_eq!(a[i].to_bits(), b[i].to_bits(), "step {k}: {n} {} vs {}", a[i], b[i]);
+            compared += 1;
+        }
+        // The same array again, now with an Integer in it: refused, naming it.
+        if k % 10 == 9 {
+            buffer[1] = vr("support_A.kind");
+            assert_eq!(get(&planned, &buffer, names.len(), &mut a), ERROR);
+            assert!(planned.log.last().contains("support_A.kind"), "{}", planned.log.last());
+        }
+        for f in [&planned, &general] {
+            assert_eq!(f.step(t, h), OK, "{}", f.log.last());
+        }
+    }
+    assert!(compared > 200);
+    // A set of the resolved input array with a value that is not finite, or with a fixed
+    // parameter in it, is refused naming it, and changes nothing.
+    let inputs = ["crank.angle", "crank.speed", "crank.acceleration"];
+    buffer[..3].copy_from_slice(&vrs_of(&inputs));
+    values[..3].copy_from_slice(&[0.5, 6.8, 0.0]);
+    assert_eq!(set(&planned, &buffer, 3, &values), OK);
+    let before = planned.get_many(&inputs);
+    values[1] = f64::NAN;
+    assert_eq!(set(&planned, &buffer, 3, &values), ERROR);
+    assert!(planned.log.last().contains("crank.speed"), "{}", planned.log.last());
+    values[1] = 7.0;
+    buffer[2] = vr("geometry.crank_radius");
+    assert_eq!(set(&planned, &buffer, 3, &values), ERROR);
+    assert!(planned.log.last().contains("geometry.crank_radius"), "{}", planned.log.last());
+    assert_eq!(planned.get_many(&inputs), before);
+    // And the array as resolved before still sets what it holds.
+    buffer[2] = vr("crank.acceleration");
+    assert_eq!(set(&planned, &buffer, 3, &values), OK);
+    assert_eq!(planned.get_many(&inputs), vec![0.5, 7.0, 0.0]);
+}

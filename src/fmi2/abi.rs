@@ -76,15 +76,20 @@ unsafe fn call<M: FmuModel>(c: fmi2Component, function: &str, f: impl FnOnce(&mu
             }
             status
         }
-        Err(_) => {
-            // The panic left the instance in an unknown state: it must not be used any more.
-            let _ = catch_unwind(AssertUnwindSafe(|| {
-                (*inst).set_fatal();
-                (*inst).log(fmi2Status_fmi2Fatal, Category::Error, &format!("{function}: internal error (panic caught)"));
-            }));
-            fmi2Status_fmi2Fatal
-        }
+        Err(_) => panicked(inst, function),
     }
+}
+
+/// A panic was caught in `function`: it left the instance in an unknown state, which must not be
+/// used any more.
+#[cold]
+#[inline(never)]
+unsafe fn panicked<M: FmuModel>(inst: *mut Instance<M>, function: &str) -> fmi2Status {
+    let _ = catch_unwind(AssertUnwindSafe(|| {
+        (*inst).set_fatal();
+        (*inst).log(fmi2Status_fmi2Fatal, Category::Error, &format!("{function}: internal error (panic caught)"));
+    }));
+    fmi2Status_fmi2Fatal
 }
 
 fn null_argument(function: &str, what: &str) -> Failure {
@@ -218,6 +223,9 @@ pub unsafe fn fmi2Reset<M: FmuModel>(c: fmi2Component) -> fmi2Status {
     call::<M>(c, "fmi2Reset", |inst| inst.reset())
 }
 
+/// fmi2GetReal/Integer/Boolean's general path; out of line so that fmi2GetReal's fast path sets
+/// up no stack frame for it (its messages need kilobytes).
+#[inline(never)]
 unsafe fn get_values<M: FmuModel, T: Copy>(
     c: fmi2Component,
     function: &'static str,
@@ -236,6 +244,9 @@ unsafe fn get_values<M: FmuModel, T: Copy>(
     })
 }
 
+/// fmi2SetReal/Integer/Boolean's general path; out of line so that fmi2SetReal's fast path sets
+/// up no stack frame for it (its messages need kilobytes).
+#[inline(never)]
 unsafe fn set_values<M: FmuModel, T: Copy>(
     c: fmi2Component,
     function: &'static str,
@@ -254,6 +265,18 @@ unsafe fn set_values<M: FmuModel, T: Copy>(
 
 #[inline]
 pub unsafe fn fmi2GetReal<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Real) -> fmi2Status {
+    // Outputs read at every step take the fast path (`Instance::quick_get_real`), still behind
+    // the panic barrier: it evaluates the model. Anything that needs a message takes the general
+    // path, which evaluates again and reports.
+    if let (false, Some(vrs), false) = (c.is_null(), slice(vr, nvr), nvr > 0 && value.is_null()) {
+        let inst = c as *mut Instance<M>;
+        let out: &mut [fmi2Real] = if nvr == 0 { &mut [] } else { std::slice::from_raw_parts_mut(value, nvr) };
+        match catch_unwind(AssertUnwindSafe(|| (*inst).quick_get_real(vrs, out))) {
+            Ok(true) => return fmi2Status_fmi2OK,
+            Ok(false) => {}
+            Err(_) => return panicked(inst, "fmi2GetReal"),
+        }
+    }
     get_values::<M, _>(c, "fmi2GetReal", VarType::Real, vr, nvr, value, |v| v)
 }
 
@@ -274,6 +297,13 @@ pub unsafe fn fmi2GetString<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueR
 
 #[inline]
 pub unsafe fn fmi2SetReal<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Real) -> fmi2Status {
+    // Finite crank inputs at every step cannot panic (proved at link time,
+    // `Instance::quick_set_real`) and need no barrier; anything else takes the general path.
+    if let (false, Some(vrs), Some(vals)) = (c.is_null(), slice(vr, nvr), slice(value, nvr)) {
+        if (*(c as *mut Instance<M>)).quick_set_real(vrs, vals) {
+            return fmi2Status_fmi2OK;
+        }
+    }
     set_values::<M, _>(c, "fmi2SetReal", VarType::Real, vr, nvr, value, |v| v)
 }
 

@@ -13,6 +13,7 @@ use std::path::PathBuf;
 
 use crate::fmi2::logging::{Category, Logger};
 use crate::fmi2::model::FmuModel;
+use crate::fmi2::plans::{InputPlan, ReadPlan, Source};
 use crate::fmi2::variables::{Binding, Causality, VarType, Variability};
 use crate::model::error::{num, ModelError};
 
@@ -160,6 +161,10 @@ pub struct Instance<M: FmuModel> {
     /// FMU states made by fmi2GetFMUstate for this instance and not yet freed: fmi2FreeInstance
     /// frees them (FMI 2.0: freeing the instance frees everything the FMU allocated for it).
     pub states: Vec<usize>,
+    /// The value references of the last fmi2GetReal, resolved (see [`ReadPlan`]).
+    plan: ReadPlan<M>,
+    /// The inputs of the last fmi2SetReal of inputs only, resolved (see [`InputPlan`]).
+    inputs: InputPlan<M>,
 }
 
 impl<M: FmuModel> Instance<M> {
@@ -174,6 +179,8 @@ impl<M: FmuModel> Instance<M> {
             stats: M::Stats::default(),
             scratch: M::Outputs::default(),
             states: Vec::new(),
+            plan: ReadPlan::empty(),
+            inputs: InputPlan::empty(),
         }
     }
 
@@ -404,6 +411,60 @@ impl<M: FmuModel> Instance<M> {
         Ok(())
     }
 
+    /// `get` of Reals when nothing needs a message: in `StepComplete`, every value reference a
+    /// Real, every value finite, no debug log of the call. Returns false in every other case
+    /// (having possibly written some of `out` and brought the output cache up to date, which
+    /// `get` does too): the general path (`get`) then evaluates again, decides and reports.
+    /// WHY: masters read outputs at every step, and the general path's plumbing (the position of
+    /// the first output for a message, the list of non-finite names, the closure over the
+    /// caller's array, the status and log) cost more than the evaluation of the kinematics. It
+    /// evaluates the model, so it runs behind the panic barrier.
+    #[inline]
+    pub fn quick_get_real(&mut self, vrs: &[u32], out: &mut [f64]) -> bool {
+        if self.core.mode != Mode::StepComplete || self.logger.wants(Category::All) || vrs.len() != out.len() {
+            return false;
+        }
+        if !self.plan.is_for(vrs) {
+            let Some(plan) = M::table().info_ready().and_then(|info| ReadPlan::resolve(info, vrs)) else {
+                return false;
+            };
+            self.plan = plan;
+        }
+        let Self { core, outputs, model, plan, .. } = self;
+        let Some(model) = model.as_ref() else { return false };
+        if !core.outputs_valid {
+            if let Err(e) = M::update_outputs(model, &core.values, &core.state, outputs) {
+                return Self::drop_error(e);
+            }
+            core.outputs_valid = true;
+        }
+        if plan.need != 0 {
+            if let Err(e) = M::prepare(model, &core.values, &core.state, outputs, plan.need) {
+                return Self::drop_error(e);
+            }
+        }
+        let mut finite = true;
+        for (source, slot) in plan.sources.iter().zip(out.iter_mut()) {
+            let v = match *source {
+                Source::Output(o) => match M::read(outputs, o) {
+                    Some(v) => v,
+                    None => return false,
+                },
+                Source::Value(i) => core.values[i],
+            };
+            finite &= v.is_finite();
+            *slot = v;
+        }
+        finite
+    }
+
+    /// An error the fast path leaves to the general path, which meets it again and reports it.
+    #[cold]
+    #[inline(never)]
+    fn drop_error(_: ModelError) -> bool {
+        false
+    }
+
     /// fmi2SetReal/Integer/Boolean. All values are checked before any is stored, so a failing
     /// call changes nothing. Inputs must be finite; a tunable parameter set while stepping is
     /// validated with the whole machine at once; other parameters are validated at
@@ -472,6 +533,46 @@ impl<M: FmuModel> Instance<M> {
         }
         self.invalidate_outputs();
         Ok(())
+    }
+
+    /// `set` of Real inputs when nothing needs a message: finite values for inputs only, in
+    /// `StepComplete`, no debug log of the call. Returns false, having changed nothing, in every
+    /// other case: the general path (`set`, behind the panic barrier) then decides, reports and
+    /// logs. WHY: every master sets the crank inputs at every step, and the general path's
+    /// plumbing (closures over the caller's array, the panic barrier, the status and log) cost
+    /// more than the values it stores. It cannot panic, which release builds prove at link time
+    /// (as for [`Self::quick_step`]).
+    #[cfg_attr(not(debug_assertions), no_panic::no_panic)]
+    #[inline]
+    pub fn quick_set_real(&mut self, vrs: &[u32], values: &[f64]) -> bool {
+        if self.core.mode != Mode::StepComplete
+            || self.logger.wants(Category::All)
+            || vrs.len() != values.len()
+            || self.provisional.is_some()
+        {
+            return false;
+        }
+        if !self.inputs.is_for(vrs) {
+            let Some(plan) = M::table().info_ready().and_then(|info| InputPlan::resolve(info, self.core.values.len(), vrs))
+            else {
+                return false;
+            };
+            self.inputs = plan;
+        }
+        // `fold` with `&`: one pass without a branch per value.
+        if !values.iter().fold(true, |ok, v| ok & v.is_finite()) {
+            return false;
+        }
+        let Self { core, inputs, .. } = self;
+        for ((&vr, &v), &slot) in vrs.iter().zip(values).zip(&inputs.slots) {
+            if let (Some(slot), Some(stored)) = (slot, core.values.get_mut(vr as usize)) {
+                *stored = v;
+                M::input_changed(&mut core.state, slot, v);
+            }
+        }
+        // `invalidate_outputs` without the provisional model to drop (there is none, above).
+        core.outputs_valid = false;
+        true
     }
 
     /// Stores a value; for an input also tells the model (it may keep a copy in its state).

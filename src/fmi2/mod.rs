@@ -11,5 +11,6 @@ pub mod instance;
 pub mod logging;
 pub mod model;
 pub mod model_description;
+mod plans;
 pub mod resources;
 pub mod variables;

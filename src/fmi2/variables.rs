@@ -160,6 +160,13 @@ impl<M: FmuModel> Table<M> {
         Table { variables, units, info: OnceLock::new(), guid: OnceLock::new(), fingerprint: OnceLock::new() }
     }
 
+    /// [`Self::info`] once it has been derived (the first instance derives it), without the
+    /// code that derives it: for the paths that must not panic.
+    #[inline]
+    pub fn info_ready(&self) -> Option<&[VarInfo<M>]> {
+        self.info.get().map(Vec::as_slice)
+    }
+
     #[inline]
     pub fn info(&self) -> &[VarInfo<M>] {
         self.info.get_or_init(|| {
