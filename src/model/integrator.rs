@@ -43,9 +43,12 @@
 //! the forced response that those terms act on. On this problem (the shift as a wrapper of the
 //! RHS, c from P at the start of each communication step) Verner 6(5) then needs 9 940 RHS
 //! evaluations per simulated second at 1 ms (about 1.1 internal steps per call; 9 is the floor
-//! of one step per call) and 8 290 at 10 ms; at 0.1 ms one step per call, 90 000, as before. The
-//! pairs above were compared on ϑ and not again on φ: at one step per call a pair with fewer
-//! stages would have to hold the tolerance at h = 1 ms with a lower order.
+//! of one step per call) and 8 290 at 10 ms; at 0.1 ms one step per call, 90 000, as before.
+//! Compared again on φ (`model::drive` test `pairs_compared_on_the_shifted_cage_variable`,
+//! docs/performance.md): at the same accuracy (1e-8 rad) Verner 6(5) needs 9.7 evaluations per
+//! 1 ms step for the kvo630 spring, Tsitouras 5(4) about 12 and Dormand–Prince 5(4) about 13.5;
+//! at the same tolerance the 5(4) pairs make fewer evaluations but miss it 2 to 6 times, and they
+//! need a second step per call more often (error ∝ h⁵ instead of h⁶).
 //!
 //! Cost with the bare kvo630 RHS (BeamColumn::new ≈ 35 ns + crank trigonometry), release build:
 //! ≈ 1.3 µs per 1 ms communication step (17 RHS evaluations, ≈ 76 ns each including the stage
@@ -223,10 +226,21 @@ const E: [f64; STAGES] = {
     e
 };
 
-/// Order of the solution (for the initial step estimate).
-const ORDER: f64 = 6.0;
-/// The error estimate behaves like h^6 (embedded order 5 + 1).
-const EST_EXPONENT: f64 = 1.0 / 6.0;
+/// An embedded explicit Runge–Kutta pair whose last stage is the derivative at the new point
+/// (FSAL: the last row of `a` holds the solution's weights and `c` ends at 1).
+pub struct Pair<const S: usize> {
+    pub c: [f64; S],
+    pub a: [[f64; S]; S],
+    /// Error weights: the solution's weights less the embedded ones.
+    pub e: [f64; S],
+    /// Order of the solution (for the initial step estimate).
+    pub order: f64,
+    /// 1/(q + 1), q the embedded order: the error estimate behaves like h^(q+1).
+    pub est_exponent: f64,
+}
+
+/// The pair the FMU integrates with (see the module doc).
+pub const VERNER_65: Pair<STAGES> = Pair { c: C, a: A, e: E, order: 6.0, est_exponent: 1.0 / 6.0 };
 const SAFETY: f64 = 0.9;
 const FAC_MIN: f64 = 0.2;
 const FAC_MAX: f64 = 10.0;
@@ -292,34 +306,37 @@ fn validate(t0: f64, y0: [f64; 2], h: f64, tol: &Tolerance) -> Result<(), ModelE
 /// One step from (t, y) with `k[0] = f(t, y)` already set: fills the stages and returns the new
 /// solution and the error estimate `Σ e_j k_j` (without the factor h). `k[8]` is f at the new
 /// point (FSAL).
-#[inline]
-fn step(
+// Indices as in the tableau's notation (a_ij k_j), in a fixed order.
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn step<const S: usize>(
+    pair: &Pair<S>,
     rhs: &mut impl SecondOrderRhs,
     t: f64,
     y: [f64; 2],
     h: f64,
-    k: &mut [[f64; 2]; STAGES],
+    k: &mut [[f64; 2]; S],
     stats: &mut IntegratorStats,
 ) -> Result<([f64; 2], [f64; 2]), ModelError> {
     let mut y_new = y;
-    for i in 1..STAGES {
+    for i in 1..S {
         let mut yi = y;
         for j in 0..i {
-            let aij = A[i][j];
+            let aij = pair.a[i][j];
             if aij != 0.0 {
                 yi[0] += h * aij * k[j][0];
                 yi[1] += h * aij * k[j][1];
             }
         }
-        if i == STAGES - 1 {
+        if i == S - 1 {
             y_new = yi; // last row of A = B
         }
-        k[i] = eval(rhs, t + C[i] * h, yi, stats)?;
+        k[i] = eval(rhs, t + pair.c[i] * h, yi, stats)?;
     }
     let mut est = [0.0_f64; 2];
-    for j in 0..STAGES {
-        est[0] += E[j] * k[j][0];
-        est[1] += E[j] * k[j][1];
+    for j in 0..S {
+        est[0] += pair.e[j] * k[j][0];
+        est[1] += pair.e[j] * k[j][1];
     }
     Ok((y_new, est))
 }
@@ -341,23 +358,43 @@ pub fn advance(
     state: &mut IntegratorState,
     stats: &mut IntegratorStats,
 ) -> Result<[f64; 2], ModelError> {
+    #[cfg(test)]
+    if let Some(r) = tests::compared::advance_with_pair_under_test(rhs, t0, y0, h, tol, state, stats) {
+        return r;
+    }
+    advance_with(&VERNER_65, rhs, t0, y0, h, tol, state, stats)
+}
+
+/// [`advance`] with the pair `pair` (inlined, so that each pair's coefficients are constants).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub fn advance_with<const S: usize>(
+    pair: &Pair<S>,
+    rhs: &mut impl SecondOrderRhs,
+    t0: f64,
+    y0: [f64; 2],
+    h: f64,
+    tol: &Tolerance,
+    state: &mut IntegratorState,
+    stats: &mut IntegratorStats,
+) -> Result<[f64; 2], ModelError> {
     validate(t0, y0, h, tol)?;
     let mut work = *stats;
     let t_end = t0 + h;
     let mut t = t0;
     let mut y = y0;
-    let mut k = [[0.0_f64; 2]; STAGES];
+    let mut k = [[0.0_f64; 2]; S];
     // The start point must be valid: no step size can repair it.
     k[0] = eval(rhs, t, y, &mut work)?;
 
     let mut h_try = state.h_next;
     if !(h_try.is_finite() && h_try > 0.0) {
-        h_try = initial_step(rhs, t, y, k[0], t_end - t, tol, &mut work);
+        h_try = initial_step(rhs, t, y, k[0], t_end - t, tol, pair.order, &mut work);
     }
     let mut err_prev = if state.err_prev > 0.0 { state.err_prev } else { ERR_FLOOR };
     let mut last_rejected = false;
     let mut last_failure: Option<ModelError> = None;
-    let alpha = EST_EXPONENT - 0.75 * BETA;
+    let alpha = pair.est_exponent - 0.75 * BETA;
     let mut n_steps: u64 = 0;
 
     while t < t_end {
@@ -393,7 +430,7 @@ pub fn advance(
         };
         let shortened = h < h_try;
 
-        let (y_new, est) = match step(rhs, t, y, h, &mut k, &mut work) {
+        let (y_new, est) = match step(pair, rhs, t, y, h, &mut k, &mut work) {
             Ok(v) => v,
             Err(e) => {
                 work.rejected += 1;
@@ -409,7 +446,7 @@ pub fn advance(
             // Rejected (NaN included).
             work.rejected += 1;
             let fac = if err.is_finite() {
-                (SAFETY * err.powf(-EST_EXPONENT)).clamp(FAC_MIN, 1.0)
+                (SAFETY * err.powf(-pair.est_exponent)).clamp(FAC_MIN, 1.0)
             } else {
                 FAC_MIN
             };
@@ -430,7 +467,7 @@ pub fn advance(
             // every step is an equal split of the communication step (with h_c = 1 ms and a
             // suggestion of 0.32 ms the kvo630 run stayed at 4 steps per call for good).
             let predicted =
-                if err > 0.0 { h * SAFETY * err.powf(-EST_EXPONENT) } else { f64::INFINITY };
+                if err > 0.0 { h * SAFETY * err.powf(-pair.est_exponent) } else { f64::INFINITY };
             let supported = predicted.min(FAC_MAX * h);
             h_try = if supported > h_try { supported } else { h_try.min(predicted.max(h * fac)) };
         } else {
@@ -440,7 +477,7 @@ pub fn advance(
         last_rejected = false;
         t = if to_end { t_end } else { t + h };
         y = y_new;
-        k[0] = k[STAGES - 1];
+        k[0] = k[S - 1];
     }
     state.h_next = h_try;
     state.err_prev = err_prev;
@@ -450,6 +487,7 @@ pub fn advance(
 
 /// Initial step (Hairer, Nørsett & Wanner, Solving ODE I, II.4 "hinit"): from the sizes of y,
 /// f(y) and a difference quotient of f; one extra RHS evaluation.
+#[allow(clippy::too_many_arguments)] // the step's context, as `advance_with` has it
 fn initial_step(
     rhs: &mut impl SecondOrderRhs,
     t: f64,
@@ -457,6 +495,7 @@ fn initial_step(
     f0: [f64; 2],
     remaining: f64,
     tol: &Tolerance,
+    order: f64,
     stats: &mut IntegratorStats,
 ) -> f64 {
     let sc = scale(tol, y, y);
@@ -472,12 +511,12 @@ fn initial_step(
     };
     let dm = d1.max(d2);
     let h1 =
-        if dm <= 1e-15 { (h0 * 1e-3).max(1e-6) } else { (0.01 / dm).powf(1.0 / (ORDER + 1.0)) };
+        if dm <= 1e-15 { (h0 * 1e-3).max(1e-6) } else { (0.01 / dm).powf(1.0 / (order + 1.0)) };
     (100.0 * h0).min(h1).min(remaining)
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     //! Tests of the cage-equation integrator, each against an independent reference.
     #![allow(clippy::needless_range_loop)]
     use super::*;
@@ -524,28 +563,29 @@ mod tests {
         all
     }
 
-    /// Largest residual |b·Φ(t) − 1/γ(t)| over the trees of each order 1..=max.
-    fn order_residuals(b: &[f64; STAGES], max: usize) -> Vec<f64> {
+    /// Largest residual |b·Φ(t) − 1/γ(t)| over the trees of each order 1..=max, for the
+    /// weights `b` with the stages of `a`.
+    fn order_residuals<const S: usize>(a: &[[f64; S]; S], b: &[f64; S], max: usize) -> Vec<f64> {
         let all = trees_up_to(max);
         // Known counts of rooted trees (OEIS A000081) validate the enumeration.
         let counts: Vec<usize> = all.iter().skip(1).map(|v| v.len()).collect();
         assert_eq!(counts, [1, 1, 2, 4, 9, 20, 48][..max].to_vec());
-        let mut phi: Vec<Vec<[f64; STAGES]>> = vec![Vec::new(); max + 1];
+        let mut phi: Vec<Vec<[f64; S]>> = vec![Vec::new(); max + 1];
         let mut gamma: Vec<Vec<f64>> = vec![Vec::new(); max + 1];
         let mut res = vec![0.0_f64; max + 1];
         for n in 1..=max {
             for t in &all[n] {
-                let mut v = [1.0; STAGES];
+                let mut v = [1.0; S];
                 let mut g = n as f64;
                 for &(o, i) in t {
                     let child = &phi[o][i];
-                    for s in 0..STAGES {
-                        let aw: f64 = (0..STAGES).map(|j| A[s][j] * child[j]).sum();
+                    for s in 0..S {
+                        let aw: f64 = (0..S).map(|j| a[s][j] * child[j]).sum();
                         v[s] *= aw;
                     }
                     g *= gamma[o][i];
                 }
-                let w: f64 = (0..STAGES).map(|s| b[s] * v[s]).sum();
+                let w: f64 = (0..S).map(|s| b[s] * v[s]).sum();
                 res[n] = res[n].max((w - 1.0 / g).abs());
                 phi[n].push(v);
                 gamma[n].push(g);
@@ -565,8 +605,8 @@ mod tests {
         assert_eq!(A[STAGES - 1], B);
         // 6th order for B, 5th for B_HAT. Residual bound 1e-10: the published 40-digit
         // coefficients rounded to f64 (|a_ij| up to 208, |b_j| up to 176) leave ~3e-11.
-        let rb = order_residuals(&B, 7);
-        let rh = order_residuals(&B_HAT, 7);
+        let rb = order_residuals(&A, &B, 7);
+        let rh = order_residuals(&A, &B_HAT, 7);
         for n in 1..=6 {
             assert!(rb[n] < 1e-10, "B, order {n}: residual {:e}", rb[n]);
         }
@@ -1034,6 +1074,146 @@ mod tests {
                 best / n as f64 * 1e9,
                 best * 1e6
             );
+        }
+    }
+
+    // -----------------------------------------------------------------------------------------
+    // The pairs compared with Verner 6(5) on the elastic rod (docs/performance.md)
+    // -----------------------------------------------------------------------------------------
+
+    /// Other FSAL pairs, for the comparison of `model::drive`'s ignored test
+    /// `pairs_compared_on_the_shifted_cage_variable`: [`advance`] integrates with the pair set by
+    /// [`compared::with_pair`] on this thread (test builds only).
+    pub(crate) mod compared {
+        use super::super::*;
+        use std::cell::Cell;
+
+        const fn minus<const S: usize>(b: [f64; S], b_hat: [f64; S]) -> [f64; S] {
+            let mut e = [0.0; S];
+            let mut i = 0;
+            while i < S {
+                e[i] = b[i] - b_hat[i];
+                i += 1;
+            }
+            e
+        }
+
+        /// Dormand–Prince 5(4) (Hairer, Nørsett & Wanner, Solving ODE I, Table II.5.2).
+        pub const DP5_B: [f64; 7] = [35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0, 0.0];
+        pub const DP5_B_HAT: [f64; 7] =
+            [5179.0 / 57600.0, 0.0, 7571.0 / 16695.0, 393.0 / 640.0, -92097.0 / 339200.0, 187.0 / 2100.0, 1.0 / 40.0];
+        #[rustfmt::skip]
+        pub const DP5: Pair<7> = Pair {
+            c: [0.0, 0.2, 0.3, 0.8, 8.0 / 9.0, 1.0, 1.0],
+            a: [
+                [0.0; 7],
+                [0.2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                [3.0 / 40.0, 9.0 / 40.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                [44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0, 0.0, 0.0, 0.0, 0.0],
+                [19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0, 0.0, 0.0, 0.0],
+                [9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0, -5103.0 / 18656.0, 0.0, 0.0],
+                DP5_B,
+            ],
+            e: minus(DP5_B, DP5_B_HAT),
+            order: 5.0,
+            est_exponent: 1.0 / 5.0,
+        };
+
+        /// Tsitouras 5(4) (Ch. Tsitouras, Comput. Math. Appl. 62 (2011) 770–775; digits as in
+        /// diffrax's tableau).
+        pub const TSIT5_B: [f64; 7] = [
+            0.09646076681806522951816731316512876333712,
+            0.01,
+            0.4798896504144995747752495322905965199130,
+            1.379008574103741893192274821856872770756,
+            -3.290069515436080679901047585711363850116,
+            2.324710524099773982415355918398765796109,
+            0.0,
+        ];
+        pub const TSIT5_B_HAT: [f64; 7] = [
+            0.09468075576583945807478876255758922856118,
+            0.009183565540343253096776363936645313759814,
+            0.4877705284247615707855642599631228241517,
+            1.234297566930478985655109673884237654036,
+            -2.707712349983525454881109975059321670690,
+            1.866628418170587035753719399566211498666,
+            1.0 / 66.0,
+        ];
+        #[rustfmt::skip]
+        pub const TSIT5: Pair<7> = Pair {
+            c: [0.0, 0.161, 0.327, 0.9, 0.9800255409045096857298102862870245954942, 1.0, 1.0],
+            a: [
+                [0.0; 7],
+                [0.161, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                [-0.008480655492356988544426874250230774675121, 0.3354806554923569885444268742502307746751, 0.0, 0.0, 0.0, 0.0, 0.0],
+                [2.897153057105493432130432594192938764925, -6.359448489975074843148159912383825625953,
+                 4.362295432869581411017727318190886861028, 0.0, 0.0, 0.0, 0.0],
+                [5.325864828439256604428877920840511317836, -11.74888356406282787774717033978577296189,
+                 7.495539342889836208304604784564358155659, -0.09249506636175524925650207933207191611350, 0.0, 0.0, 0.0],
+                [5.861455442946420028659251486982647890394, -12.92096931784710929170611868178335939542,
+                 8.159367898576158643180400794539253485182, -0.07158497328140099722453054252582973869127,
+                 -0.02826905039406838290900305721271224146718, 0.0, 0.0],
+                TSIT5_B,
+            ],
+            e: minus(TSIT5_B, TSIT5_B_HAT),
+            order: 5.0,
+            est_exponent: 1.0 / 5.0,
+        };
+
+        /// Which pair [`advance`] uses on this thread (None: Verner 6(5)).
+        #[derive(Clone, Copy, Debug, PartialEq)]
+        pub enum Which {
+            Verner65,
+            Dp5,
+            Tsit5,
+        }
+
+        thread_local! {
+            static UNDER_TEST: Cell<Option<Which>> = const { Cell::new(None) };
+        }
+
+        /// Runs `f` with [`advance`] integrating with `which` on this thread.
+        pub fn with_pair<R>(which: Which, f: impl FnOnce() -> R) -> R {
+            UNDER_TEST.with(|u| u.set(Some(which)));
+            let r = f();
+            UNDER_TEST.with(|u| u.set(None));
+            r
+        }
+
+        pub(in crate::model::integrator) fn advance_with_pair_under_test(
+            rhs: &mut impl SecondOrderRhs,
+            t0: f64,
+            y0: [f64; 2],
+            h: f64,
+            tol: &Tolerance,
+            state: &mut IntegratorState,
+            stats: &mut IntegratorStats,
+        ) -> Option<Result<[f64; 2], ModelError>> {
+            match UNDER_TEST.with(|u| u.get())? {
+                Which::Verner65 => None,
+                Which::Dp5 => Some(advance_with(&DP5, rhs, t0, y0, h, tol, state, stats)),
+                Which::Tsit5 => Some(advance_with(&TSIT5, rhs, t0, y0, h, tol, state, stats)),
+            }
+        }
+    }
+
+    #[test]
+    fn the_compared_pairs_satisfy_their_order_conditions() {
+        use compared::*;
+        for (name, pair, b, b_hat) in [("DP5", &DP5, DP5_B, DP5_B_HAT), ("Tsit5", &TSIT5, TSIT5_B, TSIT5_B_HAT)] {
+            for i in 1..7 {
+                let row: f64 = pair.a[i].iter().sum();
+                assert!((row - pair.c[i]).abs() < 1e-14, "{name} row {i}: {row} vs {}", pair.c[i]);
+            }
+            let rb = order_residuals(&pair.a, &b, 6);
+            let rh = order_residuals(&pair.a, &b_hat, 6);
+            for n in 1..=5 {
+                assert!(rb[n] < 1e-12, "{name} b, order {n}: residual {:e}", rb[n]);
+            }
+            for n in 1..=4 {
+                assert!(rh[n] < 1e-12, "{name} b_hat, order {n}: residual {:e}", rh[n]);
+            }
+            assert!(rb[6] > 1e-6 && rh[5] > 1e-6, "{name}: {rb:?} {rh:?}");
         }
     }
 }
