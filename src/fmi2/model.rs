@@ -118,6 +118,15 @@ pub trait FmuModel: Sized + 'static {
     /// [`FmuModel::prepare`] of what `output` needs, it always does).
     fn read(cache: &Self::Outputs, output: Self::Output) -> Option<f64>;
 
+    /// [`FmuModel::read`] right after a successful [`FmuModel::prepare`] of what `output` needs,
+    /// without asking again whether the cache holds it (fmi2GetReal's fast path reads many
+    /// outputs after one prepare). NaN if it does not: the glue's general path then reads
+    /// through `read` and reports.
+    #[inline]
+    fn read_prepared(cache: &Self::Outputs, output: Self::Output) -> f64 {
+        Self::read(cache, output).unwrap_or(f64::NAN)
+    }
+
     /// One communication step of size `h` from `state`, to the tolerance `tol`, when
     /// [`FmuModel::carry_without_state`] did not make it: returns the new state and brings `out`
     /// up to date for it (as `update_outputs` would), so that a step to a state whose outputs

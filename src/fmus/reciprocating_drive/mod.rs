@@ -124,6 +124,13 @@ impl FmuModel for ReciprocatingDrive {
         (output.group & !cache.ready == 0).then(|| (output.get)(cache))
     }
 
+    /// `prepare` evaluated every group the call's outputs need (`evaluate_groups`).
+    #[inline]
+    fn read_prepared(cache: &Outputs, output: GroupedOutput<Outputs>) -> f64 {
+        debug_assert!(output.group & !cache.ready == 0, "read before its group was evaluated");
+        (output.get)(cache)
+    }
+
     /// Advances the crank by the in-step extrapolation of docs/model.md §2 and an elastic rod's
     /// cage state by its integrator, and evaluates every output at the end. The glue steps a rigid
     /// mechanism with [`Self::carry_without_state`] and comes here only when that refuses: a crank
