@@ -50,6 +50,13 @@ impl CrankSlider {
     /// Exact s, TF, TF', β and dβ/dθ at model angle θ (§3.1).
     #[inline]
     pub fn kinematics(&self, theta: f64) -> Kinematics {
+        self.kinematics_and_tan_beta(theta).0
+    }
+
+    /// [`CrankSlider::kinematics`] and tanβ, from the same sinθ: the rigid rod's side load on the
+    /// crosshead is −P·tanβ (§5.4).
+    #[inline]
+    pub fn kinematics_and_tan_beta(&self, theta: f64) -> (Kinematics, f64) {
         let (sin, cos) = theta.sin_cos();
         let (r, l) = (self.r, self.l);
         let sin_beta = (r * sin - self.e) / l;
@@ -63,20 +70,14 @@ impl CrankSlider {
         let tf = r * sin + r * cos * tan_beta;
         // TF' = d/dθ of the line above, using d(tanβ)/dθ = β'/cos²β.
         let tfp = r * cos - r * sin * tan_beta + r * cos * beta_rate / (cos_beta * cos_beta);
-        Kinematics {
+        let k = Kinematics {
             s: self.x_max - x,
             tf,
             tfp,
             rod_angle: sin_beta.asin(),
             rod_angle_rate: beta_rate,
-        }
-    }
-
-    /// tanβ at θ: the rigid rod's side load on the crosshead is −P·tanβ (§5.4).
-    #[inline]
-    pub fn tan_beta(&self, theta: f64) -> f64 {
-        let sin_beta = (self.r * theta.sin() - self.e) / self.l;
-        sin_beta / (1.0 - sin_beta * sin_beta).sqrt()
+        };
+        (k, tan_beta)
     }
 }
 

@@ -60,6 +60,10 @@ pub struct Outputs {
     pub ready: u8,
     /// F_ext + Φ + F_bal, P without friction (§4): the LOADS group's input to FORCES.
     pub p_base: f64,
+    /// tanβ of a rigid slider rod, whose side load on the crosshead is −P·tanβ (§5.4); 0 for a
+    /// beam unit, whose polished rod hangs from the horsehead arc. The KINEMATICS group's input
+    /// to FORCES.
+    pub side_slope: f64,
     /// The model angle θ the other outputs belong to: the crank angle as last set plus
     /// `crank.angle_offset`, carried forward through the steps since (§2).
     pub model_angle: f64,
@@ -513,7 +517,12 @@ impl Model {
         let theta = self.model_angle(crank);
         let (w, eps) = (crank.speed, crank.acceleration);
         if out.ready & groups::KINEMATICS == 0 {
-            let k = self.kinematics_at(theta);
+            let (k, side_slope) = match &self.mechanism {
+                Mechanism::CrankSlider(m) => m.kinematics_and_tan_beta(theta),
+                // A beam unit's polished rod hangs from the horsehead arc: no side force (§5.4).
+                _ => (self.kinematics_at(theta), 0.0),
+            };
+            out.side_slope = side_slope;
             out.model_angle = theta;
             out.model_speed = w;
             out.position = k.s;
@@ -538,15 +547,7 @@ impl Model {
             // The rigid slider rod pushes the crosshead sideways with −P·tanβ (§5.4); P is
             // solved exactly (piecewise linear in P).
             let guide = match &self.guide {
-                Some(g) => {
-                    let tan_beta = match &self.mechanism {
-                        Mechanism::CrankSlider(m) => m.tan_beta(theta),
-                        // A beam unit's polished rod hangs from the horsehead arc: no side
-                        // force (§5.4).
-                        _ => 0.0,
-                    };
-                    g.solve_rigid(out.position, out.velocity, out.p_base, tan_beta)?
-                }
+                Some(g) => g.solve_rigid(out.position, out.velocity, out.p_base, out.side_slope)?,
                 None => GuideOutputs { rod_force: out.p_base, ..GuideOutputs::default() },
             };
             out.guide = guide;
@@ -575,6 +576,8 @@ impl Model {
         *out = Outputs {
             ready: groups::ALL,
             p_base: i.p_base,
+            // The elastic rod's transverse force is part of its own solution (§6).
+            side_slope: 0.0,
             model_angle: self.model_angle(crank),
             model_speed: crank.speed,
             position: i.k.s,
