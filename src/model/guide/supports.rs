@@ -536,11 +536,6 @@ impl SupportSystem {
         let nf = self.n_fixed;
         let n1 = nf + 2;
         let n2 = self.n - nf;
-        let mut st2 = [self.cons[0].station; MAX_CONTACTS];
-        let mut k12 = [[0.0; MAX_EQ]; MAX_CONTACTS];
-        let mut x = [[0.0; MAX_EQ]; MAX_CONTACTS];
-        let mut gx = [[ForceMoment::default(); 3]; MAX_CONTACTS];
-        let mut b2: Rhs = [[0.0; MAX_RHS]; MAX_EQ];
         // Block-1 solutions of the load columns (column-major) and their link-fixed reactions.
         let mut ycols = [[0.0; MAX_EQ]; MAX_RHS];
         let mut pre = [[ForceMoment::default(); 3]; MAX_RHS];
@@ -592,7 +587,41 @@ impl SupportSystem {
             }
             c.load
         };
-        let load = &load;
+        // The frame-fixed part for their number: arrays of that size, so that a single gland
+        // (the usual case) sets up no 6-contact arrays and no 8×8 matrix.
+        match n2 {
+            1 => self.condensed_tail::<1>(c, s_scaled, cols, &ycols, &pre, &load, load_z),
+            2 => self.condensed_tail::<2>(c, s_scaled, cols, &ycols, &pre, &load, load_z),
+            3 => self.condensed_tail::<3>(c, s_scaled, cols, &ycols, &pre, &load, load_z),
+            4 => self.condensed_tail::<4>(c, s_scaled, cols, &ycols, &pre, &load, load_z),
+            5 => self.condensed_tail::<5>(c, s_scaled, cols, &ycols, &pre, &load, load_z),
+            _ => self.condensed_tail::<MAX_CONTACTS>(c, s_scaled, cols, &ycols, &pre, &load, load_z),
+        }
+    }
+
+    /// The part of [`SupportSystem::solve_condensed`] that involves the `N2` frame-fixed
+    /// contacts (`N2 = n − n_fixed`, at most [`MAX_CONTACTS`]), given the block-1 load
+    /// solutions `ycols` and their link-fixed reactions `pre`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn condensed_tail<const N2: usize>(
+        &self,
+        c: &Condensed,
+        s_scaled: f64,
+        cols: &Columns,
+        ycols: &[[f64; MAX_EQ]; MAX_RHS],
+        pre: &[[ForceMoment; 3]; MAX_RHS],
+        load: &Station,
+        load_z: f64,
+    ) -> Result<Influence, ModelError> {
+        let nf = self.n_fixed;
+        let n1 = nf + 2;
+        let n2 = N2.min(self.n - nf);
+        let mut st2 = [self.cons[0].station; N2];
+        let mut k12 = [[0.0; MAX_EQ]; N2];
+        let mut x = [[0.0; MAX_EQ]; N2];
+        let mut gx = [[ForceMoment::default(); 3]; N2];
+        let mut b2 = [[0.0; MAX_RHS]; N2];
         for m in 0..n2 {
             st2[m] = self.station_at(nf + m, s_scaled);
             let st = &st2[m];
@@ -626,7 +655,7 @@ impl SupportSystem {
         }
         // Schur complement S = K₂₂ − K₁₂ᵀX: the flexibility of the link held by the link-fixed
         // contacts at the frame-fixed ones; compared with K₂₂'s scale to detect coincidences.
-        let mut schur: Matrix = [[0.0; MAX_EQ]; MAX_EQ];
+        let mut schur = [[0.0; N2]; N2];
         let mut scale = 0.0f64;
         for m in 0..n2 {
             for mm in 0..n2 {
@@ -649,8 +678,19 @@ impl SupportSystem {
             for k in 0..cols.count {
                 b2[0][k] *= inv;
             }
-        } else if solve_in_place(&mut schur, &mut b2, n2, cols.count).is_err() {
-            return Err(self.singular_error(s_scaled));
+        } else {
+            let mut a: Matrix = [[0.0; MAX_EQ]; MAX_EQ];
+            let mut rhs: Rhs = [[0.0; MAX_RHS]; MAX_EQ];
+            for m in 0..n2 {
+                a[m][..n2].copy_from_slice(&schur[m][..n2]);
+                rhs[m] = b2[m];
+            }
+            if solve_in_place(&mut a, &mut rhs, n2, cols.count).is_err() {
+                return Err(self.singular_error(s_scaled));
+            }
+            for m in 0..n2 {
+                b2[m] = rhs[m];
+            }
         }
         // Reactions per column: link-fixed contacts y₁ − X·x₂ (gathered), plus the frame-fixed
         // contacts' own forces x₂.
