@@ -688,9 +688,7 @@ impl SupportSystem {
             if solve_in_place(&mut a, &mut rhs, n2, cols.count).is_err() {
                 return Err(self.singular_error(s_scaled));
             }
-            for m in 0..n2 {
-                b2[m] = rhs[m];
-            }
+            b2[..n2].copy_from_slice(&rhs[..n2]);
         }
         // Reactions per column: link-fixed contacts y₁ − X·x₂ (gathered), plus the frame-fixed
         // contacts' own forces x₂.
