@@ -1114,7 +1114,7 @@ mod tests {
                 (out, stats)
             };
             let (reference, _) = with_pair(Which::Verner65, || trajectory(1e-12));
-            for which in [Which::Verner65, Which::Tsit5, Which::Dp5] {
+            for which in [Which::Verner65, Which::Tsit5, Which::Dp5, Which::Verner76] {
                 for tol in [3e-8, 1e-8, 3e-9, 1e-9, 3e-10] {
                     let (run, stats) = with_pair(which, || trajectory(tol));
                     let err = run

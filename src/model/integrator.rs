@@ -46,9 +46,10 @@
 //! of one step per call) and 8 290 at 10 ms; at 0.1 ms one step per call, 90 000, as before.
 //! Compared again on φ (`model::drive` test `pairs_compared_on_the_shifted_cage_variable`,
 //! docs/performance.md): at the same accuracy (1e-8 rad) Verner 6(5) needs 9.7 evaluations per
-//! 1 ms step for the kvo630 spring, Tsitouras 5(4) about 12 and Dormand–Prince 5(4) about 13.5;
-//! at the same tolerance the 5(4) pairs make fewer evaluations but miss it 2 to 6 times, and they
-//! need a second step per call more often (error ∝ h⁵ instead of h⁶).
+//! 1 ms step for the kvo630 spring, Tsitouras 5(4) about 12, Dormand–Prince 5(4) about 13.5 and
+//! Verner 7(6) 11.4; at the same tolerance the 5(4) pairs make fewer evaluations but miss it 2 to
+//! 6 times (they need a second step per call more often: error ∝ h⁵ instead of h⁶), and Verner
+//! 7(6) (10 evaluations a step, not FSAL) is cheaper only below about 3e-9 rad.
 //!
 //! Cost with the bare kvo630 RHS (BeamColumn::new ≈ 35 ns + crank trigonometry), release build:
 //! ≈ 1.3 µs per 1 ms communication step (17 RHS evaluations, ≈ 76 ns each including the stage
@@ -226,11 +227,15 @@ const E: [f64; STAGES] = {
     e
 };
 
-/// An embedded explicit Runge–Kutta pair whose last stage is the derivative at the new point
-/// (FSAL: the last row of `a` holds the solution's weights and `c` ends at 1).
+/// An embedded explicit Runge–Kutta pair. With `fsal` its last stage is the derivative at the
+/// new point (the last row of `a` holds the solution's weights `b` and `c` ends at 1); without,
+/// the derivative at the new point is one more evaluation after the step is accepted.
 pub struct Pair<const S: usize> {
     pub c: [f64; S],
     pub a: [[f64; S]; S],
+    /// The solution's weights.
+    pub b: [f64; S],
+    pub fsal: bool,
     /// Error weights: the solution's weights less the embedded ones.
     pub e: [f64; S],
     /// Order of the solution (for the initial step estimate).
@@ -240,7 +245,7 @@ pub struct Pair<const S: usize> {
 }
 
 /// The pair the FMU integrates with (see the module doc).
-pub const VERNER_65: Pair<STAGES> = Pair { c: C, a: A, e: E, order: 6.0, est_exponent: 1.0 / 6.0 };
+pub const VERNER_65: Pair<STAGES> = Pair { c: C, a: A, b: B, fsal: true, e: E, order: 6.0, est_exponent: 1.0 / 6.0 };
 const SAFETY: f64 = 0.9;
 const FAC_MIN: f64 = 0.2;
 const FAC_MAX: f64 = 10.0;
@@ -328,10 +333,16 @@ fn step<const S: usize>(
                 yi[1] += h * aij * k[j][1];
             }
         }
-        if i == S - 1 {
+        if pair.fsal && i == S - 1 {
             y_new = yi; // last row of A = B
         }
         k[i] = eval(rhs, t + pair.c[i] * h, yi, stats)?;
+    }
+    if !pair.fsal {
+        for j in 0..S {
+            y_new[0] += h * pair.b[j] * k[j][0];
+            y_new[1] += h * pair.b[j] * k[j][1];
+        }
     }
     let mut est = [0.0_f64; 2];
     for j in 0..S {
@@ -454,6 +465,22 @@ pub fn advance_with<const S: usize>(
             last_rejected = true;
             continue;
         }
+        // The derivative at the new point: the last stage of an FSAL pair, else one more
+        // evaluation, whose failure rejects the step like a failing stage.
+        let f_new = if pair.fsal {
+            k[S - 1]
+        } else {
+            match eval(rhs, if to_end { t_end } else { t + h }, y_new, &mut work) {
+                Ok(f) => f,
+                Err(e) => {
+                    work.rejected += 1;
+                    last_failure = Some(e);
+                    h_try = h * STAGE_FAIL_FACTOR;
+                    last_rejected = true;
+                    continue;
+                }
+            }
+        };
         work.steps += 1;
         let err_c = err.max(ERR_FLOOR);
         let mut fac = (SAFETY * err_c.powf(-alpha) * err_prev.powf(BETA)).clamp(FAC_MIN, FAC_MAX);
@@ -477,7 +504,7 @@ pub fn advance_with<const S: usize>(
         last_rejected = false;
         t = if to_end { t_end } else { t + h };
         y = y_new;
-        k[0] = k[S - 1];
+        k[0] = f_new;
     }
     state.h_next = h_try;
     state.err_prev = err_prev;
@@ -1114,6 +1141,8 @@ pub(crate) mod tests {
                 [9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0, -5103.0 / 18656.0, 0.0, 0.0],
                 DP5_B,
             ],
+            b: DP5_B,
+            fsal: true,
             e: minus(DP5_B, DP5_B_HAT),
             order: 5.0,
             est_exponent: 1.0 / 5.0,
@@ -1155,9 +1184,63 @@ pub(crate) mod tests {
                  -0.02826905039406838290900305721271224146718, 0.0, 0.0],
                 TSIT5_B,
             ],
+            b: TSIT5_B,
+            fsal: true,
             e: minus(TSIT5_B, TSIT5_B_HAT),
             order: 5.0,
             est_exponent: 1.0 / 5.0,
+        };
+
+        /// Verner's "most efficient" 7(6) pair, RKV76.IIa (10 stages, not FSAL: 10 evaluations
+        /// a step; coefficients as published by J. H. Verner, as in jacobwilliams/rklib `rkv76e`).
+        pub const V76_B: [f64; 10] = [
+            0.04715561848627222170431765108838175679569, 0.0, 0.0,
+            0.2575056429843415189596436101037687580986, 0.2621665397741262047713863095764527711129,
+            0.1521609265673855740323133199165117535523, 0.4939969170032484246907175893227876844296,
+            -0.2943031171403250441557244744092703429139, 0.08131747232495109999734599440136761892478, 0.0,
+        ];
+        pub const V76_B_HAT: [f64; 10] = [
+            0.04460860660634117628731817597479197781432, 0.0, 0.0,
+            0.2671640378571372680509102260943837899738, 0.2201018300177293019979715776650753096323,
+            0.2188431703143156830983120833512893824578, 0.2289871705411202883378173889763552365362,
+            0.0, 0.0, 0.02029518466335628222767054793810430358554,
+        ];
+        #[rustfmt::skip]
+        pub const V76: Pair<10> = Pair {
+            c: [0.0, 0.005, 0.1088888888888888888888888888888888888889, 0.1633333333333333333333333333333333333333,
+                0.4555, 0.6095094489978381317087004421486024949638, 0.884, 0.925, 1.0, 1.0],
+            a: [
+                [0.0; 10],
+                [0.005, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                [-1.076790123456790123456790123456790123457, 1.185679012345679012345679012345679012346,
+                 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                [0.04083333333333333333333333333333333333333, 0.0, 0.1225, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                [0.6389139236255726780508121615993336109954, 0.0, -2.455672638223656809662640566430653894211,
+                 2.272258714598084131611828404831320283215, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+                [-2.661577375018757131119259297861818119279, 0.0, 10.80451388645613769565396655365532838482,
+                 -8.353914657396199411968048547819291691541, 0.8204875949566569791420417341743839209619,
+                 0.0, 0.0, 0.0, 0.0, 0.0],
+                [6.067741434696770992718360183877276714679, 0.0, -24.71127363591108579734203485290746001803,
+                 20.42751793078889394045773111748346612697, -1.906157978816647150624096784352757010879,
+                 1.006172249242068014790040335899474187268, 0.0, 0.0, 0.0, 0.0],
+                [12.05467007625320299509109452892778311648, 0.0, -49.75478495046898932807257615331444758322,
+                 41.14288863860467663259698416710157354209, -4.461760149974004185641911603484815375051,
+                 2.042334822239174959821717077708608543738, -0.09834843665406107379530801693870224403537,
+                 0.0, 0.0, 0.0],
+                [10.13814652288180787641845141981689030769, 0.0, -42.64113603171750214622846006736635730625,
+                 35.76384003992257007135021178023160054034, -4.348022840392907653340370296908245943710,
+                 2.009862268377035895441943593011827554771, 0.3487490460338272405953822853053145879140,
+                 -0.2714390051048312842371587140910297407572, 0.0, 0.0],
+                [-45.03007203429867712435322405073769635151, 0.0, 187.3272437654588840752418206154201997384,
+                 -154.0288236935018690596728621034510402582, 18.56465306347536233859492332958439136765,
+                 -7.141809679295078854925420496823551192821, 1.308808578161378625114762706007696696508,
+                 0.0, 0.0, 0.0],
+            ],
+            b: V76_B,
+            fsal: false,
+            e: minus(V76_B, V76_B_HAT),
+            order: 7.0,
+            est_exponent: 1.0 / 7.0,
         };
 
         /// Which pair [`advance`] uses on this thread (None: Verner 6(5)).
@@ -1166,6 +1249,7 @@ pub(crate) mod tests {
             Verner65,
             Dp5,
             Tsit5,
+            Verner76,
         }
 
         thread_local! {
@@ -1193,6 +1277,7 @@ pub(crate) mod tests {
                 Which::Verner65 => None,
                 Which::Dp5 => Some(advance_with(&DP5, rhs, t0, y0, h, tol, state, stats)),
                 Which::Tsit5 => Some(advance_with(&TSIT5, rhs, t0, y0, h, tol, state, stats)),
+                Which::Verner76 => Some(advance_with(&V76, rhs, t0, y0, h, tol, state, stats)),
             }
         }
     }
@@ -1215,5 +1300,20 @@ pub(crate) mod tests {
             }
             assert!(rb[6] > 1e-6 && rh[5] > 1e-6, "{name}: {rb:?} {rh:?}");
         }
+        // Verner 7(6): 7th order for the solution, 6th for the estimate (not 7th).
+        for i in 1..10 {
+            let row: f64 = V76.a[i].iter().sum();
+            let mag: f64 = V76.a[i].iter().map(|v| v.abs()).sum();
+            assert!((row - V76.c[i]).abs() <= 8.0 * f64::EPSILON * mag, "V76 row {i}: {row} vs {}", V76.c[i]);
+        }
+        let rb = order_residuals(&V76.a, &V76_B, 7);
+        let rh = order_residuals(&V76.a, &V76_B_HAT, 7);
+        for n in 1..=7 {
+            assert!(rb[n] < 1e-10, "V76 b, order {n}: residual {:e}", rb[n]);
+        }
+        for n in 1..=6 {
+            assert!(rh[n] < 1e-10, "V76 b_hat, order {n}: residual {:e}", rh[n]);
+        }
+        assert!(rh[7] > 1e-8, "V76: {rh:?}");
     }
 }
