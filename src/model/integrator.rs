@@ -217,15 +217,18 @@ const A: [[f64; STAGES]; STAGES] = [
 ];
 
 /// Error weights `B − B_HAT`.
-const E: [f64; STAGES] = {
-    let mut e = [0.0; STAGES];
+const E: [f64; STAGES] = error_weights(B, B_HAT);
+
+/// A pair's error weights: the solution's weights less the embedded ones (at compile time).
+pub const fn error_weights<const S: usize>(b: [f64; S], b_hat: [f64; S]) -> [f64; S] {
+    let mut e = [0.0; S];
     let mut i = 0;
-    while i < STAGES {
-        e[i] = B[i] - B_HAT[i];
+    while i < S {
+        e[i] = b[i] - b_hat[i];
         i += 1;
     }
     e
-};
+}
 
 /// An embedded explicit Runge–Kutta pair. With `fsal` its last stage is the derivative at the
 /// new point (the last row of `a` holds the solution's weights `b` and `c` ends at 1); without,
@@ -1115,16 +1118,6 @@ pub(crate) mod tests {
         use super::super::*;
         use std::cell::Cell;
 
-        const fn minus<const S: usize>(b: [f64; S], b_hat: [f64; S]) -> [f64; S] {
-            let mut e = [0.0; S];
-            let mut i = 0;
-            while i < S {
-                e[i] = b[i] - b_hat[i];
-                i += 1;
-            }
-            e
-        }
-
         /// Dormand–Prince 5(4) (Hairer, Nørsett & Wanner, Solving ODE I, Table II.5.2).
         pub const DP5_B: [f64; 7] = [35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0, 0.0];
         pub const DP5_B_HAT: [f64; 7] =
@@ -1143,7 +1136,7 @@ pub(crate) mod tests {
             ],
             b: DP5_B,
             fsal: true,
-            e: minus(DP5_B, DP5_B_HAT),
+            e: error_weights(DP5_B, DP5_B_HAT),
             order: 5.0,
             est_exponent: 1.0 / 5.0,
         };
@@ -1186,7 +1179,7 @@ pub(crate) mod tests {
             ],
             b: TSIT5_B,
             fsal: true,
-            e: minus(TSIT5_B, TSIT5_B_HAT),
+            e: error_weights(TSIT5_B, TSIT5_B_HAT),
             order: 5.0,
             est_exponent: 1.0 / 5.0,
         };
@@ -1238,7 +1231,7 @@ pub(crate) mod tests {
             ],
             b: V76_B,
             fsal: false,
-            e: minus(V76_B, V76_B_HAT),
+            e: error_weights(V76_B, V76_B_HAT),
             order: 7.0,
             est_exponent: 1.0 / 7.0,
         };
