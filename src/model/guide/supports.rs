@@ -155,7 +155,8 @@ impl Columns {
 }
 
 /// Precomputed static condensation onto the frame-fixed contacts (block 1 = link-fixed
-/// contacts followed by the rigid-body unknowns a, b).
+/// contacts followed by the rigid-body unknowns a, b). Every array is zero beyond block 1's
+/// size n1: the per-s products run over the whole width and rely on it.
 #[derive(Clone, Debug)]
 struct Condensed {
     k11_inv: Matrix,
@@ -566,7 +567,7 @@ impl SupportSystem {
             load
         } else {
             ycols[0] = c.y_base0;
-            for i in 0..n1 {
+            for i in 0..MAX_EQ {
                 ycols[0][i] += s_scaled * c.y_base1[i];
             }
             pre[0] = c.g_base0;
@@ -634,11 +635,14 @@ impl SupportSystem {
             col[nf + 1] = q;
             // X = K₁₁⁻¹·col as a sum of K₁₁⁻¹'s rows (it is symmetric): scalar reads of the
             // freshly written column (cheaper than vector reads across separate stores).
+            // The inner loop runs over the whole width: K₁₁⁻¹ is zero beyond n1, so the extra
+            // terms add exact zeros, and a loop of constant length runs without a test per
+            // element and is vectorised (n1 is known only at run time).
             let xm = &mut x[m];
             for j in 0..n1 {
                 let cj = col[j];
                 let row = &c.k11_inv[j];
-                for i in 0..n1 {
+                for i in 0..MAX_EQ {
                     xm[i] += row[i] * cj;
                 }
             }
@@ -647,7 +651,8 @@ impl SupportSystem {
             for k in 0..cols.count {
                 let y = &ycols[k];
                 let mut acc = b2[m][k];
-                for i in 0..n1 {
+                // Both zero beyond n1 (whole width, as above).
+                for i in 0..MAX_EQ {
                     acc -= col[i] * y[i];
                 }
                 b2[m][k] = acc;
@@ -664,7 +669,7 @@ impl SupportSystem {
                     acc += self.cons[nf + m].compliance;
                     scale = scale.max(acc.abs());
                 }
-                for i in 0..n1 {
+                for i in 0..MAX_EQ {
                     acc -= k12[m][i] * x[mm][i];
                 }
                 schur[m][mm] = acc;
