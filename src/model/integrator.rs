@@ -411,7 +411,7 @@ pub fn advance_with<const S: usize>(
     let alpha = pair.est_exponent - 0.75 * BETA;
     let mut n_steps: u64 = 0;
 
-    while t < t_end {
+    'steps: while t < t_end {
         let remaining = t_end - t;
         let h_min = 16.0 * f64::EPSILON * t.abs().max(t_end.abs()).max(1e-3);
         if !(h_try >= h_min) || n_steps >= MAX_STEPS_PER_CALL {
@@ -444,44 +444,43 @@ pub fn advance_with<const S: usize>(
         };
         let shortened = h < h_try;
 
-        let (y_new, est) = match step(pair, rhs, t, y, h, &mut k, &mut work) {
+        // A failing stage (or, without FSAL, a failing evaluation at the new point) rejects the
+        // step: one path for both, below.
+        let attempt = 'attempt: {
+            let (y_new, est) = match step(pair, rhs, t, y, h, &mut k, &mut work) {
+                Ok(v) => v,
+                Err(e) => break 'attempt Err(e),
+            };
+            let sc = scale(tol, y, y_new);
+            let err = h * (0.5 * ((est[0] / sc[0]).powi(2) + (est[1] / sc[1]).powi(2))).sqrt();
+            if !(err <= 1.0) {
+                // Rejected (NaN included).
+                work.rejected += 1;
+                let fac = if err.is_finite() {
+                    (SAFETY * err.powf(-pair.est_exponent)).clamp(FAC_MIN, 1.0)
+                } else {
+                    FAC_MIN
+                };
+                h_try = h * fac;
+                last_rejected = true;
+                continue 'steps;
+            }
+            // The derivative at the new point: the last stage of an FSAL pair, else one more
+            // evaluation.
+            if pair.fsal {
+                Ok((y_new, err, k[S - 1]))
+            } else {
+                eval(rhs, if to_end { t_end } else { t + h }, y_new, &mut work).map(|f| (y_new, err, f))
+            }
+        };
+        let (y_new, err, f_new) = match attempt {
             Ok(v) => v,
             Err(e) => {
                 work.rejected += 1;
                 last_failure = Some(e);
                 h_try = h * STAGE_FAIL_FACTOR;
                 last_rejected = true;
-                continue;
-            }
-        };
-        let sc = scale(tol, y, y_new);
-        let err = h * (0.5 * ((est[0] / sc[0]).powi(2) + (est[1] / sc[1]).powi(2))).sqrt();
-        if !(err <= 1.0) {
-            // Rejected (NaN included).
-            work.rejected += 1;
-            let fac = if err.is_finite() {
-                (SAFETY * err.powf(-pair.est_exponent)).clamp(FAC_MIN, 1.0)
-            } else {
-                FAC_MIN
-            };
-            h_try = h * fac;
-            last_rejected = true;
-            continue;
-        }
-        // The derivative at the new point: the last stage of an FSAL pair, else one more
-        // evaluation, whose failure rejects the step like a failing stage.
-        let f_new = if pair.fsal {
-            k[S - 1]
-        } else {
-            match eval(rhs, if to_end { t_end } else { t + h }, y_new, &mut work) {
-                Ok(f) => f,
-                Err(e) => {
-                    work.rejected += 1;
-                    last_failure = Some(e);
-                    h_try = h * STAGE_FAIL_FACTOR;
-                    last_rejected = true;
-                    continue;
-                }
+                continue 'steps;
             }
         };
         work.steps += 1;
