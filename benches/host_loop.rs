@@ -168,7 +168,8 @@ fn main() {
             continue;
         }
         // BENCH_STEPS shortens the runs (e.g. under valgrind --tool=callgrind).
-        let steps = std::env::var("BENCH_STEPS").ok().and_then(|s| s.parse().ok()).unwrap_or(200_000);
+        let steps =
+            std::env::var("BENCH_STEPS").ok().and_then(|s| s.parse().ok()).unwrap_or(200_000);
         run(&api, sc, steps / 10); // warm-up
         let mut runs: Vec<f64> = (0..9).map(|_| run(&api, sc, steps)).collect();
         runs.sort_by(f64::total_cmp);

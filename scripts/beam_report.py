@@ -60,8 +60,10 @@ def main(fmu="target/fmu/ReciprocatingDrive.fmu", preset="sk8-3.5-4000"):
             else:
                 lo = x1
         th = 0.5 * (lo + hi)
-        print(f"  {label}: a = {acc(th):.7f} m/s2 at API theta = {math.degrees(th) % 360:.4f} deg, "
-              f"phi1 = {math.degrees(th + shift) % 360:.4f} deg")
+        print(
+            f"  {label}: a = {acc(th):.7f} m/s2 at API theta = {math.degrees(th) % 360:.4f} deg, "
+            f"phi1 = {math.degrees(th + shift) % 360:.4f} deg"
+        )
     s.terminate()
     s.freeInstance()
     shutil.rmtree(d, ignore_errors=True)

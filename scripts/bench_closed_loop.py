@@ -53,7 +53,9 @@ def fmu_step_cost(n: int) -> float:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--repeat", type=int, default=3)
     a = ap.parse_args(argv)
     ssp = build_ssp(ROOT / "target" / "fmu" / "ClosedLoop.ssp")
@@ -68,11 +70,15 @@ def main(argv=None) -> int:
     per_step = min(fmu_step_cost(20000) for _ in range(a.repeat))
     n = int(T / H)
     print(f"one simulated minute, h = 1 ms ({n} steps), best of {a.repeat}:")
-    print(f"  libcosim simulate_until   {best['simulate']:.3f} s  ({best['simulate'] / n * 1e6:.1f} µs per step; "
-          f"loading the SSP {best['load']:.3f} s)")
+    print(
+        f"  libcosim simulate_until   {best['simulate']:.3f} s  ({best['simulate'] / n * 1e6:.1f} µs per step; "
+        f"loading the SSP {best['load']:.3f} s)"
+    )
     print(f"  fmpy simulate_ssp         {fmpy_s:.3f} s")
     print(f"  both FMUs' fmi2DoStep     {per_step * n:.3f} s  ({per_step * 1e6:.2f} µs per step)")
-    print(f"  libcosim's share beyond the FMUs' steps: {100 * (1 - per_step * n / best['simulate']):.0f} %")
+    print(
+        f"  libcosim's share beyond the FMUs' steps: {100 * (1 - per_step * n / best['simulate']):.0f} %"
+    )
     return 0
 
 

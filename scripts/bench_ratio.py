@@ -30,10 +30,26 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 OUT = ROOT / "target" / "bench-c"
 
 # The outputs the issue's loop reads (the same as benches/host_loop.rs), and the kinematics only.
-EIGHT = ["suspension.position", "suspension.velocity", "suspension.acceleration", "kinematics.torque_factor",
-         "inertia.force", "rod.force", "crank.torque", "rod.angle"]
-KINEMATICS = ["suspension.position", "suspension.velocity", "suspension.acceleration", "kinematics.torque_factor",
-              "rod.angle", "rod.angular_velocity", "crank.model_angle", "crank.model_speed"]
+EIGHT = [
+    "suspension.position",
+    "suspension.velocity",
+    "suspension.acceleration",
+    "kinematics.torque_factor",
+    "inertia.force",
+    "rod.force",
+    "crank.torque",
+    "rod.angle",
+]
+KINEMATICS = [
+    "suspension.position",
+    "suspension.velocity",
+    "suspension.acceleration",
+    "kinematics.torque_factor",
+    "rod.angle",
+    "rod.angular_velocity",
+    "crank.model_angle",
+    "crank.model_speed",
+]
 NO_SUPPORTS = {"support_A.kind": 0, "support_B.kind": 0, "support_C.kind": 0}
 
 # (name, preset or None, overrides, outputs read, target ratio of the loop)
@@ -48,20 +64,31 @@ SCENARIOS = [
 
 def fmi_headers() -> pathlib.Path:
     """The FMI 2.0 headers shipped in the fmi-sys crate the FMU is built with."""
-    meta = json.loads(subprocess.run(["cargo", "metadata", "--format-version", "1"], cwd=ROOT, check=True,
-                                     capture_output=True, text=True).stdout)
+    meta = json.loads(
+        subprocess.run(
+            ["cargo", "metadata", "--format-version", "1"],
+            cwd=ROOT,
+            check=True,
+            capture_output=True,
+            text=True,
+        ).stdout
+    )
     pkg = next(p for p in meta["packages"] if p["name"] == "fmi-sys")
     return pathlib.Path(pkg["manifest_path"]).parent / "fmi-standard2" / "headers"
 
 
 def build() -> tuple[pathlib.Path, pathlib.Path, pathlib.Path]:
-    subprocess.run(["cargo", "build", "--release", "-q", "-p", "fmu-reciprocating-drive"], cwd=ROOT, check=True)
+    subprocess.run(
+        ["cargo", "build", "--release", "-q", "-p", "fmu-reciprocating-drive"], cwd=ROOT, check=True
+    )
     OUT.mkdir(parents=True, exist_ok=True)
     inc = fmi_headers()
     base = OUT / "libFeedthrough.so"
     host = OUT / "host_loop"
     cc = ["gcc", "-O3", "-std=c11", "-D_GNU_SOURCE", f"-I{inc}"]
-    subprocess.run(cc + ["-shared", "-fPIC", "-o", base, ROOT / "benches/c/feedthrough.c"], check=True)
+    subprocess.run(
+        cc + ["-shared", "-fPIC", "-o", base, ROOT / "benches/c/feedthrough.c"], check=True
+    )
     subprocess.run(cc + ["-o", host, ROOT / "benches/c/host_loop.c", "-ldl"], check=True)
     return host, base, ROOT / "target" / "release" / "libReciprocatingDrive.so"
 
@@ -83,7 +110,9 @@ def preset(name: str) -> dict:
         v = next(iter(p))
         tag = v.tag.split("}")[1]
         raw = v.get("value")
-        out[p.get("name")] = (raw == "true") if tag == "Boolean" else int(raw) if tag == "Integer" else float(raw)
+        out[p.get("name")] = (
+            (raw == "true") if tag == "Boolean" else int(raw) if tag == "Integer" else float(raw)
+        )
     return out
 
 
@@ -92,10 +121,17 @@ def _fmi_instructions(cmd: list[str]) -> dict:
     the host (callgrind_annotate adds up same-named functions of both libraries)."""
     with tempfile.TemporaryDirectory() as d:
         out = pathlib.Path(d) / "callgrind.out"
-        subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *cmd],
-                       check=True, capture_output=True)
-        text = subprocess.run(["callgrind_annotate", "--inclusive=yes", "--threshold=100", str(out)],
-                              check=True, capture_output=True, text=True).stdout
+        subprocess.run(
+            ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *cmd],
+            check=True,
+            capture_output=True,
+        )
+        text = subprocess.run(
+            ["callgrind_annotate", "--inclusive=yes", "--threshold=100", str(out)],
+            check=True,
+            capture_output=True,
+            text=True,
+        ).stdout
     count = {}
     for f in ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal"):
         pat = re.compile(r"^\s*([\d,]+)\s.*:" + f + r"( \[|$)", re.M)
@@ -122,13 +158,21 @@ def instructions(base_cmd: list[str], cmd: list[str], steps: int) -> tuple:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("filter", nargs="?", default="")
     ap.add_argument("--steps", type=int, default=200_000)
     ap.add_argument("--rounds", type=int, default=9)
-    ap.add_argument("--instructions", action="store_true", help="count instructions under callgrind instead")
-    ap.add_argument("--fmu", type=pathlib.Path, default=None,
-                    help="another build of libReciprocatingDrive.so to measure (e.g. of an earlier commit)")
+    ap.add_argument(
+        "--instructions", action="store_true", help="count instructions under callgrind instead"
+    )
+    ap.add_argument(
+        "--fmu",
+        type=pathlib.Path,
+        default=None,
+        help="another build of libReciprocatingDrive.so to measure (e.g. of an earlier commit)",
+    )
     a = ap.parse_args(argv)
     host, base, lib = build()
     lib = a.fmu.resolve() if a.fmu else lib
@@ -137,13 +181,23 @@ def main(argv=None) -> int:
     inputs = ",".join(str(vr[n]) for n in ("crank.angle", "crank.speed", "crank.acceleration"))
     if a.instructions:
         a.rounds = 1
-        print(f"baseline: {base.relative_to(ROOT)} (gcc -O3); FMU: {lib}; instructions per step (callgrind), "
-              f"{a.steps} steps")
-        print("| scenario | loop instructions/step (Feedthrough / FMU) | loop ratio | target | fmi2DoStep (Feedthrough / FMU) | fmi2DoStep ratio |")
+        print(
+            f"baseline: {base.relative_to(ROOT)} (gcc -O3); FMU: {lib}; instructions per step (callgrind), "
+            f"{a.steps} steps"
+        )
+        print(
+            "| scenario | loop instructions/step (Feedthrough / FMU) | loop ratio | target "
+            "| fmi2DoStep (Feedthrough / FMU) | fmi2DoStep ratio |"
+        )
     else:
-        print(f"baseline: {base.relative_to(ROOT)} (gcc -O3); FMU: {lib}; "
-              f"{a.rounds} alternating runs of {a.steps} steps, medians")
-        print("| scenario | loop ns/step (Feedthrough / FMU) | loop ratio | target | fmi2DoStep ns (Feedthrough / FMU) | fmi2DoStep ratio |")
+        print(
+            f"baseline: {base.relative_to(ROOT)} (gcc -O3); FMU: {lib}; "
+            f"{a.rounds} alternating runs of {a.steps} steps, medians"
+        )
+        print(
+            "| scenario | loop ns/step (Feedthrough / FMU) | loop ratio | target "
+            "| fmi2DoStep ns (Feedthrough / FMU) | fmi2DoStep ratio |"
+        )
     print("|---|---|---|---|---|---|")
     for name, pre, overrides, outputs, target in SCENARIOS:
         if a.filter not in name:
@@ -154,25 +208,46 @@ def main(argv=None) -> int:
         sets = []
         for n, v in values.items():
             tag = kinds[n][1]
-            sets.append(f"r:{vr[n]}={v!r}" if tag == "Real" else f"i:{vr[n]}={int(v)}" if tag == "Integer"
-                        else f"b:{vr[n]}={int(bool(v))}")
-        cmd = [str(host), str(base), "base", "0,1,2", "3,4,5,6,7,8,9,10",
-               str(lib), guid, inputs, ",".join(str(vr[n]) for n in outputs),
-               repr(speed), str(a.steps), str(a.rounds), *sets]
+            sets.append(
+                f"r:{vr[n]}={v!r}"
+                if tag == "Real"
+                else f"i:{vr[n]}={int(v)}"
+                if tag == "Integer"
+                else f"b:{vr[n]}={int(bool(v))}"
+            )
+        cmd = [
+            str(host),
+            str(base),
+            "base",
+            "0,1,2",
+            "3,4,5,6,7,8,9,10",
+            str(lib),
+            guid,
+            inputs,
+            ",".join(str(vr[n]) for n in outputs),
+            repr(speed),
+            str(a.steps),
+            str(a.rounds),
+            *sets,
+        ]
         if a.instructions:
             base_cmd = cmd[:5] + cmd[1:5] + cmd[9:12]
             (lb, db), (lf, df) = instructions(base_cmd, cmd, a.steps)
             lr, dr = lf / lb, df / db
         else:
             res = {}
-            for line in subprocess.run(cmd, check=True, capture_output=True, text=True).stdout.splitlines():
+            for line in subprocess.run(
+                cmd, check=True, capture_output=True, text=True
+            ).stdout.splitlines():
                 mode, _, b, _, f, _, r = line.split()
                 res[mode] = (float(b), float(f), float(r))
             lb, lf, lr = res["loop"]
             db, df, dr = res["dostep"]
         mark = "met" if lr <= target else "NOT met"
-        print(f"| {name} | {lb:.1f} / {lf:.1f} | **{lr:.2f}** | ≤ {target} ({mark}) | {db:.1f} / {df:.1f} | {dr:.2f} |",
-              flush=True)
+        print(
+            f"| {name} | {lb:.1f} / {lf:.1f} | **{lr:.2f}** | ≤ {target} ({mark}) | {db:.1f} / {df:.1f} | {dr:.2f} |",
+            flush=True,
+        )
     return 0
 
 

@@ -21,14 +21,18 @@ from reciprocating_drive.sweep import run_sweep  # noqa: E402
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--fmu", default=str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
     ap.add_argument("--study", default=str(ROOT / "studies" / "kvo630_resonance.toml"))
     ap.add_argument("--repeat", type=int, default=2)
     a = ap.parse_args(argv)
     study = load_study(a.study)
-    print(f"study {study.name}: {len(study.case_values)} cases, "
-          f"{study.skip_revolutions + study.revolutions} revolutions × {study.steps_per_revolution} steps each")
+    print(
+        f"study {study.name}: {len(study.case_values)} cases, "
+        f"{study.skip_revolutions + study.revolutions} revolutions × {study.steps_per_revolution} steps each"
+    )
     rate = {}
     for workers in (1, 2):
         best = None
@@ -39,8 +43,10 @@ def main(argv=None) -> int:
                 best = r
         rate[workers] = best.computed / best.wall
         outside = 1 - best.seconds_fmu / (best.wall * workers)
-        print(f"{workers} worker(s): {rate[workers]:6.1f} cases/s  (wall {best.wall:.2f} s, "
-              f"inside FMU calls {best.seconds_fmu:.2f} s, outside the FMU {100 * outside:.1f} %)")
+        print(
+            f"{workers} worker(s): {rate[workers]:6.1f} cases/s  (wall {best.wall:.2f} s, "
+            f"inside FMU calls {best.seconds_fmu:.2f} s, outside the FMU {100 * outside:.1f} %)"
+        )
     print(f"scaling 1 → 2 workers: {rate[2] / rate[1]:.2f}×")
     return 0
 

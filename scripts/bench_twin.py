@@ -42,7 +42,10 @@ TWIN = [sys.executable, str(ROOT / "scripts" / "twin.py")]
 def kvo_data(path: pathlib.Path, seconds=10.0) -> None:
     w = 2 * math.pi * 1500 / 60
     t = np.arange(int(seconds * 1000) + 1) / 1000.0
-    path.write_text("time,crank_angle\n" + "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(t, np.mod(w * t, 2 * math.pi))))
+    path.write_text(
+        "time,crank_angle\n"
+        + "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(t, np.mod(w * t, 2 * math.pi)))
+    )
 
 
 def twin_run(src: pathlib.Path, args: list, live: bool, work: pathlib.Path) -> tuple[float, int]:
@@ -71,10 +74,18 @@ def twin_run(src: pathlib.Path, args: list, live: bool, work: pathlib.Path) -> t
 
     th = threading.Thread(target=reader)
     th.start()
-    cmd = TWIN + (["-", "--live"] if live else [str(src)]) + list(args) + [
-        "--fmu", FMU, "--out", str(fifo), "--summary", str(work / "summary.csv")]
-    p = subprocess.Popen(cmd, stdin=subprocess.PIPE if live else subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                         stderr=subprocess.PIPE)
+    cmd = (
+        TWIN
+        + (["-", "--live"] if live else [str(src)])
+        + list(args)
+        + ["--fmu", FMU, "--out", str(fifo), "--summary", str(work / "summary.csv")]
+    )
+    p = subprocess.Popen(
+        cmd,
+        stdin=subprocess.PIPE if live else subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
     ready.wait()
     if live:
         # The producer: the whole data as fast as the pipe takes it.
@@ -112,7 +123,9 @@ def fmu_calls(values: dict, n: int, native: bool, w: float, h=1e-3) -> float:
 
 
 def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--repeat", type=int, default=3, help="runs of each case; the best is reported")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as d:
@@ -121,19 +134,30 @@ def main() -> int:
         kvo_data(kvo)
         kvo_data(kvo_long, seconds=100.0)
         kvo_args = ["--machine", "kvo630", "--window", "0.006", "--max-speed", "400"]
-        cases = [("default machine, encoder sample", ROOT / "data" / "twin" / "pump_encoder.csv",
-                  ["--angle-unit", "counts", "--counts-per-rev", "4096"], "default", 2 * math.pi * 65 / 60),
-                 ("kvo630, exact angles", kvo, kvo_args, "kvo630", 2 * math.pi * 1500 / 60),
-                 # The sustained rate: a run of 10 s includes filling and draining the twin's
-                 # pipeline (the first chunk read and the last one written, ~2600 samples each).
-                 ("kvo630, exact angles, 100 s", kvo_long, kvo_args, "kvo630", 2 * math.pi * 1500 / 60)]
+        cases = [
+            (
+                "default machine, encoder sample",
+                ROOT / "data" / "twin" / "pump_encoder.csv",
+                ["--angle-unit", "counts", "--counts-per-rev", "4096"],
+                "default",
+                2 * math.pi * 65 / 60,
+            ),
+            ("kvo630, exact angles", kvo, kvo_args, "kvo630", 2 * math.pi * 1500 / 60),
+            # The sustained rate: a run of 10 s includes filling and draining the twin's
+            # pipeline (the first chunk read and the last one written, ~2600 samples each).
+            ("kvo630, exact angles, 100 s", kvo_long, kvo_args, "kvo630", 2 * math.pi * 1500 / 60),
+        ]
         print(f"{'data':34s} {'path':44s} {'samples':>7s} {'µs/sample':>10s} {'× real time':>12s}")
         for name, src, args, machine, speed in cases:
             times = np.loadtxt(src, delimiter=",", skiprows=1, usecols=0)
             seconds, n = float(times[-1] - times[0]), len(times)
 
-            def show(path, wall, samples):
-                print(f"{name:34s} {path:44s} {samples:7d} {wall / samples * 1e6:10.2f} {seconds / wall * samples / n:11.1f}×")
+            def show(path, wall, samples, name=name, seconds=seconds, n=n):
+                per_sample_us = wall / samples * 1e6
+                real_time = seconds / wall * samples / n
+                print(
+                    f"{name:34s} {path:44s} {samples:7d} {per_sample_us:10.2f} {real_time:11.1f}×"
+                )
 
             for live in (False, True):
                 best = min(twin_run(src, args, live, work) for _ in range(a.repeat))
@@ -141,7 +165,12 @@ def main() -> int:
             values = {k: v for k, v in preset_values(machine).items() if k not in INPUTS}
             for native in (False, True):
                 wall = min(fmu_calls(values, n, native, speed) for _ in range(a.repeat))
-                show("baseline: FMU calls alone, " + ("native batch" if native else "fmpy per sample"), wall, n)
+                show(
+                    "baseline: FMU calls alone, "
+                    + ("native batch" if native else "fmpy per sample"),
+                    wall,
+                    n,
+                )
     return 0
 
 

@@ -21,23 +21,35 @@ from reciprocating_drive.system import build_ssp, run_fmpy, run_libcosim, speed_
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--importer", choices=("libcosim", "fmpy"), default="libcosim")
     ap.add_argument("--step", type=float, default=1e-3)
     ap.add_argument("--time", type=float, default=10.0)
     ap.add_argument("--out-dir", type=pathlib.Path, default=ROOT / "results")
-    ap.add_argument("--fmu-dir", type=pathlib.Path, default=ROOT / "target" / "fmu",
-                    help="where ReciprocatingDrive.fmu and DriveTrain.fmu are")
+    ap.add_argument(
+        "--fmu-dir",
+        type=pathlib.Path,
+        default=ROOT / "target" / "fmu",
+        help="where ReciprocatingDrive.fmu and DriveTrain.fmu are",
+    )
     a = ap.parse_args(argv)
-    ssp = build_ssp(a.out_dir / "ClosedLoop.ssp" if a.fmu_dir != ROOT / "target" / "fmu"
-                    else ROOT / "target" / "fmu" / "ClosedLoop.ssp", fmu_dir=a.fmu_dir)
+    ssp = build_ssp(
+        a.out_dir / "ClosedLoop.ssp"
+        if a.fmu_dir != ROOT / "target" / "fmu"
+        else ROOT / "target" / "fmu" / "ClosedLoop.ssp",
+        fmu_dir=a.fmu_dir,
+    )
     t0 = time.perf_counter()
     r = (run_libcosim if a.importer == "libcosim" else run_fmpy)(ssp, a.step, a.time)
     wall = time.perf_counter() - t0
     d = speed_fluctuation(r["time"], r["drive.crank.angle"], r["drive.crank.speed"])
     w = r["drive.crank.speed"]
     print(f"{a.importer}: {a.time:g} s at h = {a.step:g} s in {wall:.2f} s wall; wrote {ssp}")
-    print(f"crank speed at the end {w[-1]:.5g} rad/s ({w[-1] * 60 / (2 * math.pi):.4g} strokes/min)")
+    print(
+        f"crank speed at the end {w[-1]:.5g} rad/s ({w[-1] * 60 / (2 * math.pi):.4g} strokes/min)"
+    )
     print("speed fluctuation δ per revolution: " + ", ".join(f"{x:.4%}" for x in d))
 
     import matplotlib

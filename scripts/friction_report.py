@@ -37,7 +37,12 @@ GOLDEN = (math.sqrt(5) - 1) / 2
 class Evaluator:
     """One FMU instance initialized with a preset; `at(θ)` returns the requested outputs."""
 
-    def __init__(self, fmu: str, preset: str, outputs=("guide.friction", "link.friction_total", "suspension.velocity")):
+    def __init__(
+        self,
+        fmu: str,
+        preset: str,
+        outputs=("guide.friction", "link.friction_total", "suspension.velocity"),
+    ):
         from fmpy import extract, read_model_description
         from fmpy.fmi2 import FMU2Slave
 
@@ -49,8 +54,12 @@ class Evaluator:
         values = preset_values(preset)
         start = {v.name: float(v.start) for v in self.md.modelVariables if v.name == "crank.speed"}
         self.omega = float(values.get("crank.speed", start["crank.speed"]))
-        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.dir,
-                             modelIdentifier=self.md.coSimulation.modelIdentifier, instanceName=preset)
+        self.fmu = FMU2Slave(
+            guid=self.md.guid,
+            unzipDirectory=self.dir,
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName=preset,
+        )
         self.fmu.instantiate()
         self.fmu.setupExperiment(startTime=0.0)
         self.fmu.enterInitializationMode()
@@ -146,8 +155,10 @@ def main(argv):
         print(f"{preset} (ω = {r['omega']:.7f} rad/s):")
         print(f"  guide.friction max {r['max'][1]:+.6f} N at θ = {r['max'][0]:.4f}°")
         print(f"  guide.friction min {r['min'][1]:+.6f} N at θ = {r['min'][0]:.4f}°")
-        print(f"  friction work per revolution ∮ F_fr·v dt = {r['work']:.6f} J (0.01° grid; "
-              f"0.1° grid: {r['work_coarse']:.6f} J; guide alone: {r['work_guide']:.6f} J)")
+        print(
+            f"  friction work per revolution ∮ F_fr·v dt = {r['work']:.6f} J (0.01° grid; "
+            f"0.1° grid: {r['work_coarse']:.6f} J; guide alone: {r['work_guide']:.6f} J)"
+        )
 
 
 if __name__ == "__main__":

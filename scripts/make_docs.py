@@ -39,7 +39,9 @@ CLOSED_LOOP = "closed_loop"
 
 
 def _arrow(ax, p, q, text=None, color="k", **kw):
-    ax.add_patch(FancyArrowPatch(p, q, arrowstyle="-|>", mutation_scale=12, color=color, lw=1.2, **kw))
+    ax.add_patch(
+        FancyArrowPatch(p, q, arrowstyle="-|>", mutation_scale=12, color=color, lw=1.2, **kw)
+    )
     if text:
         ax.annotate(text, q, textcoords="offset points", xytext=(4, 4), color=color)
 
@@ -75,7 +77,9 @@ def sketch_crank_slider(path):
     _arrow(ax, (0, 0), (0.3, 0), None)
     ax.annotate("x", (0.3, -0.05))
     _arrow(ax, (0, 0), (0, 0.28), "y")
-    _finish(ax, "Crank-slider: θ from the stroke axis, s from the outer dead centre toward the crank")
+    _finish(
+        ax, "Crank-slider: θ from the stroke axis, s from the outer dead centre toward the crank"
+    )
     fig.savefig(path, dpi=90, bbox_inches="tight")
     plt.close(fig)
 
@@ -110,8 +114,15 @@ def sketch_beam_units(path):
         ax.annotate("well →", (head[0] + 0.1, -0.25), fontsize=8)
         ax.set_xlim(-2.3, 3.6)
         ax.set_ylim(-0.8, 2.4)
-        _finish(ax, f"Class {cls}: " + ("bearing between\nequalizer and horsehead" if cls == "I"
-                                        else "equalizer between\nbearing and horsehead"))
+        _finish(
+            ax,
+            f"Class {cls}: "
+            + (
+                "bearing between\nequalizer and horsehead"
+                if cls == "I"
+                else "equalizer between\nbearing and horsehead"
+            ),
+        )
     fig.savefig(path, dpi=90, bbox_inches="tight")
     plt.close(fig)
 
@@ -128,7 +139,9 @@ def sketch_supports(path):
     ax.annotate("A: clamp (piston in liner)\nmoves with the link", (0.0, 0.19), fontsize=8)
     ax.add_patch(Rectangle((0.0, -0.06), 0.25, 0.12, fc="none", ec="C0", lw=2))
     ax.add_patch(Rectangle((1.70, -0.17), 0.40, 0.34, fc="none", ec="C1", lw=2))
-    ax.annotate("B: two-edge guide (crosshead)\noffset δ, tilt α", (1.55, 0.21), fontsize=8, color="C1")
+    ax.annotate(
+        "B: two-edge guide (crosshead)\noffset δ, tilt α", (1.55, 0.21), fontsize=8, color="C1"
+    )
     ax.plot([1.60, 1.60], [-0.2, 0.2], "C2-", lw=2)
     ax.annotate("C: pin fixed in the frame\n(gland, spring)", (1.05, -0.33), fontsize=8, color="C2")
     _arrow(ax, (0, -0.22), (0.4, -0.22), "z", color="k")
@@ -150,7 +163,10 @@ def sketch_elastic_rod(path):
     lf, f, delta, th = 2.3, 1.5, 0.45, 0.18
     zz = np.linspace(0, lf, 60)
     # a clamped bent shape ending at slope th
-    v = delta * (3 * (zz / lf) ** 2 - 2 * (zz / lf) ** 3) * 0.8 + th * lf * ((zz / lf) ** 3 - (zz / lf) ** 2) * 0.5
+    v = (
+        delta * (3 * (zz / lf) ** 2 - 2 * (zz / lf) ** 3) * 0.8
+        + th * lf * ((zz / lf) ** 3 - (zz / lf) ** 2) * 0.5
+    )
     ax.add_patch(Rectangle((-0.8, -0.35), 0.8, 0.7, fc="0.85", ec="k"))
     ax.annotate("piston\n(clamp)", (-0.75, -0.15), fontsize=8)
     ax.plot(zz, v, "C1-", lw=2.5)
@@ -165,7 +181,9 @@ def sketch_elastic_rod(path):
     ax.annotate("rigid part f", ((end + tip) / 2 + (0, -0.35)), fontsize=8, color="C0")
     ax.plot([-0.8, lf + f + 0.5], [0, 0], "k-.", lw=0.6)
     _arrow(ax, (tip[0] + 0.5, 0), (tip[0] + 0.5, tip[1]), None, color="C3")
-    ax.annotate("Δ = r sinθ − e\n(pin's lateral offset)", (tip[0] + 0.6, 0.2), fontsize=8, color="C3")
+    ax.annotate(
+        "Δ = r sinθ − e\n(pin's lateral offset)", (tip[0] + 0.6, 0.2), fontsize=8, color="C3"
+    )
     ax.set_xlim(-1, lf + f + 2.6)
     ax.set_ylim(-0.6, 1.0)
     _finish(ax, "Elastic connecting rod clamped in the piston: cage rotation ϑ")
@@ -189,7 +207,9 @@ def closed_loop_figure(out: pathlib.Path) -> None:
     """The closed loop of the pump and its drive train in libcosim (scripts/closed_loop.py)."""
     import importlib.util
 
-    spec = importlib.util.spec_from_file_location("closed_loop", ROOT / "scripts" / "closed_loop.py")
+    spec = importlib.util.spec_from_file_location(
+        "closed_loop", ROOT / "scripts" / "closed_loop.py"
+    )
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     mod.main(["--out-dir", str(out), "--fmu-dir", str(FMU.parent)])
@@ -199,10 +219,15 @@ def variable_table(fmu: pathlib.Path) -> str:
     from fmpy import read_model_description
 
     md = read_model_description(str(fmu))
-    rows = ["| name | causality | variability | type | unit | value reference |", "|---|---|---|---|---|---|"]
+    rows = [
+        "| name | causality | variability | type | unit | value reference |",
+        "|---|---|---|---|---|---|",
+    ]
     for v in md.modelVariables:
         unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None) or ""
-        rows.append(f"| `{v.name}` | {v.causality} | {v.variability} | {v.type} | {unit} | {v.valueReference} |")
+        rows.append(
+            f"| `{v.name}` | {v.causality} | {v.variability} | {v.type} | {unit} | {v.valueReference} |"
+        )
     return "\n".join(rows)
 
 
@@ -215,8 +240,15 @@ def write_table(fmu: pathlib.Path, doc: pathlib.Path = INTERFACE) -> None:
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", type=pathlib.Path, default=None, help="figure folder (default docs/figures; docs untouched when given)")
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument(
+        "--out",
+        type=pathlib.Path,
+        default=None,
+        help="figure folder (default docs/figures; docs untouched when given)",
+    )
     ap.add_argument("--table-only", action="store_true")
     ap.add_argument("--sketches-only", action="store_true")
     a = ap.parse_args(argv)

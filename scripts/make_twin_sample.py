@@ -19,7 +19,9 @@ from reciprocating_drive.twin_sample import encoder_samples  # noqa: E402
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--out", type=pathlib.Path, default=ROOT / "data" / "twin" / "pump_encoder.csv")
     a = ap.parse_args(argv)
     t, c = encoder_samples()

@@ -43,15 +43,22 @@ def fmu_run(fmu_file: str, values: dict, w: float, outputs: list[str]):
     unzipdir = extract(fmu_file)
     vr = {v.name: v.valueReference for v in md.modelVariables}
     types = {v.name: v.type for v in md.modelVariables}
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
-                    instanceName="rod report")
+    fmu = FMU2Slave(
+        guid=md.guid,
+        unzipDirectory=unzipdir,
+        modelIdentifier=md.coSimulation.modelIdentifier,
+        instanceName="rod report",
+    )
     fmu.instantiate()
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
     for name, value in values.items():
-        {"Real": lambda: fmu.setReal([vr[name]], [float(value)]),
-         "Integer": lambda: fmu.setInteger([vr[name]], [int(value)]),
-         "Boolean": lambda: fmu.setBoolean([vr[name]], [bool(value)])}[types[name]]()
+        if types[name] == "Real":
+            fmu.setReal([vr[name]], [float(value)])
+        elif types[name] == "Integer":
+            fmu.setInteger([vr[name]], [int(value)])
+        else:
+            fmu.setBoolean([vr[name]], [bool(value)])
     ins = [vr["crank.angle"], vr["crank.speed"]]
     outs = [vr[o] for o in outputs]
     fmu.setReal(ins, [0.0, w])
@@ -71,7 +78,11 @@ def fmu_run(fmu_file: str, values: dict, w: float, outputs: list[str]):
 
 
 def main() -> None:
-    fmu_file = sys.argv[1] if len(sys.argv) > 1 else str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu")
+    fmu_file = (
+        sys.argv[1]
+        if len(sys.argv) > 1
+        else str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu")
+    )
     values = preset_values("kvo630")
     w = values["crank.speed"]
     drive, motion = Drive(values), Motion(w)
@@ -104,19 +115,31 @@ def main() -> None:
             break
 
     print(f"kvo630 (docs/model.md §8), 1 s at 1500 rpm, communication step {H * 1e3:g} ms")
-    print(f"  rod: Ω0 = {drive.omega0:.1f} rad/s (P = 0), damping time 1/(ζΩ0) = {2 * drive.J / drive.B * 1e3:.2f} ms")
-    print(f"  steady-state cage amplitude max|ϑ| (last revolution): FMU {amp:.9f} rad, reference {amp_ref:.9f} rad")
-    print(f"  largest coil stress max rod.stress_max: FMU {tau / 1e6:.4f} MPa, reference {tau_ref / 1e6:.4f} MPa")
-    print(f"  FMU (solver.tolerance 1e-8): max |ϑ - reference| = {fmu_err:.2e} rad; "
-          f"wall time for 1 s through fmpy's low-level API = {t_fmu * 1e3:.1f} ms (best of 5, "
-          f"{int(round(T_END / H))} x setReal + doStep + getReal)")
+    print(
+        f"  rod: Ω0 = {drive.omega0:.1f} rad/s (P = 0), damping time 1/(ζΩ0) = {2 * drive.J / drive.B * 1e3:.2f} ms"
+    )
+    print(
+        f"  steady-state cage amplitude max|ϑ| (last revolution): FMU {amp:.9f} rad, reference {amp_ref:.9f} rad"
+    )
+    print(
+        f"  largest coil stress max rod.stress_max: FMU {tau / 1e6:.4f} MPa, reference {tau_ref / 1e6:.4f} MPa"
+    )
+    print(
+        f"  FMU (solver.tolerance 1e-8): max |ϑ - reference| = {fmu_err:.2e} rad; "
+        f"wall time for 1 s through fmpy's low-level API = {t_fmu * 1e3:.1f} ms (best of 5, "
+        f"{int(round(T_END / H))} x setReal + doStep + getReal)"
+    )
     print(f"  reference truth: DOP853 rtol 1e-13, {truth.nfev} RHS evaluations, {t_truth:.2f} s")
     print("  scipy DOP853 on the same problem (rtol = atol = tol, atol on ϑ̇ = tol·Ω0):")
     for tol, err, wall, nfev in scan:
-        print(f"    tol {tol:7.0e}: max |Δϑ| = {err:.2e} rad, {nfev:6d} RHS evaluations, {wall:.3f} s")
+        print(
+            f"    tol {tol:7.0e}: max |Δϑ| = {err:.2e} rad, {nfev:6d} RHS evaluations, {wall:.3f} s"
+        )
     if found:
-        print(f"  => DOP853 needs {found[2]:.3f} s (tol {found[0]:.0e}) for {TARGET:g} rad over 1 s; "
-              f"the FMU {t_fmu:.4f} s: ratio {found[2] / t_fmu:.0f}x")
+        print(
+            f"  => DOP853 needs {found[2]:.3f} s (tol {found[0]:.0e}) for {TARGET:g} rad over 1 s; "
+            f"the FMU {t_fmu:.4f} s: ratio {found[2] / t_fmu:.0f}x"
+        )
     else:
         print("  => no tolerance of the scan reached the target")
 

@@ -27,10 +27,19 @@ from reciprocating_drive.plots import plot_mission  # noqa: E402
 from reciprocating_drive.presets import PRESET_DIR, available_presets, preset_values  # noqa: E402
 
 UNITS = {
-    "crank.model_speed": "rad/s", "suspension.position": "m", "suspension.velocity": "m/s",
-    "suspension.acceleration": "m/s2", "kinematics.torque_factor": "m", "inertia.force": "N", "guide.friction": "N",
-    "link.friction_total": "N", "rod.force": "N", "crank.torque": "N.m", "rod.angle": "rad",
-    "rod.angular_velocity": "rad/s", "rod.stress_max": "Pa",
+    "crank.model_speed": "rad/s",
+    "suspension.position": "m",
+    "suspension.velocity": "m/s",
+    "suspension.acceleration": "m/s2",
+    "kinematics.torque_factor": "m",
+    "inertia.force": "N",
+    "guide.friction": "N",
+    "link.friction_total": "N",
+    "rod.force": "N",
+    "crank.torque": "N.m",
+    "rod.angle": "rad",
+    "rod.angular_velocity": "rad/s",
+    "rod.stress_max": "Pa",
 }
 CSV_OUTPUTS = [(n, UNITS[n]) for n in OUTPUTS if n != "crank.model_angle"]
 
@@ -38,36 +47,54 @@ CSV_OUTPUTS = [(n, UNITS[n]) for n in OUTPUTS if n != "crank.model_angle"]
 def write_csv(path: pathlib.Path, data: dict) -> None:
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["time [s]", "crank angle [rad]", "crank angle [deg]"] + [f"{n} [{u}]" for n, u in CSV_OUTPUTS])
+        w.writerow(
+            ["time [s]", "crank angle [rad]", "crank angle [deg]"]
+            + [f"{n} [{u}]" for n, u in CSV_OUTPUTS]
+        )
         for i in range(len(data["time"])):
             th = float(data["crank.model_angle"][i])
-            w.writerow([repr(float(data["time"][i])), repr(th), repr(math.degrees(th))]
-                       + [repr(float(data[n][i])) for n, _ in CSV_OUTPUTS])
+            w.writerow(
+                [repr(float(data["time"][i])), repr(th), repr(math.degrees(th))]
+                + [repr(float(data[n][i])) for n, _ in CSV_OUTPUTS]
+            )
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("preset", nargs="?", default="default")
     ap.add_argument("--fmu", default=str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
     ap.add_argument("--resources", default=str(PRESET_DIR), help="folder of the .ssv presets")
     ap.add_argument("--out-dir", default=str(ROOT / "results"))
-    ap.add_argument("--revolutions", type=int, default=None,
-                    help="revolutions to simulate (default 2, 60 for an elastic rod)")
-    ap.add_argument("--step", type=float, default=None, help="communication step [s] (default 1/900 revolution)")
+    ap.add_argument(
+        "--revolutions",
+        type=int,
+        default=None,
+        help="revolutions to simulate (default 2, 60 for an elastic rod)",
+    )
+    ap.add_argument(
+        "--step", type=float, default=None, help="communication step [s] (default 1/900 revolution)"
+    )
     a = ap.parse_args(argv)
 
     resources = pathlib.Path(a.resources)
     try:
         preset_values(a.preset, resources)
     except KeyError:
-        print(f"simulate.py: unknown preset \"{a.preset}\"; available: "
-              f"{', '.join(available_presets(resources))}", file=sys.stderr)
+        print(
+            f'simulate.py: unknown preset "{a.preset}"; available: '
+            f"{', '.join(available_presets(resources))}",
+            file=sys.stderr,
+        )
         return 2
     if (a.step is not None and not a.step > 0) or (a.revolutions is not None and a.revolutions < 1):
         print("simulate.py: --step must be positive and --revolutions at least 1", file=sys.stderr)
         return 2
     try:
-        m = run_mission(a.fmu, a.preset, step=a.step, revolutions=a.revolutions, preset_dir=resources)
+        m = run_mission(
+            a.fmu, a.preset, step=a.step, revolutions=a.revolutions, preset_dir=resources
+        )
     except Exception as e:  # an FMU error or an invalid preset: a message, not a traceback
         print(f"simulate.py: {e}", file=sys.stderr)
         return 2

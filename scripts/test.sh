@@ -27,6 +27,9 @@ if win64_enabled; then
     ensure_wine  # tests/python/test_win64.py runs the win64 DLL under wine
 fi
 
+echo "== scripts/lint.sh (rustfmt, clippy -D warnings, ruff)"
+bash scripts/lint.sh
+
 echo "== pytest tests/python"
 # RD_REQUIRE_FMU: a missing FMU fails the run instead of skipping the tests.
 # (pytest's summary stays the last line of the run.)

@@ -49,12 +49,12 @@ def chunks_of(raw, follow: bool, size: int, poll: float = 0.05):
         if cut < 0:
             tail = data
             continue
-        lines, tail = data[:cut].decode("utf-8", "replace").split("\n"), data[cut + 1:]
+        lines, tail = data[:cut].decode("utf-8", "replace").split("\n"), data[cut + 1 :]
         if follow:
             ends = [i for i, line in enumerate(lines) if line.strip() == "EOF"]
             if ends:
                 if ends[0]:
-                    yield lines[:ends[0]]
+                    yield lines[: ends[0]]
                 return
         yield lines
 
@@ -118,34 +118,77 @@ def fmt(v) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("input", help="CSV file, or - for standard input")
     ap.add_argument("--fmu", default=str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
     ap.add_argument("--machine", default="default", help="a preset, 'default', or an .ssv file")
     ap.add_argument("--angle-unit", choices=("rad", "deg", "counts"), default="rad")
     ap.add_argument("--counts-per-rev", type=float, default=None)
-    ap.add_argument("--continuous", action="store_true", help="angles do not wrap (default: wrapped every revolution)")
+    ap.add_argument(
+        "--continuous",
+        action="store_true",
+        help="angles do not wrap (default: wrapped every revolution)",
+    )
     ap.add_argument("--speed-unit", choices=("rad/s", "rpm"), default="rad/s")
-    ap.add_argument("--ignore-speed", action="store_true", help="estimate ω from the angle even if crank_speed is given")
+    ap.add_argument(
+        "--ignore-speed",
+        action="store_true",
+        help="estimate ω from the angle even if crank_speed is given",
+    )
     ap.add_argument("--duplicates", choices=("drop", "error"), default="drop")
     ap.add_argument("--window", type=float, default=0.1, help="smoothing window [s] (default 0.1)")
-    ap.add_argument("--gap-limit", type=float, default=0.05, help="a longer interval is a gap [s] (default 0.05)")
-    ap.add_argument("--max-speed", type=float, default=100.0, help="fastest possible crank speed [rad/s] (default 100)")
+    ap.add_argument(
+        "--gap-limit",
+        type=float,
+        default=0.05,
+        help="a longer interval is a gap [s] (default 0.05)",
+    )
+    ap.add_argument(
+        "--max-speed",
+        type=float,
+        default=100.0,
+        help="fastest possible crank speed [rad/s] (default 100)",
+    )
     ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "twin" / "outputs.csv")
-    ap.add_argument("--summary", type=pathlib.Path, default=None, help="default: <out>-revolutions.csv")
-    ap.add_argument("--plots", type=pathlib.Path, default=None, help="folder for the plots (replay)")
-    ap.add_argument("--live", action="store_true", help="flush every output line as soon as it is computed")
-    ap.add_argument("--follow", action="store_true", help="follow a growing file (ends at a line 'EOF')")
+    ap.add_argument(
+        "--summary", type=pathlib.Path, default=None, help="default: <out>-revolutions.csv"
+    )
+    ap.add_argument(
+        "--plots", type=pathlib.Path, default=None, help="folder for the plots (replay)"
+    )
+    ap.add_argument(
+        "--live", action="store_true", help="flush every output line as soon as it is computed"
+    )
+    ap.add_argument(
+        "--follow", action="store_true", help="follow a growing file (ends at a line 'EOF')"
+    )
     ap.add_argument("--checkpoint", type=pathlib.Path, default=None)
     ap.add_argument("--checkpoint-every", type=int, default=10000)
-    ap.add_argument("--resume", type=pathlib.Path, default=None, help="continue from this checkpoint")
-    ap.add_argument("--stop-after", type=int, default=None, help="stop after this many input lines (and checkpoint)")
+    ap.add_argument(
+        "--resume", type=pathlib.Path, default=None, help="continue from this checkpoint"
+    )
+    ap.add_argument(
+        "--stop-after",
+        type=int,
+        default=None,
+        help="stop after this many input lines (and checkpoint)",
+    )
     a = ap.parse_args(argv)
 
     summary = a.summary or a.out.with_name(a.out.stem + "-revolutions.csv")
-    opts = Options(angle_unit=a.angle_unit, counts_per_rev=a.counts_per_rev, wrapped=not a.continuous,
-                   speed_unit=a.speed_unit, duplicates=a.duplicates, window=a.window, gap_limit=a.gap_limit,
-                   max_speed=a.max_speed, use_measured_speed=not a.ignore_speed)
+    opts = Options(
+        angle_unit=a.angle_unit,
+        counts_per_rev=a.counts_per_rev,
+        wrapped=not a.continuous,
+        speed_unit=a.speed_unit,
+        duplicates=a.duplicates,
+        window=a.window,
+        gap_limit=a.gap_limit,
+        max_speed=a.max_speed,
+        use_measured_speed=not a.ignore_speed,
+    )
     a.out.parent.mkdir(parents=True, exist_ok=True)
     try:
         if a.resume:
@@ -186,15 +229,15 @@ def main(argv=None) -> int:
         cp["out_bytes"], cp["summary_bytes"] = out.tell(), summ.tell()
         save_checkpoint(a.checkpoint, cp)
 
-    lineno = 0      # input lines consumed
-    n_since = 0     # lines since the last checkpoint
+    lineno = 0  # input lines consumed
+    n_since = 0  # lines since the last checkpoint
     try:
         for lines in chunks_of(src, a.follow, size):
             if lineno + len(lines) <= skip:
                 lineno += len(lines)
                 continue
             if lineno < skip:
-                lines, lineno = lines[skip - lineno:], skip
+                lines, lineno = lines[skip - lineno :], skip
             while lines:
                 # Cut the chunk where a checkpoint or --stop-after falls.
                 take = len(lines)
@@ -213,7 +256,10 @@ def main(argv=None) -> int:
                     writer.wait()
                     out.close()
                     summ.close()
-                    print(f"stopped after line {lineno}" + (f"; checkpoint {a.checkpoint}" if a.checkpoint else ""))
+                    print(
+                        f"stopped after line {lineno}"
+                        + (f"; checkpoint {a.checkpoint}" if a.checkpoint else "")
+                    )
                     return 0
         emit(*twin.finish())
         writer.wait()
@@ -232,8 +278,10 @@ def main(argv=None) -> int:
     summ.close()
     for m in twin.messages:
         print(f"twin.py: {m}", file=sys.stderr)
-    print(f"{twin.rows_out} samples, {twin.duplicates} duplicate timestamps dropped, {len(twin.gaps)} gap(s); "
-          f"wrote {a.out} and {summary}")
+    print(
+        f"{twin.rows_out} samples, {twin.duplicates} duplicate timestamps dropped, {len(twin.gaps)} gap(s); "
+        f"wrote {a.out} and {summary}"
+    )
     if a.plots:
         from reciprocating_drive.twin_plots import plot_twin
 

@@ -5,9 +5,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if ! command -v valgrind >/dev/null 2>&1; then
-    echo "valgrind.sh: installing valgrind" >&2
-    sudo=""; [ "$(id -u)" -ne 0 ] && sudo="sudo"
-    $sudo apt-get update -qq && DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq valgrind >/dev/null
+    source scripts/lib/apt.sh
+    apt_install valgrind
 fi
 for t in hardening fmi_lifecycle; do
     bin=$(cargo test --release --test "$t" --no-run --message-format=json 2>/dev/null \

@@ -52,7 +52,11 @@ fn class1_beam_angle(theta: f64, rotation: f64) -> f64 {
     assert!(g(lo) * g(hi) < 0.0);
     for _ in 0..200 {
         let mid = 0.5 * (lo + hi);
-        if g(lo) * g(mid) <= 0.0 { hi = mid } else { lo = mid }
+        if g(lo) * g(mid) <= 0.0 {
+            hi = mid
+        } else {
+            lo = mid
+        }
     }
     0.5 * (lo + hi)
 }
@@ -78,7 +82,8 @@ fn class_1_position_matches_an_independent_loop_solution() {
     let api = Api::load();
     for rotation in [1.0, -1.0] {
         let f = beam_unit(&api, 2, rotation as i32, &[]);
-        let b: Vec<f64> = (0..360).map(|k| class1_beam_angle(k as f64 * PI / 180.0, rotation)).collect();
+        let b: Vec<f64> =
+            (0..360).map(|k| class1_beam_angle(k as f64 * PI / 180.0, rotation)).collect();
         let b_min = b.iter().cloned().fold(f64::INFINITY, f64::min);
         for (k, bk) in b.iter().enumerate() {
             at(&f, k as f64 * PI / 180.0, 1.0, 0.0);
@@ -126,7 +131,14 @@ fn virtual_power_identity_for_every_mechanism_and_rotation() {
     // a cosine profile, a balancer of given stiffness, and guide friction where the supports
     // allow (the crank-slider's default supports; a single clamp for the beam units).
     let api = Api::load();
-    let mark2: Settings = &[("geometry.beam_front_arm", 3.8), ("geometry.beam_rear_arm", 2.4), ("geometry.pivot_dx", 1.4), ("geometry.pivot_dy", 3.2), ("geometry.rod_length", 3.4), ("geometry.crank_radius", 0.9)];
+    let mark2: Settings = &[
+        ("geometry.beam_front_arm", 3.8),
+        ("geometry.beam_rear_arm", 2.4),
+        ("geometry.pivot_dx", 1.4),
+        ("geometry.pivot_dy", 3.2),
+        ("geometry.rod_length", 3.4),
+        ("geometry.crank_radius", 0.9),
+    ];
     let machines: Vec<(i32, i32, Settings)> = vec![
         (1, 1, &[]),
         (1, 1, &[("geometry.slider_offset", 0.1)]),
@@ -157,12 +169,22 @@ fn virtual_power_identity_for_every_mechanism_and_rotation() {
             let theta = k as f64 * PI / 180.0;
             at(&f, theta, 1.3, -0.4);
             assert_eq!(f.set("link.external_force", 1.0e3 * theta.sin()), OK);
-            let o = f.get_many(&["crank.torque", "suspension.velocity", "inertia.force", "balancer.force", "rod.force", "link.friction_total"]);
+            let o = f.get_many(&[
+                "crank.torque",
+                "suspension.velocity",
+                "inertia.force",
+                "balancer.force",
+                "rod.force",
+                "link.friction_total",
+            ]);
             let theta_model = theta; // crank.angle_offset = 0
             let f_ext = 1.0e3 * theta.sin() - 4.0e4 + 5.0e3 * (theta_model + 0.3).cos();
             let p = f_ext + o[2] + o[3] + o[5];
             assert!((o[4] - p).abs() < 1e-9 * 4.0e4, "rod.force");
-            assert!((o[0] * 1.3 + p * o[1]).abs() < 1e-9 * 4.0e4 * 1.3, "mech {mech} rot {rot} θ {k}°");
+            assert!(
+                (o[0] * 1.3 + p * o[1]).abs() < 1e-9 * 4.0e4 * 1.3,
+                "mech {mech} rot {rot} θ {k}°"
+            );
             assert!(o[3] != 0.0 || k == 0, "the balancer acts");
         }
     }
@@ -195,12 +217,17 @@ fn balancer_tunings_through_the_fmu() {
     let f = setup(1);
     let (r, l) = (0.2f64, 1.19f64);
     let lam = r / l;
-    let tf = |t: f64| r * t.sin() * (1.0 + lam * t.cos() / (1.0 - lam * lam * t.sin().powi(2)).sqrt());
+    let tf =
+        |t: f64| r * t.sin() * (1.0 + lam * t.cos() / (1.0 - lam * lam * t.sin().powi(2)).sqrt());
     let (mut a, mut c) = (0.5, 2.5);
     let g = 0.5 * (5f64.sqrt() - 1.0);
     for _ in 0..200 {
         let (x1, x2) = (c - g * (c - a), a + g * (c - a));
-        if tf(x1) > tf(x2) { c = x2 } else { a = x1 }
+        if tf(x1) > tf(x2) {
+            c = x2
+        } else {
+            a = x1
+        }
     }
     let b = tf(0.5 * (a + c)) / r;
     let expect = 300.0 * b * b * w_d * w_d;

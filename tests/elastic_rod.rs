@@ -17,7 +17,13 @@ fn preset() -> Vec<(String, String, String)> {
 }
 
 fn preset_real(name: &str) -> f64 {
-    preset().into_iter().find(|p| p.0 == name).unwrap_or_else(|| panic!("{name} not in kvo630")).2.parse().unwrap()
+    preset()
+        .into_iter()
+        .find(|p| p.0 == name)
+        .unwrap_or_else(|| panic!("{name} not in kvo630"))
+        .2
+        .parse()
+        .unwrap()
 }
 
 /// Crank speed of kvo630: 1500 rpm.
@@ -34,9 +40,24 @@ enum V {
 
 /// An instance with the kvo630 preset applied and `overrides` on top, in initialization mode
 /// (fmi2ExitInitializationMode is the caller's). `tolerance`: fmi2SetupExperiment's, if defined.
-fn kvo630<'a>(api: &'a Api, name: &str, logging_on: bool, tolerance: Option<f64>, overrides: &[(&str, V)]) -> Inst<'a> {
+fn kvo630<'a>(
+    api: &'a Api,
+    name: &str,
+    logging_on: bool,
+    tolerance: Option<f64>,
+    overrides: &[(&str, V)],
+) -> Inst<'a> {
     let f = Inst::with(api, name, None, logging_on);
-    let st = unsafe { (api.fmi2SetupExperiment)(f.c, tolerance.is_some() as i32, tolerance.unwrap_or(0.0), 0.0, 0, 0.0) };
+    let st = unsafe {
+        (api.fmi2SetupExperiment)(
+            f.c,
+            tolerance.is_some() as i32,
+            tolerance.unwrap_or(0.0),
+            0.0,
+            0,
+            0.0,
+        )
+    };
     assert_eq!(st, OK, "{}", f.log.last());
     assert_eq!(f.enter(), OK);
     f.apply_preset(&preset());
@@ -51,7 +72,12 @@ fn kvo630<'a>(api: &'a Api, name: &str, logging_on: bool, tolerance: Option<f64>
 }
 
 /// kvo630 initialized at θ = 0, ω = 1500 rpm.
-fn kvo630_running<'a>(api: &'a Api, name: &str, tolerance: Option<f64>, overrides: &[(&str, V)]) -> Inst<'a> {
+fn kvo630_running<'a>(
+    api: &'a Api,
+    name: &str,
+    tolerance: Option<f64>,
+    overrides: &[(&str, V)],
+) -> Inst<'a> {
     let f = kvo630(api, name, true, tolerance, overrides);
     assert_eq!(f.set("crank.angle", 0.0), OK);
     assert_eq!(f.set("crank.speed", w()), OK);
@@ -59,7 +85,8 @@ fn kvo630_running<'a>(api: &'a Api, name: &str, tolerance: Option<f64>, override
     f
 }
 
-const WATCH: [&str; 5] = ["rod.angle", "rod.angular_velocity", "rod.force", "rod.stress_max", "guide.friction"];
+const WATCH: [&str; 5] =
+    ["rod.angle", "rod.angular_velocity", "rod.force", "rod.stress_max", "guide.friction"];
 
 /// Steps k0..k0+n of length h at constant speed (crank.angle = ω·t at each point), returning the
 /// bits of the watched outputs after every step.
@@ -180,7 +207,10 @@ fn recomputed_stiffnesses_reproduce_the_textbook_limits() {
     assert!((c.k_theta / (a2 * (4.0 + phi) / (l * (1.0 + phi))) - 1.0).abs() < 1e-12);
     // Euler–Bernoulli, f = 0, ϑ = 0: C3 = 6Δ/l², C4 = −12Δ/l³ (beam clamped at both ends).
     let c = column(1e30, a2, l, 0.0, 0.0);
-    assert!((c.c3d * l * l / 6.0 - 1.0).abs() < 1e-12 && (c.c4d * l.powi(3) / -12.0 - 1.0).abs() < 1e-12);
+    assert!(
+        (c.c3d * l * l / 6.0 - 1.0).abs() < 1e-12
+            && (c.c4d * l.powi(3) / -12.0 - 1.0).abs() < 1e-12
+    );
     // Buckling of kvo630 (f > 0) lies near 33 N: K_ϑ(32) > 0 > K_ϑ(34) (first branch).
     assert!(column(a1, a2, l, f, 32.0).k_theta > 0.0 && column(a1, a2, l, f, 34.0).k_theta < 0.0);
 }
@@ -256,12 +286,19 @@ fn fmu_state_save_restore_continues_bit_for_bit_with_the_integrator_memory() {
     use reciprocating_drive::fmi2::fmu_state;
     use reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive;
     let mut core = fmu_state::deserialize::<ReciprocatingDrive>(&bytes).expect("decode");
-    assert!(core.state.rod.integrator.h_next > 0.0, "a step-size suggestion is carried: {:?}", core.state.rod.integrator);
+    assert!(
+        core.state.rod.integrator.h_next > 0.0,
+        "a step-size suggestion is carried: {:?}",
+        core.state.rod.integrator
+    );
     core.state.rod.integrator = Default::default();
     let wiped = fmu_state::serialize::<ReciprocatingDrive>(&core).unwrap();
     let s4 = f.deserialize(&wiped).expect("deserialize wiped");
     assert_eq!(f.set_state(s4), OK);
-    assert!(cont_long(&f) != reference_long, "the integrator memory must influence the continuation");
+    assert!(
+        cont_long(&f) != reference_long,
+        "the integrator memory must influence the continuation"
+    );
     f.free_state(s);
     f.free_state(s2);
     f.free_state(s4);
@@ -273,7 +310,8 @@ fn fmu_state_save_restore_continues_bit_for_bit_with_the_integrator_memory() {
 // ------------------------------------------------------------------------------------------
 
 fn buckling_message(m: &str) -> bool {
-    m.to_lowercase().contains("buckl") && (m.contains("K_theta") || m.contains("s_N") || m.contains("K_ϑ"))
+    m.to_lowercase().contains("buckl")
+        && (m.contains("K_theta") || m.contains("s_N") || m.contains("K_ϑ"))
 }
 
 #[test]
@@ -298,7 +336,10 @@ fn a_step_that_buckles_the_rod_fails_and_changes_nothing() {
     // exactly as if the failed attempts had never happened.
     assert_eq!(f.step(t, h), ERROR);
     assert_eq!(f.set("link.external_force", 0.0), OK);
-    assert!(drive(&f, 20, 50, h) == drive(&twin, 20, 50, h), "continuation differs from the never-failed twin");
+    assert!(
+        drive(&f, 20, 50, h) == drive(&twin, 20, 50, h),
+        "continuation differs from the never-failed twin"
+    );
 
     // 18.4 N more: P = 33.1 N − m·a + F_fr stays below the ~33.25 N buckling load at the start
     // (θ = 0 mod 2π: v = 0, no friction, −m·a < 0) and crosses it later in the revolution (inertia
@@ -315,7 +356,10 @@ fn a_step_that_buckles_the_rod_fails_and_changes_nothing() {
             let m = f.log.last();
             assert!(buckling_message(&m), "{m}");
             assert_eq!(state_bytes(&f), before);
-            assert!(k > 70, "the first steps with 18.4 N succeed (the load is below buckling there)");
+            assert!(
+                k > 70,
+                "the first steps with 18.4 N succeed (the load is below buckling there)"
+            );
             failed = true;
             break;
         }
@@ -356,7 +400,10 @@ fn initialization_rejects_invalid_or_buckled_rods_naming_the_variable() {
         assert_eq!(f.exit(), ERROR, "{name} accepted");
         let m = f.log.last();
         for e in expect {
-            assert!(m.to_lowercase().contains(&e.to_lowercase()), "message for {name} lacks {e:?}: {m}");
+            assert!(
+                m.to_lowercase().contains(&e.to_lowercase()),
+                "message for {name} lacks {e:?}: {m}"
+            );
         }
         // Still in initialization mode: correcting the value lets it finish.
         let good = match bad {
@@ -405,7 +452,14 @@ fn initial_state_at_rest_or_quasi_static() {
     // 1: quasi-static. K_ϑ·ϑ = K_Δ·Δ + e_P·P + m_f·f_m·Δ̈ and ϑ̇ = K_Δ·Δ̇/K_ϑ at the P the FMU
     // reports, with K's recomputed here; P itself = F_ext + Φ + F_fr (friction on: v ≠ 0).
     let f = start(1);
-    let o = f.get_many(&["rod.angle", "rod.angular_velocity", "rod.force", "link.friction_total", "guide.reaction", "guide.moment"]);
+    let o = f.get_many(&[
+        "rod.angle",
+        "rod.angular_velocity",
+        "rod.force",
+        "link.friction_total",
+        "guide.reaction",
+        "guide.moment",
+    ]);
     let (theta, rate, p, fr, r_b, m_b) = (o[0], o[1], o[2], o[3], o[4], o[5]);
     let (r, w, m) = (preset_real("geometry.crank_radius"), w(), preset_real("mass.reciprocating"));
     let delta = r * th0.sin() - e;
@@ -414,12 +468,20 @@ fn initial_state_at_rest_or_quasi_static() {
     let a = r * th0.sin() * eps + r * th0.cos() * w * w;
     let p_base = preset_real("load.mean") + f_ext - m * a;
     assert!(fr.abs() > 1e-3, "friction is on: {fr}");
-    assert!((p - (p_base + fr)).abs() < 1e-12 * p.abs(), "P = {p}, F_ext + Φ + F_fr = {}", p_base + fr);
+    assert!(
+        (p - (p_base + fr)).abs() < 1e-12 * p.abs(),
+        "P = {p}, F_ext + Φ + F_fr = {}",
+        p_base + fr
+    );
     let (a1, a2, l, f_rigid) = spring();
     let c = column(a1, a2, l, f_rigid, p);
     let rhs = c.k_delta * delta + e_p * p + m_f * f_m * delta_ddot;
     let scale = (c.k_delta * delta).abs() + (e_p * p).abs() + (m_f * f_m * delta_ddot).abs();
-    assert!((c.k_theta * theta - rhs).abs() < 1e-11 * scale, "K_ϑϑ = {}, rhs = {rhs}", c.k_theta * theta);
+    assert!(
+        (c.k_theta * theta - rhs).abs() < 1e-11 * scale,
+        "K_ϑϑ = {}, rhs = {rhs}",
+        c.k_theta * theta
+    );
     // Every term of the right-hand side counts (each is > 1 % of the sum).
     for term in [c.k_delta * delta, e_p * p, m_f * f_m * delta_ddot] {
         assert!(term.abs() > 0.01 * scale);
@@ -459,7 +521,11 @@ fn warnings(f: &Inst) -> Vec<(i32, String, String)> {
 fn cage_angle_above_validity_limit_is_warned_through_the_logger() {
     let api = Api::load();
     let run = |logging_on: bool| {
-        let o = [("rod.load_eccentricity", V::R(LARGE_ECCENTRICITY)), ("rod.initial_state", V::I(0)), ("support_B.kind", V::I(0))];
+        let o = [
+            ("rod.load_eccentricity", V::R(LARGE_ECCENTRICITY)),
+            ("rod.initial_state", V::I(0)),
+            ("support_B.kind", V::I(0)),
+        ];
         let f = kvo630(&api, "warn", logging_on, None, &o);
         assert_eq!(f.set("crank.speed", w()), OK);
         assert_eq!(f.exit(), OK, "{}", f.log.last());
@@ -495,7 +561,11 @@ fn cage_angle_above_validity_limit_is_warned_through_the_logger() {
 #[test]
 fn cage_angle_above_validity_limit_from_the_start_is_warned() {
     let api = Api::load();
-    let o = [("rod.load_eccentricity", V::R(LARGE_ECCENTRICITY)), ("rod.initial_state", V::I(1)), ("support_B.kind", V::I(0))];
+    let o = [
+        ("rod.load_eccentricity", V::R(LARGE_ECCENTRICITY)),
+        ("rod.initial_state", V::I(1)),
+        ("support_B.kind", V::I(0)),
+    ];
     let f = kvo630(&api, "warn from start", true, None, &o);
     assert_eq!(f.set("crank.speed", w()), OK);
     assert_eq!(f.exit(), OK);
@@ -536,13 +606,25 @@ fn tolerance_from_setup_experiment_or_solver_tolerance_controls_the_error() {
     let tight = angles(&api, Some(1e-10), None, n, h);
     let (e_loose, e_tight) = (max_diff(&loose, &truth), max_diff(&tight, &truth));
     println!("max |ϑ − ϑ(1e-12)|: tol 1e-4: {e_loose:e} rad, tol 1e-10: {e_tight:e} rad");
-    assert!(e_loose > 100.0 * e_tight, "errors not ordered: {e_loose:e} (1e-4) vs {e_tight:e} (1e-10)");
+    assert!(
+        e_loose > 100.0 * e_tight,
+        "errors not ordered: {e_loose:e} (1e-4) vs {e_tight:e} (1e-10)"
+    );
     assert!(e_loose > 1e-7 && e_loose < 1e-3, "tol 1e-4: {e_loose:e}");
     assert!(e_tight < 1e-8, "tol 1e-10: {e_tight:e}");
     // solver.tolerance is used when fmi2SetupExperiment defines none; the master's value wins.
-    assert!(angles(&api, None, Some(1e-4), n, h) == loose, "solver.tolerance = 1e-4 differs from setup 1e-4");
-    assert!(angles(&api, Some(1e-10), Some(1e-4), n, h) == tight, "fmi2SetupExperiment's tolerance must win");
-    assert!(angles(&api, None, None, n, h) != loose, "the preset's solver.tolerance 1e-8 differs from 1e-4");
+    assert!(
+        angles(&api, None, Some(1e-4), n, h) == loose,
+        "solver.tolerance = 1e-4 differs from setup 1e-4"
+    );
+    assert!(
+        angles(&api, Some(1e-10), Some(1e-4), n, h) == tight,
+        "fmi2SetupExperiment's tolerance must win"
+    );
+    assert!(
+        angles(&api, None, None, n, h) != loose,
+        "the preset's solver.tolerance 1e-8 differs from 1e-4"
+    );
     // At h = 1 ms the errors are ordered too (1e-4 vs 1e-10 against 1e-12).
     let truth = angles(&api, Some(1e-12), None, 100, 1e-3);
     let e_loose = max_diff(&angles(&api, Some(1e-4), None, 100, 1e-3), &truth);
@@ -555,5 +637,8 @@ fn looser_tolerance_is_not_ignored_at_one_millisecond_steps() {
     let api = Api::load();
     let a = angles(&api, Some(1e-4), None, 100, 1e-3);
     let b = angles(&api, Some(1e-8), None, 100, 1e-3);
-    assert!(a != b, "tolerance 1e-4 and 1e-8 give bit-identical runs: the step never grows to what 1e-4 allows");
+    assert!(
+        a != b,
+        "tolerance 1e-4 and 1e-8 give bit-identical runs: the step never grows to what 1e-4 allows"
+    );
 }

@@ -28,7 +28,10 @@ fn exports_version_and_platform() {
     let api = Api::load();
     unsafe {
         assert_eq!(std::ffi::CStr::from_ptr((api.fmi2GetVersion)()).to_str().unwrap(), "2.0");
-        assert_eq!(std::ffi::CStr::from_ptr((api.fmi2GetTypesPlatform)()).to_str().unwrap(), "default");
+        assert_eq!(
+            std::ffi::CStr::from_ptr((api.fmi2GetTypesPlatform)()).to_str().unwrap(),
+            "default"
+        );
     }
 }
 
@@ -50,8 +53,17 @@ fn full_lifecycle_matches_closed_form_and_extrapolates_the_crank() {
     let check = |theta: f64, w: f64, eps: f64| {
         let (s, tf, tfp) = slider(r, l, theta);
         let a = tf * eps + tfp * w * w;
-        let o = f.get_many(&["suspension.position", "suspension.velocity", "suspension.acceleration",
-            "kinematics.torque_factor", "inertia.force", "rod.force", "crank.torque", "rod.angle", "rod.angular_velocity"]);
+        let o = f.get_many(&[
+            "suspension.position",
+            "suspension.velocity",
+            "suspension.acceleration",
+            "kinematics.torque_factor",
+            "inertia.force",
+            "rod.force",
+            "crank.torque",
+            "rod.angle",
+            "rod.angular_velocity",
+        ]);
         assert!(close(o[0], s, 1e-14), "s {} vs {s}", o[0]);
         assert!(close(o[1], tf * w, 1e-13));
         assert!(close(o[2], a, 1e-12));
@@ -135,13 +147,25 @@ fn illegal_call_sequences_are_errors_naming_the_function() {
     // NULL instance.
     assert_eq!(unsafe { (api.fmi2DoStep)(std::ptr::null_mut(), 0.0, 0.1, 0) }, ERROR);
     // Unsupported optional functions exist and say why they fail.
-    assert_eq!(unsafe { (api.fmi2GetDirectionalDerivative)(f.c, &bad, 1, &bad, 1, &v, &mut v) }, ERROR);
+    assert_eq!(
+        unsafe { (api.fmi2GetDirectionalDerivative)(f.c, &bad, 1, &bad, 1, &v, &mut v) },
+        ERROR
+    );
     assert!(f.log.last().contains("providesDirectionalDerivative"));
     assert_eq!(unsafe { (api.fmi2GetRealOutputDerivatives)(f.c, &bad, 1, &iv, &mut v) }, ERROR);
     assert_eq!(unsafe { (api.fmi2SetRealInputDerivatives)(f.c, &bad, 1, &iv, &v) }, ERROR);
     assert_eq!(unsafe { (api.fmi2CancelStep)(f.c) }, ERROR);
     let mut t = -1.0;
-    assert_eq!(unsafe { (api.fmi2GetRealStatus)(f.c, fmi_sys::fmi2::fmi2StatusKind_fmi2LastSuccessfulTime, &mut t) }, OK);
+    assert_eq!(
+        unsafe {
+            (api.fmi2GetRealStatus)(
+                f.c,
+                fmi_sys::fmi2::fmi2StatusKind_fmi2LastSuccessfulTime,
+                &mut t,
+            )
+        },
+        OK
+    );
     assert_eq!(t, 0.0);
     assert_eq!(unsafe { (api.fmi2Terminate)(f.c) }, OK);
     illegal(f.step(0.0, 0.1), "fmi2DoStep");
@@ -176,28 +200,74 @@ fn reset_reproduces_a_fresh_run_bit_for_bit() {
 #[test]
 fn instantiate_checks_its_arguments() {
     let api = Api::load();
-    let guid = reciprocating_drive::fmi2::model_description::guid::<reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive>();
+    let guid = reciprocating_drive::fmi2::model_description::guid::<
+        reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive,
+    >();
     // Wrong GUID, empty name: NULL with a logged reason.
-    let log = Inst::try_with(&api, "x", None, false, "{00000000-0000-0000-0000-000000000000}").err().expect("NULL");
+    let log = Inst::try_with(&api, "x", None, false, "{00000000-0000-0000-0000-000000000000}")
+        .err()
+        .expect("NULL");
     assert!(log.last().contains("GUID"), "{}", log.last());
     let log = Inst::try_with(&api, "", None, false, guid).err().expect("NULL");
     assert!(log.last().contains("instanceName"));
     // Model exchange is not offered.
     let name = std::ffi::CString::new("me").unwrap();
     let g = std::ffi::CString::new(guid).unwrap();
-    let cb = fmi_sys::fmi2::fmi2CallbackFunctions { logger: None, allocateMemory: None, freeMemory: None, stepFinished: None, componentEnvironment: std::ptr::null_mut() };
-    let c = unsafe { (api.fmi2Instantiate)(name.as_ptr(), fmi_sys::fmi2::fmi2Type_fmi2ModelExchange, g.as_ptr(), std::ptr::null(), &cb, 0, 0) };
+    let cb = fmi_sys::fmi2::fmi2CallbackFunctions {
+        logger: None,
+        allocateMemory: None,
+        freeMemory: None,
+        stepFinished: None,
+        componentEnvironment: std::ptr::null_mut(),
+    };
+    let c = unsafe {
+        (api.fmi2Instantiate)(
+            name.as_ptr(),
+            fmi_sys::fmi2::fmi2Type_fmi2ModelExchange,
+            g.as_ptr(),
+            std::ptr::null(),
+            &cb,
+            0,
+            0,
+        )
+    };
     assert!(c.is_null());
     // NULL callbacks struct: NULL, no crash.
-    let c = unsafe { (api.fmi2Instantiate)(name.as_ptr(), fmi_sys::fmi2::fmi2Type_fmi2CoSimulation, g.as_ptr(), std::ptr::null(), std::ptr::null(), 0, 0) };
+    let c = unsafe {
+        (api.fmi2Instantiate)(
+            name.as_ptr(),
+            fmi_sys::fmi2::fmi2Type_fmi2CoSimulation,
+            g.as_ptr(),
+            std::ptr::null(),
+            std::ptr::null(),
+            0,
+            0,
+        )
+    };
     assert!(c.is_null());
     // A NULL logger is tolerated, and errors then go nowhere without crashing.
-    let c = unsafe { (api.fmi2Instantiate)(name.as_ptr(), fmi_sys::fmi2::fmi2Type_fmi2CoSimulation, g.as_ptr(), std::ptr::null(), &cb, 0, 1) };
+    let c = unsafe {
+        (api.fmi2Instantiate)(
+            name.as_ptr(),
+            fmi_sys::fmi2::fmi2Type_fmi2CoSimulation,
+            g.as_ptr(),
+            std::ptr::null(),
+            &cb,
+            0,
+            1,
+        )
+    };
     assert!(!c.is_null());
     assert_eq!(unsafe { (api.fmi2DoStep)(c, 0.0, 1.0, 0) }, ERROR);
     unsafe { (api.fmi2FreeInstance)(c) };
     // Every resource-location form, including NULL, and a name with spaces.
-    for loc in [None, Some("file:///tmp/r"), Some("file:/tmp/r/"), Some("file://localhost/tmp/a%20b"), Some("file:///")] {
+    for loc in [
+        None,
+        Some("file:///tmp/r"),
+        Some("file:/tmp/r/"),
+        Some("file://localhost/tmp/a%20b"),
+        Some("file:///"),
+    ] {
         let f = Inst::with(&api, "my pump instance 1", loc, true);
         f.init();
         assert_eq!(f.step(0.0, 0.001), OK);
@@ -262,7 +332,9 @@ fn bad_parameters_are_rejected_at_initialization_with_precise_messages() {
             assert!(m.contains(e), "message for {name} = {value} lacks {e:?}: {m}");
         }
         // Correcting the parameter lets initialization finish.
-        let default = reciprocating_drive::fmus::reciprocating_drive::VARIABLES[vr(name) as usize].start().unwrap();
+        let default = reciprocating_drive::fmus::reciprocating_drive::VARIABLES[vr(name) as usize]
+            .start()
+            .unwrap();
         assert_eq!(f.set(name, default), OK);
         assert_eq!(f.exit(), OK, "{}", f.log.last());
     }
@@ -271,7 +343,11 @@ fn bad_parameters_are_rejected_at_initialization_with_precise_messages() {
         assert_eq!(f.enter(), OK);
         assert_eq!(f.set_int(name, value), OK);
         assert_eq!(f.exit(), ERROR);
-        assert!(f.log.last().contains(name) && f.log.last().contains(&value.to_string()), "{}", f.log.last());
+        assert!(
+            f.log.last().contains(name) && f.log.last().contains(&value.to_string()),
+            "{}",
+            f.log.last()
+        );
     }
 }
 
@@ -284,7 +360,12 @@ fn nan_inputs_are_rejected_and_leave_the_state_unchanged() {
     assert_eq!(f.step(0.0, 0.01), OK);
     let before = f.serialize(f.get_state());
     let s_before = f.get("suspension.position");
-    for (name, bad) in [("crank.angle", f64::NAN), ("crank.speed", f64::INFINITY), ("crank.acceleration", f64::NEG_INFINITY), ("link.external_force", f64::NAN)] {
+    for (name, bad) in [
+        ("crank.angle", f64::NAN),
+        ("crank.speed", f64::INFINITY),
+        ("crank.acceleration", f64::NEG_INFINITY),
+        ("link.external_force", f64::NAN),
+    ] {
         assert_eq!(f.set(name, bad), ERROR);
         let m = f.log.last();
         assert!(m.contains(name) && m.contains("finite"), "{m}");
@@ -329,7 +410,9 @@ fn fmu_state_round_trips_continue_bit_identically() {
                 assert_eq!(f.set("crank.speed", W + 0.2 * t), OK);
                 assert_eq!(f.set("crank.acceleration", 0.2), OK);
                 assert_eq!(f.step(t, 0.002), OK);
-                f.get_many(&["suspension.position", "suspension.acceleration", "crank.torque"]).into_iter().map(f64::to_bits)
+                f.get_many(&["suspension.position", "suspension.acceleration", "crank.torque"])
+                    .into_iter()
+                    .map(f64::to_bits)
             })
             .collect()
     };
@@ -354,7 +437,9 @@ fn fmu_state_round_trips_continue_bit_identically() {
             assert_eq!(g.set("crank.speed", W + 0.2 * t), OK);
             assert_eq!(g.set("crank.acceleration", 0.2), OK);
             assert_eq!(g.step(t, 0.002), OK);
-            g.get_many(&["suspension.position", "suspension.acceleration", "crank.torque"]).into_iter().map(f64::to_bits)
+            g.get_many(&["suspension.position", "suspension.acceleration", "crank.torque"])
+                .into_iter()
+                .map(f64::to_bits)
         })
         .collect();
     assert_eq!(other, reference);
@@ -388,11 +473,13 @@ fn interleaved_instances_do_not_interfere() {
         assert_eq!(f.enter(), OK);
         assert_eq!(f.set("geometry.crank_radius", r), OK);
         assert_eq!(f.exit(), OK);
-        (0..40).map(|k| {
-            assert_eq!(f.set("crank.angle", 0.05 * k as f64), OK);
-            assert_eq!(f.step(k as f64 * 0.01, 0.01), OK);
-            f.get("suspension.acceleration").to_bits()
-        }).collect::<Vec<_>>()
+        (0..40)
+            .map(|k| {
+                assert_eq!(f.set("crank.angle", 0.05 * k as f64), OK);
+                assert_eq!(f.step(k as f64 * 0.01, 0.01), OK);
+                f.get("suspension.acceleration").to_bits()
+            })
+            .collect::<Vec<_>>()
     };
     let (ra, rb) = (run_alone(0.2), run_alone(0.3));
     let a = Inst::new(&api, "a");

@@ -85,10 +85,21 @@ impl Checker<'_> {
 
     fn check_outputs(&self, ctx: &str) {
         let mut v = vec![0.0; self.outputs.len()];
-        let st = unsafe { (self.f.api.fmi2GetReal)(self.f.c, self.outputs.as_ptr(), self.outputs.len(), v.as_mut_ptr()) };
+        let st = unsafe {
+            (self.f.api.fmi2GetReal)(
+                self.f.c,
+                self.outputs.as_ptr(),
+                self.outputs.len(),
+                v.as_mut_ptr(),
+            )
+        };
         if st == OK {
             for (x, vr) in v.iter().zip(&self.outputs) {
-                assert!(x.is_finite(), "{ctx}: fmi2GetReal returned OK with {} = {x}", VARIABLES[*vr as usize].name);
+                assert!(
+                    x.is_finite(),
+                    "{ctx}: fmi2GetReal returned OK with {} = {x}",
+                    VARIABLES[*vr as usize].name
+                );
             }
         } else {
             assert_eq!(st, ERROR, "{ctx}: fmi2GetReal status {st}");
@@ -98,13 +109,24 @@ impl Checker<'_> {
 }
 
 fn run_sequence(api: &Api, rng: &mut Rng, ctx: &str) {
-    let outputs: Vec<u32> =
-        VARIABLES.iter().enumerate().filter(|(_, v)| v.causality == Causality::Output).map(|(i, _)| i as u32).collect();
+    let outputs: Vec<u32> = VARIABLES
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| v.causality == Causality::Output)
+        .map(|(i, _)| i as u32)
+        .collect();
     // Half the instances log nothing but errors: fmi2GetReal, fmi2SetReal and fmi2DoStep then
     // take their fast paths (docs/performance.md), which must hold everything checked here too.
     let logging_on = rng.below(2) == 0;
     let f = Inst::with(api, "fuzz", Some("file:///nonexistent/resources"), logging_on);
-    let mut c = Checker { f, mode: Mode::Instantiated, time: 0.0, setup_done: false, states: vec![], outputs };
+    let mut c = Checker {
+        f,
+        mode: Mode::Instantiated,
+        time: 0.0,
+        setup_done: false,
+        states: vec![],
+        outputs,
+    };
     let n_ops = 4 + rng.below(24);
     // Half the sequences start with the regular life cycle (setup, enter, a few values, exit) so
     // that stepping, states and outputs are exercised, not only refusals.
@@ -157,7 +179,11 @@ fn run_sequence(api: &Api, rng: &mut Rng, ctx: &str) {
                     }
                 };
                 // Outputs and calculated parameters can never be set.
-                (st, !matches!(v.causality, Causality::Output | Causality::CalculatedParameter), true)
+                (
+                    st,
+                    !matches!(v.causality, Causality::Output | Causality::CalculatedParameter),
+                    true,
+                )
             }
             5 | 6 => {
                 let h = match rng.below(6) {
@@ -241,13 +267,25 @@ fn run_sequence(api: &Api, rng: &mut Rng, ctx: &str) {
         }
         // The state machine: a call that is not allowed must be refused.
         if !allowed {
-            assert_eq!(st, ERROR, "{ctx}: a call not allowed here returned {st}: {}", c.f.log.last());
+            assert_eq!(
+                st,
+                ERROR,
+                "{ctx}: a call not allowed here returned {st}: {}",
+                c.f.log.last()
+            );
         }
-        assert!(st == OK || st == ERROR || st == fmi_sys::fmi2::fmi2Status_fmi2Warning, "{ctx}: status {st}");
+        assert!(
+            st == OK || st == ERROR || st == fmi_sys::fmi2::fmi2Status_fmi2Warning,
+            "{ctx}: status {st}"
+        );
         if st == ERROR {
             if let (Some(b), true) = (before, changes) {
                 let after = c.fingerprint();
-                assert!(b == after, "{ctx}: a failed call changed the FMU state: {}", c.f.log.last());
+                assert!(
+                    b == after,
+                    "{ctx}: a failed call changed the FMU state: {}",
+                    c.f.log.last()
+                );
             }
         }
         c.check_outputs(&ctx);
@@ -257,14 +295,16 @@ fn run_sequence(api: &Api, rng: &mut Rng, ctx: &str) {
 
 #[test]
 fn random_call_sequences_keep_every_guarantee() {
-    let n: u64 = std::env::var("RD_FUZZ_SEQUENCES").ok().and_then(|s| s.parse().ok()).unwrap_or(20_000);
+    let n: u64 =
+        std::env::var("RD_FUZZ_SEQUENCES").ok().and_then(|s| s.parse().ok()).unwrap_or(20_000);
     let seed: u64 = std::env::var("RD_FUZZ_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
     let api = Api::load();
     let mut rng = Rng(seed);
     for k in 0..n {
         run_sequence(&api, &mut rng, &format!("seed {seed} sequence {k}"));
     }
-    let (calls, refused, steps) = (CALLS.load(Relaxed), REFUSED.load(Relaxed), STEPS_OK.load(Relaxed));
+    let (calls, refused, steps) =
+        (CALLS.load(Relaxed), REFUSED.load(Relaxed), STEPS_OK.load(Relaxed));
     println!("fuzz_abi: {n} sequences, seed {seed}: {calls} calls ({refused} refused, {steps} successful steps); every check held");
     // The campaign must reach stepping, or it would test little.
     assert!(steps > n / 10, "only {steps} successful steps in {n} sequences");

@@ -71,32 +71,71 @@ fn rejected_support_configurations_fail_initialization_with_precise_messages() {
         // Supports that do not hold the link.
         (
             &[("support_A.kind", 0.0), ("support_B.kind", 0.0)],
-            &["do not hold the link", "rigid-body mode", "single pin", "support_C.kind = 1 (pin)", "support_C.z = 1.6"],
+            &[
+                "do not hold the link",
+                "rigid-body mode",
+                "single pin",
+                "support_C.kind = 1 (pin)",
+                "support_C.z = 1.6",
+            ],
         ),
         (
             &[("support_A.kind", 0.0), ("support_C.kind", 0.0), ("support_B.kind", 1.0)],
-            &["do not hold the link", "single pin", "support_B.kind = 1 (pin)", "support_B.z = 1.9"],
+            &[
+                "do not hold the link",
+                "single pin",
+                "support_B.kind = 1 (pin)",
+                "support_B.z = 1.9",
+            ],
         ),
         // Two pins, link-fixed at 1.0 and frame-fixed at 1.2 − s: they meet at s = 0.2.
         (
-            &[("support_A.kind", 0.0), ("support_B.kind", 1.0), ("support_B.z", 1.0), ("support_C.z", 1.2)],
-            &["do not hold the link", "coincide at s = 0.2", "support_B.z = 1", "support_C.z = 1.2 m (frame-fixed)"],
+            &[
+                ("support_A.kind", 0.0),
+                ("support_B.kind", 1.0),
+                ("support_B.z", 1.0),
+                ("support_C.z", 1.2),
+            ],
+            &[
+                "do not hold the link",
+                "coincide at s = 0.2",
+                "support_B.z = 1",
+                "support_C.z = 1.2 m (frame-fixed)",
+            ],
         ),
         // A frame-fixed support leaving [0, L] during the stroke.
         (
             &[("support_C.z", 0.3)],
-            &["support_C.z = 0.3", "out of range", "[S, L] = [0.4, 2.1]", "frame-fixed", "[-0.1, 0.3]"],
+            &[
+                "support_C.z = 0.3",
+                "out of range",
+                "[S, L] = [0.4, 2.1]",
+                "frame-fixed",
+                "[-0.1, 0.3]",
+            ],
         ),
         (&[("support_C.z", 2.2)], &["support_C.z = 2.2", "[S, L] = [0.4, 2.1]", "[1.8, 2.2]"]),
         // A frame-fixed two-edge gland whose piston-side edge (0.5 − 0.2 − s) leaves the link.
         (
             &[("support_C.kind", 3.0), ("support_C.z", 0.5), ("support_C.length", 0.4)],
-            &["a guide edge leaves the link", "support_C.z = 0.5", "support_C.length = 0.4", "frame-fixed", "[-0.1, 0.3]"],
+            &[
+                "a guide edge leaves the link",
+                "support_C.z = 0.5",
+                "support_C.length = 0.4",
+                "frame-fixed",
+                "[-0.1, 0.3]",
+            ],
         ),
         // A link-fixed guide edge beyond L (1.95 + 0.2 = 2.15 > 2.1).
         (
             &[("support_B.z", 1.95)],
-            &["a guide edge leaves the link", "support_B.z = 1.95", "support_B.length = 0.4", "2.15", "[0, L] = [0, 2.1]"],
+            &[
+                "a guide edge leaves the link",
+                "support_B.z = 1.95",
+                "support_B.length = 0.4",
+                "2.15",
+                "[0, L] = [0, 2.1]",
+            ],
         ),
         // Link-fixed centres off the link.
         (
@@ -129,7 +168,10 @@ fn rejected_support_configurations_fail_initialization_with_precise_messages() {
         (&[("link.E", -2.1e11)], &["link.E = -210000000000", "(0, 10000000000000] Pa"]),
         // Negative stiffness and friction coefficients, non-finite values.
         (&[("support_C.stiffness", -1.0)], &["support_C.stiffness = -1", "[0, 1e15] N/m"]),
-        (&[("guide.friction_coefficient", -0.1)], &["guide.friction_coefficient = -0.1", "[0, 10]"]),
+        (
+            &[("guide.friction_coefficient", -0.1)],
+            &["guide.friction_coefficient = -0.1", "[0, 10]"],
+        ),
         (&[("support_C.friction", -0.2)], &["support_C.friction = -0.2"]),
         (&[("support_B.offset", f64::NAN)], &["support_B.offset = NaN"]),
         (&[("support_A.tilt", f64::INFINITY)], &["support_A.tilt = inf"]),
@@ -139,11 +181,27 @@ fn rejected_support_configurations_fail_initialization_with_precise_messages() {
         // (1.7 m) at s = 0.2; two rigid clamps at the same point.
         (
             &[("support_C.z", 1.9), ("support_C.stiffness", 0.0)],
-            &["support_B and support_C", "rigidly", "indeterminate", "s = 0.2", "support_C.stiffness"],
+            &[
+                "support_B and support_C",
+                "rigidly",
+                "indeterminate",
+                "s = 0.2",
+                "support_C.stiffness",
+            ],
         ),
         (
-            &[("support_C.kind", 2.0), ("support_C.attached", 0.0), ("support_C.z", 0.125), ("support_C.stiffness", 0.0)],
-            &["support_A and support_C", "indeterminate", "support_A.z = 0.125", "support_C.z = 0.125"],
+            &[
+                ("support_C.kind", 2.0),
+                ("support_C.attached", 0.0),
+                ("support_C.z", 0.125),
+                ("support_C.stiffness", 0.0),
+            ],
+            &[
+                "support_A and support_C",
+                "indeterminate",
+                "support_A.z = 0.125",
+                "support_C.z = 0.125",
+            ],
         ),
     ];
     for (settings, needles) in cases {
@@ -203,7 +261,8 @@ fn self_locking_guide_fails_the_read_of_the_forces_and_leaves_the_state_unchange
     assert_eq!(f.step(0.0, h_small), OK, "{}", f.log.last());
     let before = f.get_state();
     let bytes_before = f.serialize(before);
-    let forces = ["rod.force", "guide.friction", "guide.reaction", "link.friction_total", "crank.torque"];
+    let forces =
+        ["rod.force", "guide.friction", "guide.reaction", "link.friction_total", "crank.torque"];
     let forces_before = f.get_many(&forces);
     // A step to θ = π/2 (|tanβ| largest, |v| near its largest) meets the self-locking guide. The
     // step only carries the crank forward (its outputs are evaluated when read): it succeeds.
@@ -241,8 +300,10 @@ fn self_locking_guide_fails_the_read_of_the_forces_and_leaves_the_state_unchange
     let restored = f.get_state();
     assert_eq!(f.serialize(restored), bytes_before);
     f.free_state(restored);
-    assert_eq!(f.get_many(&forces).iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
-               forces_before.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+    assert_eq!(
+        f.get_many(&forces).iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+        forces_before.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+    );
     assert_eq!(f.step(h_small, 0.01), OK, "{}", f.log.last());
     assert!(f.get("guide.friction").is_finite());
     f.free_state(before);
@@ -366,9 +427,14 @@ fn check_identities(rows: &[Row], m: &Machine) -> (f64, f64) {
         let f_ext = r.ext_input + (m.profile)(r.v, r.theta);
         let th = (r.v / m.v_eps).tanh();
         // §4: P = F_ext + Φ + F_fr + F_bal (to rounding of the sum's largest term).
-        let scale = f_ext.abs().max(r.phi.abs()).max(r.f_total.abs()).max(r.f_bal.abs()).max(r.p.abs());
+        let scale =
+            f_ext.abs().max(r.phi.abs()).max(r.f_total.abs()).max(r.f_bal.abs()).max(r.p.abs());
         let resid = r.p - (f_ext + r.phi + r.f_total + r.f_bal);
-        assert!(resid.abs() <= 1e-12 * scale, "row {k}: P = {} vs F_ext + Φ + F_fr + F_bal, residual {resid}", r.p);
+        assert!(
+            resid.abs() <= 1e-12 * scale,
+            "row {k}: P = {} vs F_ext + Φ + F_fr + F_bal, residual {resid}",
+            r.p
+        );
         // Lateral equilibrium of the free link (§5.3, §5.4): the side load of the rod
         // Q = −P·tanβ and the lateral load act at B's centre; the supports take the rest.
         let q = -r.p * r.beta.tan();
@@ -378,11 +444,23 @@ fn check_identities(rows: &[Row], m: &Machine) -> (f64, f64) {
         assert!(sum.abs() <= 1e-9 * lat_scale, "row {k}: lateral sum {sum} of {lat:?}");
         // Edge forces (§5.3): N1 + N2 = R_B and N1 − N2 = 2 M_B / l_n is the same moment.
         let ns = r.n1.abs().max(r.n2.abs());
-        assert!((r.n1 + r.n2 - r.r_b).abs() <= 1e-12 * ns.max(r.r_b.abs()), "row {k}: N1 + N2 ≠ R_B");
+        assert!(
+            (r.n1 + r.n2 - r.r_b).abs() <= 1e-12 * ns.max(r.r_b.abs()),
+            "row {k}: N1 + N2 ≠ R_B"
+        );
         // Friction law: |F_B| = f·(|N1| + |N2|)·|tanh(v/v_ε)|, opposing the motion.
         let mag = m.f_b * (r.n1.abs() + r.n2.abs()) * th.abs();
-        assert!((r.f_b.abs() - mag).abs() <= 1e-12 * mag.max(1e-300), "row {k}: |F_B| = {} vs {mag}", r.f_b);
-        assert!(r.f_b * r.v <= 0.0, "row {k}: guide friction {} does not oppose v = {}", r.f_b, r.v);
+        assert!(
+            (r.f_b.abs() - mag).abs() <= 1e-12 * mag.max(1e-300),
+            "row {k}: |F_B| = {} vs {mag}",
+            r.f_b
+        );
+        assert!(
+            r.f_b * r.v <= 0.0,
+            "row {k}: guide friction {} does not oppose v = {}",
+            r.f_b,
+            r.v
+        );
         if r.v != 0.0 && mag > 0.0 {
             assert!(r.f_b.signum() == -r.v.signum());
             sliding += 1;
@@ -390,10 +468,18 @@ fn check_identities(rows: &[Row], m: &Machine) -> (f64, f64) {
         // Friction of the other supports: only C's pin rubs in these machines.
         let fc = -m.f_c_pin * r.r_c.abs() * th;
         let fs = r.f_total.abs().max(r.f_b.abs()).max(fc.abs());
-        assert!((r.f_total - r.f_b - fc).abs() <= 1e-12 * fs.max(1e-300), "row {k}: F_total {} vs F_B {} + F_C {fc}", r.f_total, r.f_b);
+        assert!(
+            (r.f_total - r.f_b - fc).abs() <= 1e-12 * fs.max(1e-300),
+            "row {k}: F_total {} vs F_B {} + F_C {fc}",
+            r.f_total,
+            r.f_b
+        );
         // Virtual power (§4): T·ω = −P·v, with v = TF·ω.
         let pw = (r.p * r.v).abs().max(r.torque.abs() * r.omega);
-        assert!((r.torque * r.omega + r.p * r.v).abs() <= 1e-12 * pw.max(1e-300), "row {k}: T ω ≠ −P v");
+        assert!(
+            (r.torque * r.omega + r.p * r.v).abs() <= 1e-12 * pw.max(1e-300),
+            "row {k}: T ω ≠ −P v"
+        );
         assert!((r.v - r.tf * r.omega).abs() <= 1e-14 * r.tf.abs().max(0.2) * r.omega);
         assert!(r.s >= -1e-12 && r.s <= 0.4 + 1e-3);
         max_fb = max_fb.max(r.f_b.abs());
@@ -409,7 +495,13 @@ fn default_machine_revolution_satisfies_the_identities() {
     let f = configured(&api, "default", &[]);
     assert_eq!(f.exit(), OK);
     let rows = revolution(&f, 720, 0.0);
-    let m = Machine { profile: Box::new(|_, _| 0.0), f_b: 0.1, f_c_pin: 0.0, v_eps: 0.02, lateral_load: 0.0 };
+    let m = Machine {
+        profile: Box::new(|_, _| 0.0),
+        f_b: 0.1,
+        f_c_pin: 0.0,
+        v_eps: 0.02,
+        lateral_load: 0.0,
+    };
     let (max_fb, max_rc) = check_identities(&rows, &m);
     // The friction is not negligible: the misaligned guide rubs with O(100 N) (a model without
     // friction, or with zero reactions, would make the identities above trivially true).
@@ -417,8 +509,10 @@ fn default_machine_revolution_satisfies_the_identities() {
     assert!(max_rc > 1.0);
     // The guide's friction changes with the crank angle (the supports move and the side load
     // changes): it is not a constant times tanh.
-    let ratios: Vec<f64> = rows.iter().filter(|r| r.v.abs() > 0.5).map(|r| r.f_b / (r.v / 0.02).tanh()).collect();
-    let (lo, hi) = ratios.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(*x), b.max(*x)));
+    let ratios: Vec<f64> =
+        rows.iter().filter(|r| r.v.abs() > 0.5).map(|r| r.f_b / (r.v / 0.02).tanh()).collect();
+    let (lo, hi) =
+        ratios.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(*x), b.max(*x)));
     assert!(hi - lo > 0.05 * hi.abs().max(lo.abs()), "{lo} .. {hi}");
 }
 
@@ -514,7 +608,12 @@ fn friction_off_gives_zero_friction_outputs_and_p_equals_f_ext_plus_inertia() {
         }
         let f_ext = r.ext_input + 5.0e3 + 2.0e4 * th.cos();
         let scale = f_ext.abs().max(r.phi.abs());
-        assert!((r.p - (f_ext + r.phi)).abs() <= 1e-12 * scale, "row {k}: P {} vs {}", r.p, f_ext + r.phi);
+        assert!(
+            (r.p - (f_ext + r.phi)).abs() <= 1e-12 * scale,
+            "row {k}: P {} vs {}",
+            r.p,
+            f_ext + r.phi
+        );
     }
     // Control: the same machine with friction on has a nonzero friction and P ≠ F_ext + Φ.
     let g = configured(&api, "on", &[("load.mean", 5.0e3), ("load.amplitude", 2.0e4)]);

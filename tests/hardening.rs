@@ -44,13 +44,23 @@ fn deserialized_states_are_validated_like_set_calls() {
     let s = f.get_state();
     let bytes = f.serialize(s);
     let core = fmu_state::deserialize::<ReciprocatingDrive>(&bytes).expect("decode");
-    type Corrupt = Box<dyn Fn(&mut reciprocating_drive::fmi2::instance::Core<<ReciprocatingDrive as FmuModel>::State>)>;
+    type Corrupt = Box<
+        dyn Fn(
+            &mut reciprocating_drive::fmi2::instance::Core<<ReciprocatingDrive as FmuModel>::State>,
+        ),
+    >;
     let cases: Vec<(Corrupt, &str)> = vec![
         (Box::new(|c| c.tolerance = Some(f64::NAN)), "tolerance = NaN"),
         (Box::new(|c| c.tolerance = Some(-1e-8)), "tolerance = -1e-8"),
         (Box::new(|c| c.values[vr("crank.speed") as usize] = f64::NAN), "crank.speed = NaN"),
-        (Box::new(|c| c.values[vr("support_B.offset") as usize] = 1e308), "support_B.offset = 1e308"),
-        (Box::new(|c| c.values[vr("guide.friction_coefficient") as usize] = -1.0), "guide.friction_coefficient = -1"),
+        (
+            Box::new(|c| c.values[vr("support_B.offset") as usize] = 1e308),
+            "support_B.offset = 1e308",
+        ),
+        (
+            Box::new(|c| c.values[vr("guide.friction_coefficient") as usize] = -1.0),
+            "guide.friction_coefficient = -1",
+        ),
     ];
     for (corrupt, expect) in cases {
         let mut c = core.clone();

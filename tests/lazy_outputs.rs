@@ -26,7 +26,9 @@ fn outputs() -> Vec<(&'static str, Reader)> {
         .iter()
         .filter(|v| matches!(v.causality, Causality::Output | Causality::CalculatedParameter))
         .map(|v| {
-            let Some(o) = reciprocating_drive::fmus::reciprocating_drive::TABLE.info()[value_reference(v.name).unwrap()].output
+            let Some(o) = reciprocating_drive::fmus::reciprocating_drive::TABLE.info()
+                [value_reference(v.name).unwrap()]
+            .output
             else {
                 unreachable!()
             };
@@ -63,7 +65,11 @@ const MACHINES: &[Machine] = &[
     Machine {
         name: "no supports",
         preset: None,
-        overrides: &[("support_A.kind", "Integer", "0"), ("support_B.kind", "Integer", "0"), ("support_C.kind", "Integer", "0")],
+        overrides: &[
+            ("support_A.kind", "Integer", "0"),
+            ("support_B.kind", "Integer", "0"),
+            ("support_C.kind", "Integer", "0"),
+        ],
         speed: 6.8,
         force: 300.0,
     },
@@ -81,7 +87,13 @@ const MACHINES: &[Machine] = &[
         speed: 6.8,
         force: 300.0,
     },
-    Machine { name: "sk8-3.5-4000", preset: Some("sk8-3.5-4000"), overrides: &[], speed: 1.14, force: 3e3 },
+    Machine {
+        name: "sk8-3.5-4000",
+        preset: Some("sk8-3.5-4000"),
+        overrides: &[],
+        speed: 1.14,
+        force: 3e3,
+    },
     Machine { name: "kvo630", preset: Some("kvo630"), overrides: &[], speed: 157.0, force: 1.0 },
 ];
 
@@ -97,7 +109,13 @@ fn instance<'a>(api: &'a Api, m: &Machine, name: &str) -> Inst<'a> {
 
 /// The preset's entries and the overrides of a machine (crank.speed is the test's).
 fn entries(m: &Machine) -> Vec<(String, String, String)> {
-    let mut e: Vec<_> = m.preset.map(preset).unwrap_or_default().into_iter().filter(|e| e.0 != "crank.speed").collect();
+    let mut e: Vec<_> = m
+        .preset
+        .map(preset)
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|e| e.0 != "crank.speed")
+        .collect();
     e.extend(m.overrides.iter().map(|&(n, t, v)| (n.to_string(), t.to_string(), v.to_string())));
     e
 }
@@ -106,8 +124,13 @@ fn entries(m: &Machine) -> Vec<(String, String, String)> {
 fn params(m: &Machine) -> Params {
     let mut p = Params::default();
     for (name, ty, v) in entries(m) {
-        if let Some(Binding::Param { set, .. }) = VARIABLES.iter().find(|x| x.name == name).map(|x| x.binding) {
-            set(&mut p, if ty == "Boolean" { (v == "true") as i32 as f64 } else { v.parse().unwrap() });
+        if let Some(Binding::Param { set, .. }) =
+            VARIABLES.iter().find(|x| x.name == name).map(|x| x.binding)
+        {
+            set(
+                &mut p,
+                if ty == "Boolean" { (v == "true") as i32 as f64 } else { v.parse().unwrap() },
+            );
         }
     }
     p
@@ -165,8 +188,14 @@ fn outputs_read_in_any_order_and_subset_equal_the_eager_evaluation_bit_for_bit()
             // only step (the FMU carries the crank forward itself).
             if k % 3 == 1 {
                 let x = k as f64;
-                let inputs = [m.speed * t + 0.01 * x.sin(), m.speed * (1.0 + 0.05 * (0.3 * x).cos()), 0.5 * (0.2 * x).sin(), m.force * (0.1 * x).cos()];
-                let names = ["crank.angle", "crank.speed", "crank.acceleration", "link.external_force"];
+                let inputs = [
+                    m.speed * t + 0.01 * x.sin(),
+                    m.speed * (1.0 + 0.05 * (0.3 * x).cos()),
+                    0.5 * (0.2 * x).sin(),
+                    m.force * (0.1 * x).cos(),
+                ];
+                let names =
+                    ["crank.angle", "crank.speed", "crank.acceleration", "link.external_force"];
                 for f in [&lazy, &eager] {
                     for (n, v) in names.iter().zip(inputs) {
                         assert_eq!(f.set(n, v), OK);
@@ -177,13 +206,30 @@ fn outputs_read_in_any_order_and_subset_equal_the_eager_evaluation_bit_for_bit()
             // model angle is the crank angle), with the elastic rod's cage state from its outputs.
             let e = eager.get_many(&all_names);
             let get = |n: &str| e[all_names.iter().position(|x| *x == n).unwrap()];
-            let crank = CrankState { angle: get("crank.model_angle"), speed: get("crank.model_speed"), acceleration: eager.get("crank.acceleration") };
+            let crank = CrankState {
+                angle: get("crank.model_angle"),
+                speed: get("crank.model_speed"),
+                acceleration: eager.get("crank.acceleration"),
+            };
             let mut rod = RodState::default();
             rod.cage.theta = if model.has_state() { get("rod.angle") } else { 0.0 };
             rod.cage.rate = if model.has_state() { get("rod.angular_velocity") } else { 0.0 };
-            let reference = model.evaluate(&crank, &Inputs { external_force: eager.get("link.external_force") }, &rod).expect("evaluate");
+            let reference = model
+                .evaluate(
+                    &crank,
+                    &Inputs { external_force: eager.get("link.external_force") },
+                    &rod,
+                )
+                .expect("evaluate");
             for (i, (name, field)) in all.iter().enumerate() {
-                assert_eq!(e[i].to_bits(), field(&reference).to_bits(), "{} step {k}: {name} {} vs pure model {}", m.name, e[i], field(&reference));
+                assert_eq!(
+                    e[i].to_bits(),
+                    field(&reference).to_bits(),
+                    "{} step {k}: {name} {} vs pure model {}",
+                    m.name,
+                    e[i],
+                    field(&reference)
+                );
             }
             // The lazy instance: a fixed group order, then a random subset in random order, in
             // random call sizes, some outputs read twice.
@@ -195,7 +241,12 @@ fn outputs_read_in_any_order_and_subset_equal_the_eager_evaluation_bit_for_bit()
             let got = read(&lazy, &names, &split);
             for (n, v) in names.iter().zip(&got) {
                 let want = get(n);
-                assert_eq!(v.to_bits(), want.to_bits(), "{} step {k}: {n} read lazily {v} vs eager {want} (order {names:?})", m.name);
+                assert_eq!(
+                    v.to_bits(),
+                    want.to_bits(),
+                    "{} step {k}: {n} read lazily {v} vs eager {want} (order {names:?})",
+                    m.name
+                );
                 compared += 1;
             }
             for f in [&lazy, &eager] {
@@ -227,7 +278,13 @@ fn an_array_of_value_references_changed_in_place_is_resolved_again() {
         &["suspension.position", "suspension.velocity", "rod.force", "guide.friction"],
         &["crank.speed", "geometry.crank_radius", "rod.angle", "inertia.force"],
         &["suspension.position", "suspension.velocity"],
-        &["guide.reaction", "support_A.reaction", "load.mean", "crank.acceleration", "rod.stress_max"],
+        &[
+            "guide.reaction",
+            "support_A.reaction",
+            "load.mean",
+            "crank.acceleration",
+            "rod.stress_max",
+        ],
         &["suspension.position", "suspension.velocity", "rod.force", "crank.torque"],
     ];
     let mut buffer = [0u32; 8];
@@ -246,7 +303,12 @@ fn an_array_of_value_references_changed_in_place_is_resolved_again() {
         let inputs: &[(&str, f64)] = match k % 3 {
             0 => &[("crank.angle", 6.8 * t), ("crank.speed", 6.8), ("crank.acceleration", 0.1)],
             1 => &[("crank.speed", 6.9), ("crank.angle", 6.8 * t), ("crank.acceleration", -0.2)],
-            _ => &[("crank.angle", 6.8 * t), ("crank.speed", 6.7), ("crank.acceleration", 0.0), ("link.external_force", 1e3)],
+            _ => &[
+                ("crank.angle", 6.8 * t),
+                ("crank.speed", 6.7),
+                ("crank.acceleration", 0.0),
+                ("link.external_force", 1e3),
+            ],
         };
         for (i, (n, v)) in inputs.iter().enumerate() {
             buffer[i] = vr(n);

@@ -32,12 +32,29 @@ fn every_contract_name_of_this_feature_set_is_declared() {
     // docs/model.md §10 names that the crank-slider feature set must expose, spelled out here.
     let xml = reciprocating_drive::fmi2::model_description::generate::<ReciprocatingDrive>();
     for name in [
-        "crank.angle", "crank.speed", "crank.acceleration", "link.external_force",
-        "suspension.position", "suspension.velocity", "suspension.acceleration",
-        "kinematics.torque_factor", "inertia.force", "rod.force", "crank.torque", "rod.angle",
-        "rod.angular_velocity", "mechanism", "crank.angle_offset", "geometry.crank_radius",
-        "geometry.rod_length", "geometry.slider_offset", "mass.reciprocating", "load.profile",
-        "load.mean", "load.amplitude", "load.phase",
+        "crank.angle",
+        "crank.speed",
+        "crank.acceleration",
+        "link.external_force",
+        "suspension.position",
+        "suspension.velocity",
+        "suspension.acceleration",
+        "kinematics.torque_factor",
+        "inertia.force",
+        "rod.force",
+        "crank.torque",
+        "rod.angle",
+        "rod.angular_velocity",
+        "mechanism",
+        "crank.angle_offset",
+        "geometry.crank_radius",
+        "geometry.rod_length",
+        "geometry.slider_offset",
+        "mass.reciprocating",
+        "load.profile",
+        "load.mean",
+        "load.amplitude",
+        "load.phase",
     ] {
         assert!(xml.contains(&format!("name=\"{name}\"")), "{name} missing");
     }

@@ -17,7 +17,12 @@ fn presets() -> Vec<Preset> {
         .expect("resources/presets")
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "ssv"))
-        .map(|p| (p.file_stem().unwrap().to_string_lossy().into_owned(), parse_ssv(&std::fs::read_to_string(&p).unwrap())))
+        .map(|p| {
+            (
+                p.file_stem().unwrap().to_string_lossy().into_owned(),
+                parse_ssv(&std::fs::read_to_string(&p).unwrap()),
+            )
+        })
         .collect();
     v.sort();
     v
@@ -30,13 +35,26 @@ fn the_three_presets_of_physics_md_exist_and_are_complete() {
     assert_eq!(names, ["kvo630", "sk8-3.5-4000", "unb600a"]);
     for (preset, entries) in &ps {
         for (name, ty, value) in entries {
-            let var = VARIABLES.iter().find(|v| v.name == name).unwrap_or_else(|| panic!("{preset}: unknown {name}"));
-            let expect = match var.ty { VarType::Real => "Real", VarType::Integer => "Integer", VarType::Boolean => "Boolean" };
+            let var = VARIABLES
+                .iter()
+                .find(|v| v.name == name)
+                .unwrap_or_else(|| panic!("{preset}: unknown {name}"));
+            let expect = match var.ty {
+                VarType::Real => "Real",
+                VarType::Integer => "Integer",
+                VarType::Boolean => "Boolean",
+            };
             assert_eq!(ty, expect, "{preset}: type of {name}");
-            assert!(matches!(var.causality, Causality::Parameter | Causality::Input), "{preset}: {name} cannot be set");
+            assert!(
+                matches!(var.causality, Causality::Parameter | Causality::Input),
+                "{preset}: {name} cannot be set"
+            );
             if var.ty != VarType::Boolean {
                 let v: f64 = value.parse().unwrap();
-                assert!(var.causality == Causality::Input || var.range.contains(v), "{preset}: {name} = {v} out of range");
+                assert!(
+                    var.causality == Causality::Input || var.range.contains(v),
+                    "{preset}: {name} = {v} out of range"
+                );
             }
         }
         for var in VARIABLES.iter().filter(|v| matches!(v.binding, Binding::Param { .. })) {

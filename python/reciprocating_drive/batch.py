@@ -41,12 +41,32 @@ def library() -> ctypes.CDLL:
     if _lib is None:
         path = pathlib.Path(os.environ.get("RD_BATCH_LIB", DEFAULT_LIB))
         if not path.is_file():
-            raise FileNotFoundError(f"{path} not found: build it with scripts/build-fmu.sh "
-                                    "(or cargo build --release -p fmi2-batch)")
+            raise FileNotFoundError(
+                f"{path} not found: build it with scripts/build-fmu.sh "
+                "(or cargo build --release -p fmi2-batch)"
+            )
         lib = ctypes.CDLL(str(path))
         vp, sz, dp, ip = ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p, ctypes.c_int
-        lib.fmi2_batch_run.argtypes = [vp, vp, vp, vp, vp, sz, vp, sz, ctypes.c_double, sz, dp, dp, sz, dp, sz,
-                                       ip, ip, ctypes.POINTER(Failure)]
+        lib.fmi2_batch_run.argtypes = [
+            vp,
+            vp,
+            vp,
+            vp,
+            vp,
+            sz,
+            vp,
+            sz,
+            ctypes.c_double,
+            sz,
+            dp,
+            dp,
+            sz,
+            dp,
+            sz,
+            ip,
+            ip,
+            ctypes.POINTER(Failure),
+        ]
         lib.fmi2_batch_run.restype = ctypes.c_ssize_t
         lib.fmi2_batch_format_csv.argtypes = [dp, sz, sz, sz, vp, sz]
         lib.fmi2_batch_format_csv.restype = ctypes.c_ssize_t
@@ -66,14 +86,29 @@ def address(function) -> int:
 
 def _rows(a: np.ndarray, width: int, name: str) -> tuple[int, int]:
     """(pointer, row stride in elements) of a 2-D float64 array whose rows are contiguous."""
-    if a.dtype != np.float64 or a.ndim != 2 or a.shape[1] != width or (a.shape[0] > 1 and a.strides[0] % 8) \
-            or (width > 1 and a.strides[1] != 8):
+    if (
+        a.dtype != np.float64
+        or a.ndim != 2
+        or a.shape[1] != width
+        or (a.shape[0] > 1 and a.strides[0] % 8)
+        or (width > 1 and a.strides[1] != 8)
+    ):
         raise ValueError(f"{name}: a 2-D float64 array of {width} contiguous columns is needed")
     return a.ctypes.data, (a.strides[0] // 8 if a.shape[0] > 1 else width)
 
 
-def run(functions: tuple, component: int, vr_in, vr_out, t_start: float, t: np.ndarray, inputs: np.ndarray,
-        outputs: np.ndarray, order: int = ORDER_STEP_SET_GET, worst_ok: int = 1) -> tuple[int, int, str | None]:
+def run(
+    functions: tuple,
+    component: int,
+    vr_in,
+    vr_out,
+    t_start: float,
+    t: np.ndarray,
+    inputs: np.ndarray,
+    outputs: np.ndarray,
+    order: int = ORDER_STEP_SET_GET,
+    worst_ok: int = 1,
+) -> tuple[int, int, str | None]:
     """Communication points t[k] through the native driver; `functions` are the addresses of
     fmi2SetReal, fmi2DoStep and fmi2GetReal, vr_in/vr_out ctypes arrays of value references.
     Returns (samples completed, status, name of the failed call or None)."""
@@ -84,11 +119,28 @@ def run(functions: tuple, component: int, vr_in, vr_out, t_start: float, t: np.n
     xin, sin = _rows(inputs, len(vr_in), "inputs")
     xout, sout = _rows(outputs, len(vr_out), "outputs")
     fail = Failure()
-    done = library().fmi2_batch_run(*functions, component, ctypes.addressof(vr_in), len(vr_in),
-                                    ctypes.addressof(vr_out), len(vr_out), float(t_start), n, t.ctypes.data,
-                                    xin, sin, xout, sout, order, worst_ok, ctypes.byref(fail))
+    done = library().fmi2_batch_run(
+        *functions,
+        component,
+        ctypes.addressof(vr_in),
+        len(vr_in),
+        ctypes.addressof(vr_out),
+        len(vr_out),
+        float(t_start),
+        n,
+        t.ctypes.data,
+        xin,
+        sin,
+        xout,
+        sout,
+        order,
+        worst_ok,
+        ctypes.byref(fail),
+    )
     if done < 0:
-        raise RuntimeError("fmi2_batch_run: " + ("bad arguments" if done == _BAD_ARGUMENTS else "internal error"))
+        raise RuntimeError(
+            "fmi2_batch_run: " + ("bad arguments" if done == _BAD_ARGUMENTS else "internal error")
+        )
     return done, fail.status, FUNCTIONS.get(fail.function)
 
 
@@ -122,23 +174,30 @@ def format_csv(rows: np.ndarray, buffer: bytearray | None = None) -> bytes | mem
     return bytes(view) if own else view
 
 
-def local_cubic(t: np.ndarray, theta: np.ndarray, half: int, first: int, count: int) -> tuple[np.ndarray, np.ndarray]:
+def local_cubic(
+    t: np.ndarray, theta: np.ndarray, half: int, first: int, count: int
+) -> tuple[np.ndarray, np.ndarray]:
     """ω and ε at samples first .. first + count - 1 of a segment (conditioning.fit's estimate:
     a cubic fitted by least squares to the 2·half+1 samples around each, shifted inward at the
     ends). Raises ValueError naming the sample whose window is singular."""
     t = np.ascontiguousarray(t, dtype=np.float64)
     theta = np.ascontiguousarray(theta, dtype=np.float64)
     w, e = np.empty(count), np.empty(count)
-    k = library().fmi2_batch_local_cubic(t.ctypes.data, theta.ctypes.data, len(t), half, first, count,
-                                         w.ctypes.data, e.ctypes.data)
+    k = library().fmi2_batch_local_cubic(
+        t.ctypes.data, theta.ctypes.data, len(t), half, first, count, w.ctypes.data, e.ctypes.data
+    )
     if k < 0:
-        raise ValueError(f"local_cubic: bad arguments (n = {len(t)}, half = {half}, samples {first}..{first + count})")
+        raise ValueError(
+            f"local_cubic: bad arguments (n = {len(t)}, half = {half}, samples {first}..{first + count})"
+        )
     if k < count:
         raise ValueError(f"the smoothing window of sample {first + k} is singular")
     return w, e
 
 
-def parse_csv(text: bytes, n_fields: int, columns: list[int], defaults: list[float | None], max_lines: int) -> list:
+def parse_csv(
+    text: bytes, n_fields: int, columns: list[int], defaults: list[float | None], max_lines: int
+) -> list:
     """The leading clean lines of `text` (lines of at least n_fields fields whose wanted fields,
     at `columns`, are finite numbers; an empty field takes its default unless that is None): one
     float64 array per column, as many rows as clean lines. Parsing stops at the first other line,
@@ -149,7 +208,9 @@ def parse_csv(text: bytes, n_fields: int, columns: list[int], defaults: list[flo
     cols = (ctypes.c_size_t * m)(*columns)
     req = (ctypes.c_int * m)(*[int(d is None) for d in defaults])
     dft = (ctypes.c_double * m)(*[0.0 if d is None else d for d in defaults])
-    k = library().fmi2_batch_parse_csv(text, len(text), n_fields, m, cols, req, dft, ptrs, max_lines)
+    k = library().fmi2_batch_parse_csv(
+        text, len(text), n_fields, m, cols, req, dft, ptrs, max_lines
+    )
     if k < 0:
         raise ValueError("parse_csv: bad arguments")
     return [o[:k] for o in out]

@@ -45,7 +45,9 @@ def unwrap_step(previous_raw: float, previous_unwrapped: float, raw: float) -> f
     return previous_unwrapped + d
 
 
-def fit(T: np.ndarray, TH: np.ndarray, tc: np.ndarray, thc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def fit(
+    T: np.ndarray, TH: np.ndarray, tc: np.ndarray, thc: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """ω and ε at K centres from K windows: rows of T (times) and TH (angles) of equal width,
     tc and thc the centres' time and angle (shape (K, 1)). Least squares by the normal equations
     of a cubic in x = τ/max|τ| (well conditioned: x ∈ [−1, 1]); every row is computed on its own,
@@ -81,7 +83,9 @@ def derivatives(t: np.ndarray, theta: np.ndarray, half: int) -> tuple[np.ndarray
     """ω and ε at every sample of one segment (no gaps inside)."""
     n = len(t)
     if n < DEGREE + 1:
-        raise ValueError(f"a segment of {n} samples is too short to estimate the speed (needs {DEGREE + 1})")
+        raise ValueError(
+            f"a segment of {n} samples is too short to estimate the speed (needs {DEGREE + 1})"
+        )
     k = np.arange(n)
     idx = windows(n, half, k)
     return fit(t[idx], theta[idx], t[k][:, None], theta[k][:, None])

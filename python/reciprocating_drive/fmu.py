@@ -21,7 +21,7 @@ import ctypes
 import pathlib
 import shutil
 import tempfile
-from typing import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -45,8 +45,15 @@ class FmuError(RuntimeError):
 
 
 # The FMI 2.0 logger with the one variadic argument this project's FMUs pass (see _Log).
-_LOGGER6 = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p,
-                            ctypes.c_char_p, ctypes.c_char_p)
+_LOGGER6 = ctypes.CFUNCTYPE(
+    None,
+    ctypes.c_void_p,
+    ctypes.c_char_p,
+    ctypes.c_int,
+    ctypes.c_char_p,
+    ctypes.c_char_p,
+    ctypes.c_char_p,
+)
 
 
 class _Log:
@@ -99,8 +106,13 @@ class _Log:
 class Fmu:
     """A loaded FMU and one co-simulation instance of it."""
 
-    def __init__(self, path: str | pathlib.Path = DEFAULT_FMU, instance_name: str | None = None,
-                 logging_on: bool = False, echo_log: bool = False):
+    def __init__(
+        self,
+        path: str | pathlib.Path = DEFAULT_FMU,
+        instance_name: str | None = None,
+        logging_on: bool = False,
+        echo_log: bool = False,
+    ):
         from fmpy import extract, read_model_description
         from fmpy.fmi2 import FMU2Slave
 
@@ -116,8 +128,12 @@ class Fmu:
         unzipdir = extract(str(self.path), unzipdir=self._tmp)
         self._log = _Log(echo_log)
         ident = md.coSimulation.modelIdentifier
-        self._slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=ident,
-                                instanceName=instance_name or ident)
+        self._slave = FMU2Slave(
+            guid=md.guid,
+            unzipDirectory=unzipdir,
+            modelIdentifier=ident,
+            instanceName=instance_name or ident,
+        )
         self._raw = self._slave._functions
         self._component = None
         self._instantiate(logging_on)
@@ -152,15 +168,26 @@ class Fmu:
 
     # -- life cycle -----------------------------------------------------------------------------
 
-    def start(self, values: Mapping[str, float] | None = None, start_time: float = 0.0,
-              tolerance: float | None = None, stop_time: float | None = None) -> None:
+    def start(
+        self,
+        values: Mapping[str, float] | None = None,
+        start_time: float = 0.0,
+        tolerance: float | None = None,
+        stop_time: float | None = None,
+    ) -> None:
         """(Re)initializes the instance: fmi2Reset if it ran before, fmi2SetupExperiment, the
         given parameter and input values in initialization mode, fmi2ExitInitializationMode."""
         if self._started:
             self._call("fmi2Reset")
         self._started = True
-        self._call("fmi2SetupExperiment", int(tolerance is not None), float(tolerance or 0.0),
-                   float(start_time), int(stop_time is not None), float(stop_time or 0.0))
+        self._call(
+            "fmi2SetupExperiment",
+            int(tolerance is not None),
+            float(tolerance or 0.0),
+            float(start_time),
+            int(stop_time is not None),
+            float(stop_time or 0.0),
+        )
         self._call("fmi2EnterInitializationMode")
         if values:
             self.set(values)
@@ -186,7 +213,7 @@ class Fmu:
                 self._slave.freeLibrary()
         shutil.rmtree(self._tmp, ignore_errors=True)
 
-    def __enter__(self) -> "Fmu":
+    def __enter__(self) -> Fmu:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -212,7 +239,9 @@ class Fmu:
                 raise TypeError(f"variables of type {ty} are not supported")
             n = len(vrs)
             conv = float if ty == "Real" else int
-            self._call(f"fmi2Set{ty}", (fmi2ValueReference * n)(*vrs), n, (ctype[ty] * n)(*map(conv, vals)))
+            self._call(
+                f"fmi2Set{ty}", (fmi2ValueReference * n)(*vrs), n, (ctype[ty] * n)(*map(conv, vals))
+            )
 
     def get(self, names: Iterable[str]) -> list[float]:
         """Values by name (Reals as float, Integers as int, Booleans as bool)."""
@@ -227,7 +256,7 @@ class Fmu:
             out.append(bool(buf[0]) if var.type == "Boolean" else buf[0])
         return out
 
-    def channel(self, inputs: Sequence[str], outputs: Sequence[str]) -> "Channel":
+    def channel(self, inputs: Sequence[str], outputs: Sequence[str]) -> Channel:
         return Channel(self, inputs, outputs)
 
     # -- FMU state ------------------------------------------------------------------------------
@@ -299,8 +328,16 @@ class Channel:
         """The outputs at the current communication point, written into `out` (float64)."""
         f = self.fmu
         mark = f._log.mark()
-        f._check("fmi2GetReal", self._get(f._component, self._vout, self._no,
-                                          out.ctypes.data_as(ctypes.POINTER(ctypes.c_double))), mark)
+        f._check(
+            "fmi2GetReal",
+            self._get(
+                f._component,
+                self._vout,
+                self._no,
+                out.ctypes.data_as(ctypes.POINTER(ctypes.c_double)),
+            ),
+            mark,
+        )
         return out
 
     def advance(self, t_next: float) -> None:
@@ -310,7 +347,9 @@ class Channel:
         f._check("fmi2DoStep", self._do(f._component, f.time, t_next - f.time, 1), mark)
         f.time = t_next
 
-    def run(self, t: np.ndarray, inputs: np.ndarray, outputs: np.ndarray, set_first: bool = False) -> None:
+    def run(
+        self, t: np.ndarray, inputs: np.ndarray, outputs: np.ndarray, set_first: bool = False
+    ) -> None:
         """Many communication points in one native call: for each k, fmi2DoStep to t[k], fmi2SetReal
         of inputs[k], fmi2GetReal into outputs[k] (with `set_first`, fmi2SetReal before the step,
         as `step` does). `outputs` may be a view whose rows are strided (e.g. columns 1: of a table).
@@ -321,10 +360,21 @@ class Channel:
 
         f = self.fmu
         mark = f._log.mark()
-        done, status, function = batch.run(self._addresses, f._component, self._vin, self._vout, f.time, t, inputs,
-                                           outputs, batch.ORDER_SET_STEP_GET if set_first else batch.ORDER_STEP_SET_GET)
+        done, status, function = batch.run(
+            self._addresses,
+            f._component,
+            self._vin,
+            self._vout,
+            f.time,
+            t,
+            inputs,
+            outputs,
+            batch.ORDER_SET_STEP_GET if set_first else batch.ORDER_STEP_SET_GET,
+        )
         # The FMU's time: the last communication point whose step succeeded.
-        stepped = done + int(function == "fmi2GetReal" or (function == "fmi2SetReal" and not set_first))
+        stepped = done + int(
+            function == "fmi2GetReal" or (function == "fmi2SetReal" and not set_first)
+        )
         if stepped > 0:
             f.time = float(t[stepped - 1])
         if function is not None:

@@ -50,7 +50,11 @@ EXTREMES = {
     "crank.torque": "N.m",
 }
 
-MECHANISMS = {1: "crank-slider", 2: "beam pumping unit, API class I", 3: "beam pumping unit, API class III"}
+MECHANISMS = {
+    1: "crank-slider",
+    2: "beam pumping unit, API class I",
+    3: "beam pumping unit, API class III",
+}
 ROD_KINDS = {0: "rigid rod", 1: "elastic thin rod", 2: "helical-spring rod"}
 
 #: Relative change of the per-revolution ϑ amplitude below which the cage oscillation counts as settled.
@@ -60,11 +64,11 @@ SETTLED = 1e-3
 @dataclass
 class Mission:
     preset: str
-    parameters: dict           # every parameter value in use (start values overridden by the preset)
-    omega: float               # crank speed [rad/s]
-    step: float                # communication step [s]
-    data: dict                 # output name -> samples (numpy), plus "time"
-    revolutions: list          # RevolutionSummary of every complete revolution
+    parameters: dict  # every parameter value in use (start values overridden by the preset)
+    omega: float  # crank speed [rad/s]
+    step: float  # communication step [s]
+    data: dict  # output name -> samples (numpy), plus "time"
+    revolutions: list  # RevolutionSummary of every complete revolution
     transient_revolutions: int  # complete revolutions before the steady state (0 for rigid rods)
     summary: dict = field(default_factory=dict)
 
@@ -89,7 +93,7 @@ class Mission:
         """Samples of the steady revolutions (every complete revolution after the transient, or
         only the `last` ones)."""
         t = self.data["time"]
-        revs = self.revolutions[self.transient_revolutions:]
+        revs = self.revolutions[self.transient_revolutions :]
         if last is not None:
             revs = revs[-last:]
         a = np.searchsorted(t, revs[0].start_time)
@@ -103,12 +107,21 @@ def _start_values(fmu: str) -> dict:
     out = {}
     for v in read_model_description(fmu).modelVariables:
         if v.causality in ("parameter", "input") and v.start is not None:
-            out[v.name] = {"Real": float, "Integer": int, "Boolean": lambda s: str(s).lower() in ("true", "1")}[v.type](v.start)
+            out[v.name] = {
+                "Real": float,
+                "Integer": int,
+                "Boolean": lambda s: str(s).lower() in ("true", "1"),
+            }[v.type](v.start)
     return out
 
 
-def run_mission(fmu: str, preset: str = "default", step: float | None = None,
-                revolutions: int | None = None, preset_dir: str | pathlib.Path | None = None) -> Mission:
+def run_mission(
+    fmu: str,
+    preset: str = "default",
+    step: float | None = None,
+    revolutions: int | None = None,
+    preset_dir: str | pathlib.Path | None = None,
+) -> Mission:
     """Simulates the machine of `preset` (a name in resources/presets, a path to an .ssv, or
     "default") and summarises it. `step` defaults to 1/900 of a revolution, rounded to 10 µs,
     `revolutions` to 2 for a rigid rod and 30 for an elastic one (its transient)."""
@@ -131,22 +144,44 @@ def run_mission(fmu: str, preset: str = "default", step: float | None = None,
     wait = (TWO_PI * math.ceil(theta0 / TWO_PI) - theta0) / omega
     n = int(math.ceil((wait + revolutions * period) / step)) + 2
     stop = n * step
-    start = {k: v for k, v in values.items()
-             if k not in ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")}
+    start = {
+        k: v
+        for k, v in values.items()
+        if k not in ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")
+    }
     t = np.arange(n + 1) * step
-    sig = np.zeros(n + 1, dtype=[("time", float), ("crank.angle", float), ("crank.speed", float),
-                                 ("crank.acceleration", float), ("link.external_force", float)])
+    sig = np.zeros(
+        n + 1,
+        dtype=[
+            ("time", float),
+            ("crank.angle", float),
+            ("crank.speed", float),
+            ("crank.acceleration", float),
+            ("link.external_force", float),
+        ],
+    )
     sig["time"], sig["crank.angle"], sig["crank.speed"] = t, omega * t, omega
     sig["link.external_force"] = float(params.get("link.external_force", 0.0))
-    res = simulate_fmu(fmu, start_time=0.0, stop_time=stop, output_interval=step, start_values=start,
-                       input=sig, output=list(OUTPUTS))
+    res = simulate_fmu(
+        fmu,
+        start_time=0.0,
+        stop_time=stop,
+        output_interval=step,
+        start_values=start,
+        input=sig,
+        output=list(OUTPUTS),
+    )
     data = {"time": np.asarray(res["time"], dtype=float)}
     for name in OUTPUTS:
         data[name] = np.asarray(res[name], dtype=float)
     # Revolutions of the model angle counted from the first outer dead centre at or after t = 0.
-    revs = summarize_revolutions(data["time"], data["crank.model_angle"], data,
-                                 speed=data["crank.model_speed"],
-                                 quantities=tuple(EXTREMES) + ("suspension.position",))
+    revs = summarize_revolutions(
+        data["time"],
+        data["crank.model_angle"],
+        data,
+        speed=data["crank.model_speed"],
+        quantities=tuple(EXTREMES) + ("suspension.position",),
+    )
     if not revs:
         raise RuntimeError("the run holds no complete revolution")
     transient = 0
@@ -156,8 +191,15 @@ def run_mission(fmu: str, preset: str = "default", step: float | None = None,
         # The first revolution from which every later one is settled.
         transient = int(len(amp) - np.argmin(settled[::-1]) if not settled.all() else 0)
         transient = min(transient, len(revs) - 1)
-    m = Mission(preset=preset, parameters=params, omega=omega, step=step, data=data, revolutions=revs,
-                transient_revolutions=transient)
+    m = Mission(
+        preset=preset,
+        parameters=params,
+        omega=omega,
+        step=step,
+        data=data,
+        revolutions=revs,
+        transient_revolutions=transient,
+    )
     m.summary = summarize(m)
     return m
 
@@ -178,9 +220,15 @@ def summarize(m: Mission) -> dict:
         "summarized_revolution": last.index,
         "stroke": pos.max - pos.min,
         "extremes": {
-            q: {"unit": unit, "max": e.max, "max_angle_deg": e.max_angle_deg, "min": e.min,
-                "min_angle_deg": e.min_angle_deg}
-            for q, unit in EXTREMES.items() if (e := last.extremes.get(q)) is not None
+            q: {
+                "unit": unit,
+                "max": e.max,
+                "max_angle_deg": e.max_angle_deg,
+                "min": e.min,
+                "min_angle_deg": e.min_angle_deg,
+            }
+            for q, unit in EXTREMES.items()
+            if (e := last.extremes.get(q)) is not None
         },
         "friction_work_per_revolution": last.friction_work,
     }
@@ -195,14 +243,20 @@ def write_summary(m: Mission, path: pathlib.Path) -> None:
 
 
 def format_summary(s: dict) -> str:
-    lines = [f"{s['preset']}: {s['mechanism']}, {s['rod']}, {s['strokes_per_minute']:.4g} strokes/min",
-             f"  stroke                      {s['stroke']:.6g} m"]
+    lines = [
+        f"{s['preset']}: {s['mechanism']}, {s['rod']}, {s['strokes_per_minute']:.4g} strokes/min",
+        f"  stroke                      {s['stroke']:.6g} m",
+    ]
     for q, e in s["extremes"].items():
-        lines.append(f"  {q:<26}  max {e['max']:.6g} {e['unit']} at {e['max_angle_deg']:.2f}°, "
-                     f"min {e['min']:.6g} {e['unit']} at {e['min_angle_deg']:.2f}°")
+        lines.append(
+            f"  {q:<26}  max {e['max']:.6g} {e['unit']} at {e['max_angle_deg']:.2f}°, "
+            f"min {e['min']:.6g} {e['unit']} at {e['min_angle_deg']:.2f}°"
+        )
     lines.append(f"  friction work / revolution  {s['friction_work_per_revolution']:.6g} J")
     if "rod_angle_amplitude" in s:
-        lines.append(f"  rod angle ϑ amplitude       {s['rod_angle_amplitude']:.6g} rad "
-                     f"(steady after {s['transient_revolutions']} revolutions)")
+        lines.append(
+            f"  rod angle ϑ amplitude       {s['rod_angle_amplitude']:.6g} rad "
+            f"(steady after {s['transient_revolutions']} revolutions)"
+        )
         lines.append(f"  largest rod stress          {s['stress_max'] / 1e6:.6g} MPa")
     return "\n".join(lines)

@@ -41,7 +41,7 @@ def _scale(y: np.ndarray, unit: str) -> tuple[float, str]:
 
 def plot_mission(m: Mission, path: str | pathlib.Path, dpi: int = 100) -> None:
     d = m.data
-    revs = m.revolutions[m.transient_revolutions:][-PLOT_REVOLUTIONS:]
+    revs = m.revolutions[m.transient_revolutions :][-PLOT_REVOLUTIONS:]
     sl = m.steady_slice(last=len(revs))
     first = revs[0].index
     # Crank angle from the start of the first steady revolution, in degrees.
@@ -58,8 +58,10 @@ def plot_mission(m: Mission, path: str | pathlib.Path, dpi: int = 100) -> None:
         ax.plot(d["time"], d["rod.angle"], lw=0.6, color="C3")
         t_steady = m.revolutions[m.transient_revolutions].start_time
         ax.axvspan(d["time"][0], t_steady, color="0.9")
-        ax.set_xlabel("time [s]  (shaded: start transient, "
-                      f"{m.transient_revolutions} revolutions until the ϑ amplitude settles)")
+        ax.set_xlabel(
+            "time [s]  (shaded: start transient, "
+            f"{m.transient_revolutions} revolutions until the ϑ amplitude settles)"
+        )
         ax.set_ylabel("ϑ, whole run\n[rad]")
         ax.grid(True, alpha=0.4)
         r0 = 1
@@ -80,8 +82,10 @@ def plot_mission(m: Mission, path: str | pathlib.Path, dpi: int = 100) -> None:
     axes[-1].tick_params(labelbottom=True)
     axes[-1].set_xticklabels([f"{x:.0f}" for x in ticks], rotation=0, fontsize=8)
     zero = "outer dead centre" if m.mechanism == 1 else "crank at 12 o'clock"
-    axes[-1].set_xlabel(f"crank angle θ [deg] over {len(revs)} steady revolution(s), "
-                        f"revolutions {revs[0].index}–{revs[-1].index} of the run (0 = {zero})")
+    axes[-1].set_xlabel(
+        f"crank angle θ [deg] over {len(revs)} steady revolution(s), "
+        f"revolutions {revs[0].index}–{revs[-1].index} of the run (0 = {zero})"
+    )
     if card:
         ax = fig.add_subplot(gs[:, 1])
         k, unit = _scale(d["rod.force"][sl], "N")

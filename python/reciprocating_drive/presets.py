@@ -40,7 +40,7 @@ def read_ssv(path: str | os.PathLike) -> dict:
 
 
 def available_presets(directory: str | os.PathLike = PRESET_DIR) -> list[str]:
-    """"default" (the FMU's own start values) and the name of every .ssv in `directory`."""
+    """ "default" (the FMU's own start values) and the name of every .ssv in `directory`."""
     return ["default"] + sorted(p.stem for p in pathlib.Path(directory).glob("*.ssv"))
 
 

@@ -14,8 +14,8 @@ suspension.position; trapezoidal rule), negative because friction dissipates ene
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -76,7 +76,9 @@ class RevolutionSummary:
         return row
 
 
-def _refined_peaks(theta: np.ndarray, y: np.ndarray, i: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _refined_peaks(
+    theta: np.ndarray, y: np.ndarray, i: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """(values, angles) of the extremes at samples i, each refined by the parabola through i-1, i,
     i+1 when it has both neighbours and its vertex lies between them (else the sample itself)."""
     inner = (i > 0) & (i < len(y) - 1)
@@ -97,7 +99,9 @@ def _degrees(a: np.ndarray) -> np.ndarray:
     return np.mod(np.degrees(np.mod(a, TWO_PI)), 360.0)
 
 
-def _crossing_times(t: np.ndarray, theta: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _crossing_times(
+    t: np.ndarray, theta: np.ndarray, target: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """For each target (inside theta's range): the first sample index j with θ_j ≥ target and the
     interpolated time of θ = target."""
     j = np.searchsorted(theta, target, side="left")
@@ -118,17 +122,28 @@ def summarize_revolutions(
     missing from it are skipped; link.friction_total with suspension.position gives the friction
     work, rod.angle the ϑ amplitude, rod.stress_max the largest stress). The numbers are those of
     `revolution_table`, one object per revolution."""
-    tab = {k: v.tolist() for k, v in revolution_table(time, angle, series, speed, quantities).items()}
+    tab = {
+        k: v.tolist() for k, v in revolution_table(time, angle, series, speed, quantities).items()
+    }
     out = []
     for i, k in enumerate(tab["revolution"]):
-        s = RevolutionSummary(index=k, start_time=tab["start_time"][i], duration=tab["duration"][i],
-                              mean_speed=tab["mean_speed"][i], speed_fluctuation=None)
+        s = RevolutionSummary(
+            index=k,
+            start_time=tab["start_time"][i],
+            duration=tab["duration"][i],
+            mean_speed=tab["mean_speed"][i],
+            speed_fluctuation=None,
+        )
         if "speed_fluctuation" in tab:
             s.speed_fluctuation = tab["speed_fluctuation"][i]
         for q in quantities:
             if f"{q}.max" in tab:
-                s.extremes[q] = Extreme(tab[f"{q}.max"][i], tab[f"{q}.max_angle_deg"][i], tab[f"{q}.min"][i],
-                                        tab[f"{q}.min_angle_deg"][i])
+                s.extremes[q] = Extreme(
+                    tab[f"{q}.max"][i],
+                    tab[f"{q}.max_angle_deg"][i],
+                    tab[f"{q}.min"][i],
+                    tab[f"{q}.min_angle_deg"][i],
+                )
         for name in ("friction_work", "rod_angle_amplitude", "stress_max"):
             if name in tab:
                 setattr(s, name, tab[name][i])
@@ -153,8 +168,12 @@ def revolution_table(
     their two neighbours, so they are the same whichever other revolutions share the call."""
     t = np.asarray(time, dtype=float)
     th = np.asarray(angle, dtype=float)
-    none = {"revolution": np.empty(0, dtype=int), "start_time": np.empty(0), "duration": np.empty(0),
-            "mean_speed": np.empty(0)}
+    none = {
+        "revolution": np.empty(0, dtype=int),
+        "start_time": np.empty(0),
+        "duration": np.empty(0),
+        "mean_speed": np.empty(0),
+    }
     if t.shape != th.shape or t.ndim != 1:
         raise ValueError("time and angle must be 1-D arrays of equal length")
     if len(t) < 3:
@@ -190,7 +209,9 @@ def revolution_table(
 
     def first_where(y, value):
         """The first sample of each revolution where y equals its value (np.argmax's choice)."""
-        return flat[np.minimum.reduceat(np.where(y[flat] == np.repeat(value, n), pos, len(pos)), off)]
+        return flat[
+            np.minimum.reduceat(np.where(y[flat] == np.repeat(value, n), pos, len(pos)), off)
+        ]
 
     cols = {k: np.asarray(v, dtype=float) for k, v in series.items()}
     dur = tb - ta
@@ -198,7 +219,9 @@ def revolution_table(
     if speed is not None:
         w = np.asarray(speed, dtype=float)
         # The mean by numpy's (pairwise) sum of each revolution, as ws.mean() would.
-        means = np.array([np.add.reduce(w[a:b]) / (b - a) for a, b in zip(ja.tolist(), jb.tolist())])
+        means = np.array(
+            [np.add.reduce(w[a:b]) / (b - a) for a, b in zip(ja.tolist(), jb.tolist())]
+        )
         tab["speed_fluctuation"] = (seg_max(w) - seg_min(w)) / means
     for q in quantities:
         if q not in cols:
@@ -212,14 +235,23 @@ def revolution_table(
         # Over exactly [t_a, t_b]: the samples inside plus the values interpolated at both ends;
         # the trapezoids of revolution r are terms[toff[r]:toff[r] + n[r] + 1].
         f, x = cols["link.friction_total"], cols["suspension.position"]
-        fa, fb, xa, xb = np.interp(ta, t, f), np.interp(tb, t, f), np.interp(ta, t, x), np.interp(tb, t, x)
+        fa, fb, xa, xb = (
+            np.interp(ta, t, f),
+            np.interp(tb, t, f),
+            np.interp(ta, t, x),
+            np.interp(tb, t, x),
+        )
         toff = off + np.arange(len(n))
         terms = np.empty(len(flat) + len(n))
         seg = np.repeat(np.arange(len(n)), n)
-        terms[toff[seg] + 1 + pos - off[seg]] = 0.5 * (f[flat + 1] + f[flat]) * (x[flat + 1] - x[flat])
+        terms[toff[seg] + 1 + pos - off[seg]] = (
+            0.5 * (f[flat + 1] + f[flat]) * (x[flat + 1] - x[flat])
+        )
         terms[toff] = 0.5 * (f[ja] + fa) * (x[ja] - xa)
         terms[toff + n] = 0.5 * (fb + f[jb - 1]) * (xb - x[jb - 1])
-        tab["friction_work"] = np.array([np.add.reduce(terms[a:b]) for a, b in zip(toff.tolist(), (toff + n + 1).tolist())])
+        tab["friction_work"] = np.array(
+            [np.add.reduce(terms[a:b]) for a, b in zip(toff.tolist(), (toff + n + 1).tolist())]
+        )
     if "rod.angle" in cols:
         tab["rod_angle_amplitude"] = seg_max(np.abs(cols["rod.angle"]))
     if "rod.stress_max" in cols:

@@ -71,14 +71,14 @@ class StudyError(ValueError):
 class Study:
     name: str
     machine: str
-    base_values: dict                 # the machine's parameter values (preset)
-    crank_speed: float                # rad/s, unless a parameter varies it
+    base_values: dict  # the machine's parameter values (preset)
+    crank_speed: float  # rad/s, unless a parameter varies it
     skip_revolutions: int
     revolutions: int
     steps_per_revolution: int
     metrics: list
     design: str
-    parameters: dict                  # name -> spec (as in the file)
+    parameters: dict  # name -> spec (as in the file)
     samples: int | None = None
     seed: int = 0
     source: str = ""
@@ -103,7 +103,9 @@ def _grid_axis(name: str, spec: dict) -> list:
         if n < 1:
             raise StudyError(f"parameter {name}: num = {n}; allowed: an integer >= 1")
         return [float(x) for x in np.linspace(float(spec["start"]), float(spec["stop"]), n)]
-    raise StudyError(f"parameter {name}: give 'values = [...]' or 'start', 'stop', 'num' for a grid")
+    raise StudyError(
+        f"parameter {name}: give 'values = [...]' or 'start', 'stop', 'num' for a grid"
+    )
 
 
 def _bounds(name: str, spec: dict) -> tuple[float, float]:
@@ -153,7 +155,9 @@ def study_from_dict(doc: dict, base_dir: pathlib.Path | None = None, source: str
     try:
         base = preset_values(machine)
     except KeyError:
-        raise StudyError(f"machine = {machine!r}: not a preset, 'default' or an .ssv file") from None
+        raise StudyError(
+            f"machine = {machine!r}: not a preset, 'default' or an .ssv file"
+        ) from None
     base.update(doc.get("fixed", {}))
     if "strokes_per_minute" in doc:
         speed = float(doc["strokes_per_minute"]) * 2 * math.pi / 60
@@ -168,14 +172,23 @@ def study_from_dict(doc: dict, base_dir: pathlib.Path | None = None, source: str
     design = doc.get("design", {})
     st = Study(
         name=str(doc.get("name", pathlib.Path(source).stem or "study")),
-        machine=machine, base_values=base, crank_speed=speed,
-        skip_revolutions=int(doc.get("skip_revolutions", 1)), revolutions=int(doc.get("revolutions", 1)),
-        steps_per_revolution=int(doc.get("steps_per_revolution", 360)), metrics=metrics,
-        design=str(design.get("kind", "grid")), parameters=dict(doc.get("parameters", {})),
-        samples=design.get("samples"), seed=int(design.get("seed", 0)), source=source,
+        machine=machine,
+        base_values=base,
+        crank_speed=speed,
+        skip_revolutions=int(doc.get("skip_revolutions", 1)),
+        revolutions=int(doc.get("revolutions", 1)),
+        steps_per_revolution=int(doc.get("steps_per_revolution", 360)),
+        metrics=metrics,
+        design=str(design.get("kind", "grid")),
+        parameters=dict(doc.get("parameters", {})),
+        samples=design.get("samples"),
+        seed=int(design.get("seed", 0)),
+        source=source,
     )
     if st.revolutions < 1 or st.skip_revolutions < 0 or st.steps_per_revolution < 8:
-        raise StudyError("revolutions >= 1, skip_revolutions >= 0 and steps_per_revolution >= 8 are required")
+        raise StudyError(
+            "revolutions >= 1, skip_revolutions >= 0 and steps_per_revolution >= 8 are required"
+        )
     if not st.parameters:
         raise StudyError("[parameters] is empty: a study varies at least one parameter")
     st.case_values = build_cases(st)

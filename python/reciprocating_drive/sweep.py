@@ -31,9 +31,18 @@ from .revolution import TWO_PI, summarize_revolutions
 from .study import SPEED_PARAMETERS, Study
 
 #: Outputs read at every step of a case.
-OUTPUTS = ("crank.model_angle", "suspension.position", "suspension.acceleration", "inertia.force",
-           "guide.friction", "link.friction_total", "rod.force", "crank.torque", "rod.angle",
-           "rod.stress_max")
+OUTPUTS = (
+    "crank.model_angle",
+    "suspension.position",
+    "suspension.acceleration",
+    "inertia.force",
+    "guide.friction",
+    "link.friction_total",
+    "rod.force",
+    "crank.torque",
+    "rod.angle",
+    "rod.stress_max",
+)
 
 _FMUS: dict = {}
 
@@ -62,8 +71,11 @@ def run_case(fmu, study: Study, params: dict) -> tuple[dict, float]:
     omega = _speed(study, params)
     if not (omega > 0 and math.isfinite(omega)):
         raise ValueError(f"crank speed = {omega} rad/s; allowed: > 0")
-    values = {k: v for k, v in study.base_values.items()
-              if k not in ("crank.angle", "crank.speed", "crank.acceleration")}
+    values = {
+        k: v
+        for k, v in study.base_values.items()
+        if k not in ("crank.angle", "crank.speed", "crank.acceleration")
+    }
     values.update({k: v for k, v in params.items() if k not in SPEED_PARAMETERS})
     values["crank.speed"] = omega
     n_rev = study.skip_revolutions + study.revolutions
@@ -77,12 +89,17 @@ def run_case(fmu, study: Study, params: dict) -> tuple[dict, float]:
     ch.read(rows[0])
     for k in range(1, n + 1):
         t = k * h
-        ch.step(t, [omega * (t - h), omega], rows[k])  # inputs at the step's start (docs/model.md §2)
+        ch.step(
+            t, [omega * (t - h), omega], rows[k]
+        )  # inputs at the step's start (docs/model.md §2)
     inside = time.perf_counter() - t0
     time_ = np.arange(n + 1) * h
     data = {name: rows[:, i] for i, name in enumerate(OUTPUTS)}
-    revs = [r for r in summarize_revolutions(time_, data["crank.model_angle"], data)
-            if r.index >= study.skip_revolutions][: study.revolutions]
+    revs = [
+        r
+        for r in summarize_revolutions(time_, data["crank.model_angle"], data)
+        if r.index >= study.skip_revolutions
+    ][: study.revolutions]
     return metrics_of(revs, study.metrics), inside
 
 
@@ -97,7 +114,9 @@ def metrics_of(revs, wanted) -> dict:
     last = revs[-1]
     all_metrics = {
         "friction_work": lambda: float(np.mean([r.friction_work for r in revs])),
-        "torque_peak": lambda: max(abs(ext("crank.torque", "max")), abs(ext("crank.torque", "min"))),
+        "torque_peak": lambda: max(
+            abs(ext("crank.torque", "max")), abs(ext("crank.torque", "min"))
+        ),
         "torque_max": lambda: ext("crank.torque", "max"),
         "torque_min": lambda: ext("crank.torque", "min"),
         "acceleration_max": lambda: ext("suspension.acceleration", "max"),
@@ -141,13 +160,24 @@ def run_batch(fmu_path: str, study: Study, cases: list[int]) -> list[dict]:
         except (FmuError, ValueError, RuntimeError) as e:
             status, message = "error", str(e)
             metrics = {m: math.nan for m in study.metrics}
-        row = asdict(Row(i, status, message, inside, time.perf_counter() - t0, f"pid {os.getpid()}"))
+        row = asdict(
+            Row(i, status, message, inside, time.perf_counter() - t0, f"pid {os.getpid()}")
+        )
         out.append({**{"case": i}, **params, **metrics, **row})
     return out
 
 
 def columns(study: Study) -> list[str]:
-    return ["case", *study.varied, *study.metrics, "status", "message", "seconds_fmu", "seconds_case", "worker"]
+    return [
+        "case",
+        *study.varied,
+        *study.metrics,
+        "status",
+        "message",
+        "seconds_fmu",
+        "seconds_case",
+        "worker",
+    ]
 
 
 def read_done(csv_path: pathlib.Path) -> dict[int, dict]:
@@ -181,10 +211,10 @@ def _drop_cut_line(csv_path: pathlib.Path) -> None:
 class SweepResult:
     csv: pathlib.Path
     parquet: pathlib.Path
-    computed: int        # cases computed by this call
-    skipped: int         # cases found in the result file
-    wall: float          # seconds of this call, from the first submission to the last result
-    seconds_fmu: float   # sum over the computed cases of the time inside FMU calls
+    computed: int  # cases computed by this call
+    skipped: int  # cases found in the result file
+    wall: float  # seconds of this call, from the first submission to the last result
+    seconds_fmu: float  # sum over the computed cases of the time inside FMU calls
     workers: int
 
 
@@ -194,14 +224,22 @@ def _client(scheduler: str | None, workers: int | None):
     if scheduler:
         return Client(scheduler), None
     n = workers or os.cpu_count() or 1
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           host="127.0.0.1")
+    cluster = LocalCluster(
+        n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0", host="127.0.0.1"
+    )
     return Client(cluster), cluster
 
 
-def run_sweep(study: Study, fmu_path: str, out_dir: str | pathlib.Path, scheduler: str | None = None,
-              workers: int | None = None, batch_size: int | None = None, progress: bool = True,
-              max_cases: int | None = None) -> SweepResult:
+def run_sweep(
+    study: Study,
+    fmu_path: str,
+    out_dir: str | pathlib.Path,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    batch_size: int | None = None,
+    progress: bool = True,
+    max_cases: int | None = None,
+) -> SweepResult:
     """Runs every case of `study` not yet in `<out_dir>/<name>.csv`. `max_cases` stops after that
     many new cases (to split a sweep, and in the tests)."""
     from dask.distributed import as_completed
@@ -222,15 +260,20 @@ def run_sweep(study: Study, fmu_path: str, out_dir: str | pathlib.Path, schedule
         if batch_size is None:
             # A few batches per worker: balanced load, little scheduling overhead per case.
             batch_size = max(1, math.ceil(len(todo) / (4 * n_workers)))
-        batches = [todo[k:k + batch_size] for k in range(0, len(todo), batch_size)]
+        batches = [todo[k : k + batch_size] for k in range(0, len(todo), batch_size)]
         study_f = client.scatter(study, broadcast=True) if batches else None
         new_file = not csv_path.is_file() or csv_path.stat().st_size == 0
         bar = None
         if progress:
             from tqdm import tqdm
 
-            bar = tqdm(total=len(study.case_values), initial=len(done), unit="case", desc=study.name,
-                       file=sys.stderr)
+            bar = tqdm(
+                total=len(study.case_values),
+                initial=len(done),
+                unit="case",
+                desc=study.name,
+                file=sys.stderr,
+            )
         computed, fmu_seconds = 0, 0.0
         t0 = time.perf_counter()
         with open(csv_path, "a", newline="") as f:

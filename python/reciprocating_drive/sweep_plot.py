@@ -56,8 +56,10 @@ def plot_sweep(study: Study, rows: list[dict], path: str | pathlib.Path) -> None
                 ax.legend(fontsize=8)
         ax.grid(True, alpha=0.3)
     n_bad = len(bad)
-    fig.suptitle(f"{study.name}: {study.machine if len(study.machine) < 40 else pathlib.Path(study.machine).name}"
-                 f", {len(ok)} cases" + (f", {n_bad} rejected (red)" if n_bad else ""))
+    fig.suptitle(
+        f"{study.name}: {study.machine if len(study.machine) < 40 else pathlib.Path(study.machine).name}"
+        f", {len(ok)} cases" + (f", {n_bad} rejected (red)" if n_bad else "")
+    )
     fig.tight_layout(rect=(0, 0, 1, 0.97))
     fig.savefig(path, dpi=90)
     plt.close(fig)

@@ -29,16 +29,25 @@ SSD = ROOT / "ssp" / "ClosedLoop" / "SystemStructure.ssd"
 FMU_DIR = ROOT / "target" / "fmu"
 
 #: What the scripts and tests record: (component, variable).
-RECORD = (("drive", "crank.speed"), ("drive", "crank.angle"), ("drive", "crank.acceleration"),
-          ("drive", "motor.torque"), ("drive", "motor.power"), ("drive", "motor.slip"),
-          ("pump", "crank.torque"))
+RECORD = (
+    ("drive", "crank.speed"),
+    ("drive", "crank.angle"),
+    ("drive", "crank.acceleration"),
+    ("drive", "motor.torque"),
+    ("drive", "motor.power"),
+    ("drive", "motor.slip"),
+    ("pump", "crank.torque"),
+)
 
 
 def write_ssv(path: pathlib.Path, values: dict, name: str) -> None:
     """An SSP 1.0 parameter-value file with `values` (float → Real, bool → Boolean, int → Integer)."""
-    lines = ['<?xml version="1.0" encoding="UTF-8"?>',
-             '<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" '
-             f'version="1.0" name="{escape(name)}">', "  <ssv:Parameters>"]
+    lines = [
+        '<?xml version="1.0" encoding="UTF-8"?>',
+        '<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" '
+        f'version="1.0" name="{escape(name)}">',
+        "  <ssv:Parameters>",
+    ]
     for k, v in values.items():
         if isinstance(v, bool):
             val = f'<ssv:Boolean value="{str(v).lower()}"/>'
@@ -51,8 +60,12 @@ def write_ssv(path: pathlib.Path, values: dict, name: str) -> None:
     path.write_text("\n".join(lines))
 
 
-def build_ssp(out: pathlib.Path, pump: dict | None = None, drive: dict | None = None,
-              fmu_dir: pathlib.Path = FMU_DIR) -> pathlib.Path:
+def build_ssp(
+    out: pathlib.Path,
+    pump: dict | None = None,
+    drive: dict | None = None,
+    fmu_dir: pathlib.Path = FMU_DIR,
+) -> pathlib.Path:
     """Writes the system as `out` (.ssp, a zip): SystemStructure.ssd, resources/ with both FMUs
     and the two components' parameter sets (pump.ssv, drive.ssv; the repository's
     ssp/ClosedLoop/*.ssv unless `pump`/`drive` values are given)."""
@@ -84,6 +97,7 @@ def run_libcosim(ssp: pathlib.Path, h: float, t_end: float, timing: dict | None 
     the communication points t_1 .. t_n. `timing` receives the seconds of loading the system
     ("load") and of simulate_until ("simulate")."""
     import time
+
     from libcosimpy.CosimEnums import CosimVariableType
     from libcosimpy.CosimExecution import CosimExecution
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
@@ -104,7 +118,9 @@ def run_libcosim(ssp: pathlib.Path, h: float, t_end: float, timing: dict | None 
         for comp, var in RECORD:
             vr = {v.name.decode(): v.reference for v in ex.slave_variables(idx[comp])}[var]
             refs[(comp, var)] = vr
-            obs.start_time_series(idx[comp], value_reference=vr, variable_type=CosimVariableType.REAL)
+            obs.start_time_series(
+                idx[comp], value_reference=vr, variable_type=CosimVariableType.REAL
+            )
         t1 = time.perf_counter()
         ok = ex.simulate_until(target_time=int(round(t_end * 1e9)))
         if timing is not None:

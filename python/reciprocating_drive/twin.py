@@ -54,30 +54,51 @@ class DataError(ValueError):
 
     rows = None
     summaries: list = []
+
+
 @dataclass
 class Options:
-    angle_unit: str = "rad"           # rad | deg | counts
+    angle_unit: str = "rad"  # rad | deg | counts
     counts_per_rev: float | None = None
-    wrapped: bool = True              # angles wrap every revolution (else continuous)
-    speed_unit: str = "rad/s"         # rad/s | rpm
-    duplicates: str = "drop"          # drop | error
-    window: float = 0.1               # smoothing window [s]
-    gap_limit: float = 0.05           # a longer interval between samples is a gap [s]
-    max_speed: float = 100.0          # fastest physically possible crank speed [rad/s]
-    use_measured_speed: bool = True   # take crank_speed from the data when present
+    wrapped: bool = True  # angles wrap every revolution (else continuous)
+    speed_unit: str = "rad/s"  # rad/s | rpm
+    duplicates: str = "drop"  # drop | error
+    window: float = 0.1  # smoothing window [s]
+    gap_limit: float = 0.05  # a longer interval between samples is a gap [s]
+    max_speed: float = 100.0  # fastest physically possible crank speed [rad/s]
+    use_measured_speed: bool = True  # take crank_speed from the data when present
 
     def to_dict(self) -> dict:
         return dict(self.__dict__)
 
 
-SUMMARY_FIELDS = ("revolution", "start_time", "mean_speed", "speed_fluctuation",
-                  "acceleration_max", "acceleration_min", "inertia_force_max", "inertia_force_min",
-                  "guide_friction_max", "guide_friction_min", "rod_force_max", "rod_force_min",
-                  "crank_torque_max", "crank_torque_min", "friction_work", "rod_angle_amplitude",
-                  "stress_max")
+SUMMARY_FIELDS = (
+    "revolution",
+    "start_time",
+    "mean_speed",
+    "speed_fluctuation",
+    "acceleration_max",
+    "acceleration_min",
+    "inertia_force_max",
+    "inertia_force_min",
+    "guide_friction_max",
+    "guide_friction_min",
+    "rod_force_max",
+    "rod_force_min",
+    "crank_torque_max",
+    "crank_torque_min",
+    "friction_work",
+    "rod_angle_amplitude",
+    "stress_max",
+)
 
-_EXTREMES = (("suspension.acceleration", "acceleration"), ("inertia.force", "inertia_force"),
-             ("guide.friction", "guide_friction"), ("rod.force", "rod_force"), ("crank.torque", "crank_torque"))
+_EXTREMES = (
+    ("suspension.acceleration", "acceleration"),
+    ("inertia.force", "inertia_force"),
+    ("guide.friction", "guide_friction"),
+    ("rod.force", "rod_force"),
+    ("crank.torque", "crank_torque"),
+)
 #: The column of revolution_table behind each of SUMMARY_FIELDS.
 _EXTREME_KEYS = {f"{key}_{m}": f"{q}.{m}" for q, key in _EXTREMES for m in ("max", "min")}
 _SUMMARY_KEYS = tuple(_EXTREME_KEYS.get(f, f) for f in SUMMARY_FIELDS)
@@ -92,7 +113,9 @@ def parse_header(line: str) -> dict:
     return cols
 
 
-def parse_line(line: str, lineno: int, cols: dict) -> tuple[float, float, float | None, float | None]:
+def parse_line(
+    line: str, lineno: int, cols: dict
+) -> tuple[float, float, float | None, float | None]:
     parts = line.strip().split(",")
     if len(parts) < len(cols):
         raise DataError(f"line {lineno}: {len(parts)} fields, the header names {len(cols)}")
@@ -108,8 +131,16 @@ def parse_line(line: str, lineno: int, cols: dict) -> tuple[float, float, float 
         return v
 
     t, a = num("time"), num("crank_angle")
-    w = num("crank_speed") if "crank_speed" in cols and parts[cols["crank_speed"]].strip() != "" else None
-    f = num("process_force") if "process_force" in cols and parts[cols["process_force"]].strip() != "" else None
+    w = (
+        num("crank_speed")
+        if "crank_speed" in cols and parts[cols["crank_speed"]].strip() != ""
+        else None
+    )
+    f = (
+        num("process_force")
+        if "process_force" in cols and parts[cols["process_force"]].strip() != ""
+        else None
+    )
     return t, a, w, f
 
 
@@ -122,15 +153,23 @@ def parse_lines(lines: list[str], first_lineno: int, cols: dict):
     defaults = [{"crank_speed": math.nan, "process_force": 0.0}.get(c) for c in names]
     n, pos, parts = len(lines), 0, []
     while pos < n:
-        got = parse_csv("\n".join(lines[pos:]).encode(), len(cols), [cols[c] for c in names], defaults, n - pos)
+        got = parse_csv(
+            "\n".join(lines[pos:]).encode(), len(cols), [cols[c] for c in names], defaults, n - pos
+        )
         k = len(got[0])
-        parts.append((np.arange(first_lineno + pos, first_lineno + pos + k), got[0], got[1],
-                      got[names.index("crank_speed")] if "crank_speed" in cols else np.full(k, math.nan),
-                      got[names.index("process_force")] if "process_force" in cols else np.zeros(k)))
+        parts.append(
+            (
+                np.arange(first_lineno + pos, first_lineno + pos + k),
+                got[0],
+                got[1],
+                got[names.index("crank_speed")] if "crank_speed" in cols else np.full(k, math.nan),
+                got[names.index("process_force")] if "process_force" in cols else np.zeros(k),
+            )
+        )
         pos += k
         if pos < n:
             # One line for Python: blank, bad (the message), or a number only Python reads.
-            arrays, err = _parse_slowly(lines[pos:pos + 1], first_lineno + pos, cols)
+            arrays, err = _parse_slowly(lines[pos : pos + 1], first_lineno + pos, cols)
             parts.append(arrays)
             pos += 1
             if err is not None:
@@ -169,12 +208,13 @@ def remainder_2pi(x: np.ndarray) -> np.ndarray:
 class _Segment:
     """Samples of the current segment whose outputs are not computed yet, with the window
     history before them."""
+
     t: np.ndarray = field(default_factory=lambda: np.empty(0))
     theta: np.ndarray = field(default_factory=lambda: np.empty(0))
-    speed: np.ndarray = field(default_factory=lambda: np.empty(0))   # NaN: not measured
+    speed: np.ndarray = field(default_factory=lambda: np.empty(0))  # NaN: not measured
     force: np.ndarray = field(default_factory=lambda: np.empty(0))
     line: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
-    done: int = 0          # samples of the buffer already sent to the FMU
+    done: int = 0  # samples of the buffer already sent to the FMU
     segment_start: bool = True
 
     NAMES = ("t", "theta", "speed", "force", "line")
@@ -200,8 +240,13 @@ class Twin:
     only touched by `summaries`, so the caller takes `checkpoint()` only once every piece handed
     out has been summarized (feed and finish hand out all they emitted)."""
 
-    def __init__(self, fmu_path: str, machine: str = "default", options: Options | None = None,
-                 extra_values: dict | None = None):
+    def __init__(
+        self,
+        fmu_path: str,
+        machine: str = "default",
+        options: Options | None = None,
+        extra_values: dict | None = None,
+    ):
         self.o = options or Options()
         self.machine = machine
         self.values = {k: v for k, v in preset_values(machine).items() if k not in INPUTS}
@@ -213,16 +258,16 @@ class Twin:
         self.cols = None
         self.half = None
         self.buf = _Segment()
-        self.last_raw = None       # previous accepted raw angle (rad), unwrapped angle, time
+        self.last_raw = None  # previous accepted raw angle (rad), unwrapped angle, time
         self.last_unwrapped = None
         self.last_t = None
         self.duplicates = 0
         self.gaps: list = []
         self.rev_parts: list = []  # rows of the revolution in progress (and the sample before it)
-        self.rev_next = None       # index of the next revolution to complete
+        self.rev_next = None  # index of the next revolution to complete
         self.defer_summaries = False
-        self._pending: list = []   # rows for the summaries, None where a segment starts
-        self.lines_read = 0        # input lines consumed (header included)
+        self._pending: list = []  # rows for the summaries, None where a segment starts
+        self.lines_read = 0  # input lines consumed (header included)
         self.rows_out = 0
         self.messages: list = []
 
@@ -267,14 +312,20 @@ class Twin:
             return err
         # Intervals to the previous line (time never goes backwards up to the first error, so the
         # previous accepted sample of a line is the line before it, duplicates included).
-        prev = np.concatenate(([self.last_t], t[:-1])) if self.last_t is not None else np.concatenate(([math.nan], t[:-1]))
+        prev = (
+            np.concatenate(([self.last_t], t[:-1]))
+            if self.last_t is not None
+            else np.concatenate(([math.nan], t[:-1]))
+        )
         with np.errstate(invalid="ignore"):
             back = np.flatnonzero(t < prev)
             dup = np.flatnonzero(t == prev)
         stop = n
         if back.size:
             k = stop = int(back[0])
-            err = DataError(f"line {ln[k]}: time {float(t[k])!r} s goes backwards (previous sample at {float(prev[k])!r} s)")
+            err = DataError(
+                f"line {ln[k]}: time {float(t[k])!r} s goes backwards (previous sample at {float(prev[k])!r} s)"
+            )
         dup = dup[dup < stop]
         if dup.size and o.duplicates == "error":
             k = stop = int(dup[0])
@@ -283,14 +334,24 @@ class Twin:
         keep = np.ones(stop, dtype=bool)
         keep[dup] = False
         self.duplicates += int(dup.size)
-        ln, t, a, w, f = ln[:stop][keep], t[:stop][keep], a[:stop][keep], w[:stop][keep], f[:stop][keep]
+        ln, t, a, w, f = (
+            ln[:stop][keep],
+            t[:stop][keep],
+            a[:stop][keep],
+            w[:stop][keep],
+            f[:stop][keep],
+        )
         if len(t) == 0:
             return err
         # Unwrap: each step is the smallest one modulo a revolution.
         first = self.last_t is None
         if o.wrapped:
             steps = remainder_2pi(np.diff(a, prepend=a[0] if first else self.last_raw))
-            theta = np.cumsum(np.concatenate(([a[0] if first else self.last_unwrapped], steps[1:] if first else steps)))
+            theta = np.cumsum(
+                np.concatenate(
+                    ([a[0] if first else self.last_unwrapped], steps[1:] if first else steps)
+                )
+            )
             theta = theta if first else theta[1:]
         else:
             theta = a
@@ -303,14 +364,17 @@ class Twin:
             k = int(bad[0])
             err = DataError(
                 f"line {ln[k]}: the crank angle moves {float(dth[k]):.6g} rad in {float(dt[k]):.6g} s "
-                f"(more than the largest possible crank speed, --max-speed {o.max_speed:g} rad/s, allows)")
+                f"(more than the largest possible crank speed, --max-speed {o.max_speed:g} rad/s, allows)"
+            )
             ln, t, theta, w, f, dt, near, dth = (x[:k] for x in (ln, t, theta, w, f, dt, near, dth))
             a = a[:k]
         back = np.flatnonzero(near & (dth < 0))
         if back.size:
             k = int(back[0])
-            err = DataError(f"line {ln[k]}: the crank angle goes backwards by {float(-dth[k]):.6g} rad "
-                            "(the twin needs forward rotation)")
+            err = DataError(
+                f"line {ln[k]}: the crank angle goes backwards by {float(-dth[k]):.6g} rad "
+                "(the twin needs forward rotation)"
+            )
             ln, t, theta, w, f, dt = (x[:k] for x in (ln, t, theta, w, f, dt))
             a = a[:k]
         if len(t) == 0:
@@ -321,17 +385,25 @@ class Twin:
             if lo in gaps:
                 t0, t1 = (self.last_t if lo == 0 else float(t[lo - 1])), float(t[lo])
                 self.gaps.append((t0, t1))
-                self.messages.append(f"gap of {t1 - t0:.6g} s from t = {t0!r} s to {t1!r} s (line {ln[lo]}): "
-                                     "the FMU is re-initialized after it")
+                self.messages.append(
+                    f"gap of {t1 - t0:.6g} s from t = {t0!r} s to {t1!r} s (line {ln[lo]}): "
+                    "the FMU is re-initialized after it"
+                )
                 self._drain(True, rows)
                 self.buf = _Segment()
             if hi > lo:
-                self.buf.append(t=t[lo:hi], theta=theta[lo:hi], speed=w[lo:hi], force=f[lo:hi], line=ln[lo:hi])
+                self.buf.append(
+                    t=t[lo:hi], theta=theta[lo:hi], speed=w[lo:hi], force=f[lo:hi], line=ln[lo:hi]
+                )
                 if self.half is None and (self.last_t is not None or hi - lo > 1):
                     # The smoothing window in samples, from the first interval.
                     d = float(t[1] - t[0]) if first else float(t[0]) - self.last_t
                     self.half = cond.window_samples(o.window, d)
-                self.last_raw, self.last_unwrapped, self.last_t = float(a[hi - 1]), float(theta[hi - 1]), float(t[hi - 1])
+                self.last_raw, self.last_unwrapped, self.last_t = (
+                    float(a[hi - 1]),
+                    float(theta[hi - 1]),
+                    float(t[hi - 1]),
+                )
         if self.half is not None:
             self._drain(False, rows)
         return err
@@ -391,8 +463,10 @@ class Twin:
         if ready <= b.done:
             return
         if n < cond.DEGREE + 1:
-            raise DataError(f"line {b.line[0]}: a segment of {n} sample(s) between gaps is too short "
-                            f"(at least {cond.DEGREE + 1} are needed)")
+            raise DataError(
+                f"line {b.line[0]}: a segment of {n} sample(s) between gaps is too short "
+                f"(at least {cond.DEGREE + 1} are needed)"
+            )
         for lo in range(b.done, ready, BLOCK):
             centres = np.arange(lo, min(ready, lo + BLOCK))
             w_est, e_est = local_cubic(b.t, b.theta, half, lo, len(centres))
@@ -406,7 +480,9 @@ class Twin:
                 k = getattr(e, "index", 0)
                 self._emit(block[:k], rows)
                 if k < len(centres):
-                    e.args = (f"line {int(b.line[centres[k]])} (t = {float(b.t[centres[k]])!r} s): {e}",)
+                    e.args = (
+                        f"line {int(b.line[centres[k]])} (t = {float(b.t[centres[k]])!r} s): {e}",
+                    )
                 raise
             self._emit(block, rows)
             b.done = int(centres[-1]) + 1
@@ -420,7 +496,10 @@ class Twin:
         """Outputs into rows[:, 1:] for the inputs at the times rows[:, 0]."""
         first = 0
         if new_segment or self.channel is None:
-            self.fmu.start({**self.values, **dict(zip(INPUTS, map(float, inputs[0])))}, start_time=float(rows[0, 0]))
+            self.fmu.start(
+                {**self.values, **dict(zip(INPUTS, map(float, inputs[0])))},
+                start_time=float(rows[0, 0]),
+            )
             self.channel = self.fmu.channel(list(INPUTS), self.outputs)
             self.channel.read(rows[0, 1:])
             self._pending.append(None)  # the summaries start again with this segment
@@ -450,14 +529,16 @@ class Twin:
             return []
         arr = np.concatenate(self.rev_parts)
         series = {name: arr[:, 1 + i] for i, name in enumerate(self.outputs)}
-        tab = revolution_table(arr[:, 0], arr[:, self.i_angle], series, speed=series["crank.model_speed"])
+        tab = revolution_table(
+            arr[:, 0], arr[:, self.i_angle], series, speed=series["crank.model_speed"]
+        )
         pick = (tab["revolution"] >= self.rev_next) & (tab["revolution"] < last)
         n = int(np.count_nonzero(pick))
         columns = [tab[key][pick].tolist() if key in tab else [None] * n for key in _SUMMARY_KEYS]
         out = [dict(zip(SUMMARY_FIELDS, values)) for values in zip(*columns)]
         # Keep the samples from just before the next revolution's start.
         start = int(np.searchsorted(arr[:, self.i_angle], TWO_PI * last)) - 1
-        self.rev_parts = [arr[max(0, start):].copy()]
+        self.rev_parts = [arr[max(0, start) :].copy()]
         self.rev_next = last
         return out
 
@@ -472,15 +553,23 @@ class Twin:
             "version": 2,
             "machine": self.machine,
             "options": self.o.to_dict(),
-            "fmu_state": base64.b64encode(self.fmu.serialize()).decode() if self.channel is not None else None,
+            "fmu_state": base64.b64encode(self.fmu.serialize()).decode()
+            if self.channel is not None
+            else None,
             "fmu_time": self.fmu.time,
             "lines_read": self.lines_read,
             "rows_out": self.rows_out,
             "cols": self.cols,
             "half": self.half,
-            "buf": {"t": b.t.tolist(), "theta": b.theta.tolist(),
-                    "speed": [None if math.isnan(v) else v for v in b.speed.tolist()], "force": b.force.tolist(),
-                    "line": b.line.tolist(), "done": b.done, "segment_start": b.segment_start},
+            "buf": {
+                "t": b.t.tolist(),
+                "theta": b.theta.tolist(),
+                "speed": [None if math.isnan(v) else v for v in b.speed.tolist()],
+                "force": b.force.tolist(),
+                "line": b.line.tolist(),
+                "done": b.done,
+                "segment_start": b.segment_start,
+            },
             "last": [self.last_raw, self.last_unwrapped, self.last_t],
             "duplicates": self.duplicates,
             "gaps": self.gaps,
@@ -489,16 +578,26 @@ class Twin:
         }
 
     @classmethod
-    def from_checkpoint(cls, fmu_path: str, cp: dict, extra_values: dict | None = None) -> "Twin":
+    def from_checkpoint(cls, fmu_path: str, cp: dict, extra_values: dict | None = None) -> Twin:
         if cp.get("version") != 2:
             raise ValueError(f"checkpoint version {cp.get('version')!r}; this twin reads version 2")
         tw = cls(fmu_path, cp["machine"], Options(**cp["options"]), extra_values)
-        tw.lines_read, tw.rows_out, tw.cols, tw.half = cp["lines_read"], cp["rows_out"], cp["cols"], cp["half"]
+        tw.lines_read, tw.rows_out, tw.cols, tw.half = (
+            cp["lines_read"],
+            cp["rows_out"],
+            cp["cols"],
+            cp["half"],
+        )
         bb = cp["buf"]
-        tw.buf = _Segment(t=np.array(bb["t"], dtype=float), theta=np.array(bb["theta"], dtype=float),
-                          speed=np.array([math.nan if v is None else v for v in bb["speed"]], dtype=float),
-                          force=np.array(bb["force"], dtype=float), line=np.array(bb["line"], dtype=np.int64),
-                          done=bb["done"], segment_start=bb["segment_start"])
+        tw.buf = _Segment(
+            t=np.array(bb["t"], dtype=float),
+            theta=np.array(bb["theta"], dtype=float),
+            speed=np.array([math.nan if v is None else v for v in bb["speed"]], dtype=float),
+            force=np.array(bb["force"], dtype=float),
+            line=np.array(bb["line"], dtype=np.int64),
+            done=bb["done"],
+            segment_start=bb["segment_start"],
+        )
         tw.last_raw, tw.last_unwrapped, tw.last_t = cp["last"]
         tw.duplicates, tw.gaps = cp["duplicates"], [tuple(g) for g in cp["gaps"]]
         rev = np.array(cp["rev_rows"], dtype=float).reshape(-1, 1 + len(tw.outputs))

@@ -17,7 +17,10 @@ def _read(path):
     with open(path) as f:
         rows = list(csv.reader(f))
     head = rows[0]
-    return {h: np.array([float(r[i]) if r[i] != "" else np.nan for r in rows[1:]]) for i, h in enumerate(head)}
+    return {
+        h: np.array([float(r[i]) if r[i] != "" else np.nan for r in rows[1:]])
+        for i, h in enumerate(head)
+    }
 
 
 def _stacked(x, data, panels, xlabel, title, path, style="-", size=(10, 12)):
@@ -38,11 +41,21 @@ def plot_twin(outputs: pathlib.Path, summary: pathlib.Path, folder: pathlib.Path
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     o = _read(outputs)
-    _stacked(o["time"], o, [("crank.model_speed", "crank speed [rad/s]"),
-                            ("suspension.acceleration", "acceleration [m/s²]"),
-                            ("guide.friction", "guide friction [N]"), ("rod.force", "rod force [N]"),
-                            ("crank.torque", "crank torque [N·m]"), ("rod.angle", "rod angle [rad]")],
-             "time [s]", "Digital twin: loads from measured crank data", folder / "timeseries.png")
+    _stacked(
+        o["time"],
+        o,
+        [
+            ("crank.model_speed", "crank speed [rad/s]"),
+            ("suspension.acceleration", "acceleration [m/s²]"),
+            ("guide.friction", "guide friction [N]"),
+            ("rod.force", "rod force [N]"),
+            ("crank.torque", "crank torque [N·m]"),
+            ("rod.angle", "rod angle [rad]"),
+        ],
+        "time [s]",
+        "Digital twin: loads from measured crank data",
+        folder / "timeseries.png",
+    )
 
     fig, a = plt.subplots(figsize=(6, 5))
     a.plot(o["suspension.position"], o["rod.force"] * 1e-3, lw=0.5)
@@ -55,7 +68,18 @@ def plot_twin(outputs: pathlib.Path, summary: pathlib.Path, folder: pathlib.Path
     plt.close(fig)
 
     s = _read(summary)
-    _stacked(s["revolution"], s, [("mean_speed", "mean speed [rad/s]"), ("speed_fluctuation", "speed fluctuation [-]"),
-                                  ("crank_torque_max", "largest crank torque [N·m]"),
-                                  ("friction_work", "friction work [J]")],
-             "revolution", "Per-revolution trends", folder / "revolutions.png", style="o-", size=(8, 9))
+    _stacked(
+        s["revolution"],
+        s,
+        [
+            ("mean_speed", "mean speed [rad/s]"),
+            ("speed_fluctuation", "speed fluctuation [-]"),
+            ("crank_torque_max", "largest crank torque [N·m]"),
+            ("friction_work", "friction work [J]"),
+        ],
+        "revolution",
+        "Per-revolution trends",
+        folder / "revolutions.png",
+        style="o-",
+        size=(8, 9),
+    )

@@ -73,10 +73,8 @@ _install_libclang() {
         eval "$RD_LIBCLANG_INSTALL"
         return
     fi
-    local sudo=""
-    [ "$(id -u)" -ne 0 ] && sudo="sudo"
-    $sudo apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq libclang-dev >/dev/null
+    source "$(dirname "${BASH_SOURCE[0]}")/apt.sh"
+    apt_install libclang-dev
 }
 
 ensure_libclang() {

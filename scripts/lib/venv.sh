@@ -1,6 +1,6 @@
 # Sourced by the scripts: creates or refreshes the project-local Python environment .venv from
 # requirements.txt (fmpy, libcosimpy, pytest, matplotlib, numpy, scipy, mpmath, dask.distributed,
-# pyarrow, tqdm).
+# pyarrow, tqdm, ruff, hypothesis).
 #
 #   source scripts/lib/venv.sh; ensure_venv      # then use "$VENV_PYTHON"
 #
@@ -11,15 +11,10 @@
 
 _venv_root() { (cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd); }
 
+source "$(dirname "${BASH_SOURCE[0]}")/apt.sh"
+
 _venv_apt_install() {
-    local sudo=""
-    [ "$(id -u)" -ne 0 ] && sudo="sudo"
-    echo "venv.sh: installing Debian packages: $*" >&2
-    if [ -z "${_VENV_APT_UPDATED:-}" ]; then
-        $sudo apt-get update -qq
-        _VENV_APT_UPDATED=1
-    fi
-    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "$@" >/dev/null
+    apt_install "$@"
 }
 
 # libcosimpy ships libcosimc.so (libcosim, the FMI Library, boost, statically linked) that needs
@@ -62,7 +57,7 @@ ensure_venv() {
     VENV_PYTHON="$venv/bin/python"
     export VENV_PYTHON
     if [ -f "$venv/.requirements.sha256" ] && [ "$(cat "$venv/.requirements.sha256")" = "$want" ] \
-        && "$VENV_PYTHON" -c 'import fmpy, libcosimpy, pytest, matplotlib, numpy, scipy, mpmath, dask.distributed, pyarrow, tqdm' 2>/dev/null; then
+        && "$VENV_PYTHON" -c 'import fmpy, libcosimpy, pytest, matplotlib, numpy, scipy, mpmath, dask.distributed, pyarrow, tqdm, hypothesis' 2>/dev/null; then
         _venv_link_package "$root"
         return 0
     fi
@@ -76,7 +71,7 @@ ensure_venv() {
         "$py" -m venv "$venv"
     fi
     "$VENV_PYTHON" -m pip install --quiet --disable-pip-version-check --no-input -r "$req"
-    "$VENV_PYTHON" -c 'import fmpy, libcosimpy, pytest, matplotlib, numpy, scipy, mpmath, dask.distributed, pyarrow, tqdm'
+    "$VENV_PYTHON" -c 'import fmpy, libcosimpy, pytest, matplotlib, numpy, scipy, mpmath, dask.distributed, pyarrow, tqdm, hypothesis'
     echo "$want" > "$venv/.requirements.sha256"
     _venv_link_package "$root"
 }

@@ -9,12 +9,10 @@ win64_enabled() {
     [ "${RD_WIN64:-1}" != 0 ]
 }
 
+source "$(dirname "${BASH_SOURCE[0]}")/apt.sh"
+
 _win64_apt() {
-    local sudo=""
-    [ "$(id -u)" -ne 0 ] && sudo="sudo"
-    echo "win64.sh: installing Debian packages: $*" >&2
-    $sudo apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "$@" >/dev/null
+    apt_install "$@"
 }
 
 ensure_win64_build() {

@@ -42,7 +42,9 @@ fn emit<M: FmuModel>(doc: bool, pages_dir: Option<&str>) {
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let value = |flag: &str| args.iter().position(|a| a == flag).and_then(|i| args.get(i + 1)).map(|s| s.as_str());
+    let value = |flag: &str| {
+        args.iter().position(|a| a == flag).and_then(|i| args.get(i + 1)).map(|s| s.as_str())
+    };
     if let Some(file) = value("--page") {
         match std::fs::read_to_string(file) {
             Ok(md) => print!("{}", documentation::markdown_page(&md)),

@@ -55,7 +55,11 @@ fn status_of(s: Severity) -> fmi2Status {
 }
 
 /// Runs `f` on the instance behind `c`: NULL check, panic barrier, status and logging.
-unsafe fn call<M: FmuModel>(c: fmi2Component, function: &str, f: impl FnOnce(&mut Instance<M>) -> Result<(), Failure>) -> fmi2Status {
+unsafe fn call<M: FmuModel>(
+    c: fmi2Component,
+    function: &str,
+    f: impl FnOnce(&mut Instance<M>) -> Result<(), Failure>,
+) -> fmi2Status {
     if c.is_null() {
         return fmi2Status_fmi2Error;
     }
@@ -67,7 +71,11 @@ unsafe fn call<M: FmuModel>(c: fmi2Component, function: &str, f: impl FnOnce(&mu
         }
         Ok(Err(failure)) => {
             let status = status_of(failure.severity);
-            let category = if failure.severity == Severity::Discard { Category::Warning } else { Category::Error };
+            let category = if failure.severity == Severity::Discard {
+                Category::Warning
+            } else {
+                Category::Error
+            };
             // Every message names the function that failed.
             if failure.message.starts_with(function) {
                 (*inst).log(status, category, &failure.message);
@@ -87,7 +95,11 @@ unsafe fn call<M: FmuModel>(c: fmi2Component, function: &str, f: impl FnOnce(&mu
 unsafe fn panicked<M: FmuModel>(inst: *mut Instance<M>, function: &str) -> fmi2Status {
     let _ = catch_unwind(AssertUnwindSafe(|| {
         (*inst).set_fatal();
-        (*inst).log(fmi2Status_fmi2Fatal, Category::Error, &format!("{function}: internal error (panic caught)"));
+        (*inst).log(
+            fmi2Status_fmi2Fatal,
+            Category::Error,
+            &format!("{function}: internal error (panic caught)"),
+        );
     }));
     fmi2Status_fmi2Fatal
 }
@@ -116,12 +128,18 @@ pub unsafe fn fmi2SetDebugLogging<M: FmuModel>(
     categories: *const fmi2String,
 ) -> fmi2Status {
     call::<M>(c, "fmi2SetDebugLogging", |inst| {
-        let cats = slice(categories, nCategories).ok_or_else(|| null_argument("fmi2SetDebugLogging", "categories"))?;
+        let cats = slice(categories, nCategories)
+            .ok_or_else(|| null_argument("fmi2SetDebugLogging", "categories"))?;
         let mut names = Vec::with_capacity(cats.len());
         for &p in cats {
-            names.push(opt_str(p).ok_or_else(|| null_argument("fmi2SetDebugLogging", "a category name"))?);
+            names.push(
+                opt_str(p)
+                    .ok_or_else(|| null_argument("fmi2SetDebugLogging", "a category name"))?,
+            );
         }
-        inst.logger.set_debug_logging(loggingOn != 0, &names).map_err(|e| Failure::error(format!("fmi2SetDebugLogging: {e}")))
+        inst.logger
+            .set_debug_logging(loggingOn != 0, &names)
+            .map_err(|e| Failure::error(format!("fmi2SetDebugLogging: {e}")))
     })
 }
 
@@ -141,7 +159,8 @@ pub unsafe fn fmi2Instantiate<M: FmuModel>(
         }
         let cb = &*functions;
         let name = opt_str(instanceName).unwrap_or("");
-        let logger = Logger::new(cb.logger, cb.componentEnvironment, copy_name(name), loggingOn != 0);
+        let logger =
+            Logger::new(cb.logger, cb.componentEnvironment, copy_name(name), loggingOn != 0);
         let refuse = |why: String| {
             logger.log(fmi2Status_fmi2Error, Category::Error, &format!("fmi2Instantiate: {why}"));
             ptr::null_mut()
@@ -150,11 +169,19 @@ pub unsafe fn fmi2Instantiate<M: FmuModel>(
             return refuse("instanceName is NULL or empty".into());
         }
         if fmuType != fmi2Type_fmi2CoSimulation {
-            return refuse(format!("fmuType {fmuType} is not supported: this FMU is co-simulation only"));
+            return refuse(format!(
+                "fmuType {fmuType} is not supported: this FMU is co-simulation only"
+            ));
         }
         match opt_str(fmuGUID) {
             Some(g) if g == guid::<M>() => {}
-            other => return refuse(format!("GUID {:?} is not this FMU's GUID {}", other.unwrap_or("NULL"), guid::<M>())),
+            other => {
+                return refuse(format!(
+                    "GUID {:?} is not this FMU's GUID {}",
+                    other.unwrap_or("NULL"),
+                    guid::<M>()
+                ))
+            }
         }
         let location = opt_str(fmuResourceLocation);
         let dir = resource_dir(location);
@@ -264,13 +291,19 @@ unsafe fn set_values<M: FmuModel, T: Copy>(
 }
 
 #[inline]
-pub unsafe fn fmi2GetReal<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Real) -> fmi2Status {
+pub unsafe fn fmi2GetReal<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *mut fmi2Real,
+) -> fmi2Status {
     // Outputs read at every step take the fast path (`Instance::quick_get_real`), still behind
     // the panic barrier: it evaluates the model. Anything that needs a message takes the general
     // path, which evaluates again and reports.
     if let (false, Some(vrs), false) = (c.is_null(), slice(vr, nvr), nvr > 0 && value.is_null()) {
         let inst = c as *mut Instance<M>;
-        let out: &mut [fmi2Real] = if nvr == 0 { &mut [] } else { std::slice::from_raw_parts_mut(value, nvr) };
+        let out: &mut [fmi2Real] =
+            if nvr == 0 { &mut [] } else { std::slice::from_raw_parts_mut(value, nvr) };
         match catch_unwind(AssertUnwindSafe(|| (*inst).quick_get_real(vrs, out))) {
             Ok(true) => return fmi2Status_fmi2OK,
             Ok(false) => {}
@@ -281,22 +314,44 @@ pub unsafe fn fmi2GetReal<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueRef
 }
 
 #[inline]
-pub unsafe fn fmi2GetInteger<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Integer) -> fmi2Status {
+pub unsafe fn fmi2GetInteger<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *mut fmi2Integer,
+) -> fmi2Status {
     get_values::<M, _>(c, "fmi2GetInteger", VarType::Integer, vr, nvr, value, |v| v as fmi2Integer)
 }
 
 #[inline]
-pub unsafe fn fmi2GetBoolean<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Boolean) -> fmi2Status {
-    get_values::<M, _>(c, "fmi2GetBoolean", VarType::Boolean, vr, nvr, value, |v| (v != 0.0) as fmi2Boolean)
+pub unsafe fn fmi2GetBoolean<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *mut fmi2Boolean,
+) -> fmi2Status {
+    get_values::<M, _>(c, "fmi2GetBoolean", VarType::Boolean, vr, nvr, value, |v| {
+        (v != 0.0) as fmi2Boolean
+    })
 }
 
 #[inline]
-pub unsafe fn fmi2GetString<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, _value: *mut fmi2String) -> fmi2Status {
+pub unsafe fn fmi2GetString<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    _value: *mut fmi2String,
+) -> fmi2Status {
     call::<M>(c, "fmi2GetString", |_| no_strings("fmi2GetString", vr, nvr))
 }
 
 #[inline]
-pub unsafe fn fmi2SetReal<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Real) -> fmi2Status {
+pub unsafe fn fmi2SetReal<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *const fmi2Real,
+) -> fmi2Status {
     // Finite crank inputs at every step cannot panic (proved at link time,
     // `Instance::quick_set_real`) and need no barrier; anything else takes the general path.
     if let (false, Some(vrs), Some(vals)) = (c.is_null(), slice(vr, nvr), slice(value, nvr)) {
@@ -308,24 +363,48 @@ pub unsafe fn fmi2SetReal<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueRef
 }
 
 #[inline]
-pub unsafe fn fmi2SetInteger<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Integer) -> fmi2Status {
+pub unsafe fn fmi2SetInteger<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *const fmi2Integer,
+) -> fmi2Status {
     set_values::<M, _>(c, "fmi2SetInteger", VarType::Integer, vr, nvr, value, |v| v as f64)
 }
 
 #[inline]
-pub unsafe fn fmi2SetBoolean<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Boolean) -> fmi2Status {
-    set_values::<M, _>(c, "fmi2SetBoolean", VarType::Boolean, vr, nvr, value, |v| (v != 0) as i32 as f64)
+pub unsafe fn fmi2SetBoolean<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *const fmi2Boolean,
+) -> fmi2Status {
+    set_values::<M, _>(c, "fmi2SetBoolean", VarType::Boolean, vr, nvr, value, |v| {
+        (v != 0) as i32 as f64
+    })
 }
 
 #[inline]
-pub unsafe fn fmi2SetString<M: FmuModel>(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, _value: *const fmi2String) -> fmi2Status {
+pub unsafe fn fmi2SetString<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    _value: *const fmi2String,
+) -> fmi2Status {
     call::<M>(c, "fmi2SetString", |_| no_strings("fmi2SetString", vr, nvr))
 }
 
-unsafe fn no_strings(function: &str, vr: *const fmi2ValueReference, nvr: usize) -> Result<(), Failure> {
+unsafe fn no_strings(
+    function: &str,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+) -> Result<(), Failure> {
     match slice(vr, nvr) {
         Some([]) => Ok(()),
-        Some(v) => Err(Failure::error(format!("{function}: value reference {} is not a String variable (this FMU has none)", v[0]))),
+        Some(v) => Err(Failure::error(format!(
+            "{function}: value reference {} is not a String variable (this FMU has none)",
+            v[0]
+        ))),
         None => Err(null_argument(function, "vr")),
     }
 }
@@ -335,9 +414,16 @@ unsafe fn no_strings(function: &str, vr: *const fmi2ValueReference, nvr: usize) 
 /// Stores a snapshot in the importer's FMUstate: reuses a state it passes back (FMI 2.0 allows
 /// that), else allocates one, which the instance keeps track of so that fmi2FreeInstance frees
 /// it if the importer does not.
-unsafe fn store_snapshot<M: FmuModel>(inst: &mut Instance<M>, state: *mut fmi2FMUstate, snap: Snapshot<M>) {
+unsafe fn store_snapshot<M: FmuModel>(
+    inst: &mut Instance<M>,
+    state: *mut fmi2FMUstate,
+    snap: Snapshot<M>,
+) {
     let existing = *state as *mut Snapshot<M>;
-    if !existing.is_null() && inst.states.contains(&(existing as usize)) && (*existing).magic == snapshot_magic::<M>() {
+    if !existing.is_null()
+        && inst.states.contains(&(existing as usize))
+        && (*existing).magic == snapshot_magic::<M>()
+    {
         *existing = snap;
     } else {
         *state = Box::into_raw(Box::new(snap)) as fmi2FMUstate;
@@ -345,7 +431,10 @@ unsafe fn store_snapshot<M: FmuModel>(inst: &mut Instance<M>, state: *mut fmi2FM
     }
 }
 
-unsafe fn snapshot_ref<'a, M: FmuModel>(function: &str, state: fmi2FMUstate) -> Result<&'a Snapshot<M>, Failure> {
+unsafe fn snapshot_ref<'a, M: FmuModel>(
+    function: &str,
+    state: fmi2FMUstate,
+) -> Result<&'a Snapshot<M>, Failure> {
     let s = state as *const Snapshot<M>;
     if s.is_null() {
         return Err(null_argument(function, "FMUstate"));
@@ -357,7 +446,10 @@ unsafe fn snapshot_ref<'a, M: FmuModel>(function: &str, state: fmi2FMUstate) -> 
 }
 
 #[inline]
-pub unsafe fn fmi2GetFMUstate<M: FmuModel>(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
+pub unsafe fn fmi2GetFMUstate<M: FmuModel>(
+    c: fmi2Component,
+    state: *mut fmi2FMUstate,
+) -> fmi2Status {
     call::<M>(c, "fmi2GetFMUstate", |inst| {
         if state.is_null() {
             return Err(null_argument("fmi2GetFMUstate", "FMUstate"));
@@ -370,18 +462,25 @@ pub unsafe fn fmi2GetFMUstate<M: FmuModel>(c: fmi2Component, state: *mut fmi2FMU
 
 #[inline]
 pub unsafe fn fmi2SetFMUstate<M: FmuModel>(c: fmi2Component, state: fmi2FMUstate) -> fmi2Status {
-    call::<M>(c, "fmi2SetFMUstate", |inst| inst.restore(snapshot_ref::<M>("fmi2SetFMUstate", state)?))
+    call::<M>(c, "fmi2SetFMUstate", |inst| {
+        inst.restore(snapshot_ref::<M>("fmi2SetFMUstate", state)?)
+    })
 }
 
 #[inline]
-pub unsafe fn fmi2FreeFMUstate<M: FmuModel>(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
+pub unsafe fn fmi2FreeFMUstate<M: FmuModel>(
+    c: fmi2Component,
+    state: *mut fmi2FMUstate,
+) -> fmi2Status {
     call::<M>(c, "fmi2FreeFMUstate", |inst| {
         if state.is_null() || (*state).is_null() {
             return Ok(());
         }
         let s = *state as *mut Snapshot<M>;
         let Some(pos) = inst.states.iter().position(|&p| p == s as usize) else {
-            return Err(Failure::error("fmi2FreeFMUstate: FMUstate was not made by this instance (or was freed)"));
+            return Err(Failure::error(
+                "fmi2FreeFMUstate: FMUstate was not made by this instance (or was freed)",
+            ));
         };
         if (*s).magic != snapshot_magic::<M>() {
             return Err(Failure::error("fmi2FreeFMUstate: FMUstate was not made by this FMU"));
@@ -395,7 +494,11 @@ pub unsafe fn fmi2FreeFMUstate<M: FmuModel>(c: fmi2Component, state: *mut fmi2FM
 }
 
 #[inline]
-pub unsafe fn fmi2SerializedFMUstateSize<M: FmuModel>(c: fmi2Component, state: fmi2FMUstate, size: *mut usize) -> fmi2Status {
+pub unsafe fn fmi2SerializedFMUstateSize<M: FmuModel>(
+    c: fmi2Component,
+    state: fmi2FMUstate,
+    size: *mut usize,
+) -> fmi2Status {
     call::<M>(c, "fmi2SerializedFMUstateSize", |_| {
         let snap = snapshot_ref::<M>("fmi2SerializedFMUstateSize", state)?;
         if size.is_null() {
@@ -407,7 +510,12 @@ pub unsafe fn fmi2SerializedFMUstateSize<M: FmuModel>(c: fmi2Component, state: f
 }
 
 #[inline]
-pub unsafe fn fmi2SerializeFMUstate<M: FmuModel>(c: fmi2Component, state: fmi2FMUstate, bytes: *mut fmi2Byte, size: usize) -> fmi2Status {
+pub unsafe fn fmi2SerializeFMUstate<M: FmuModel>(
+    c: fmi2Component,
+    state: fmi2FMUstate,
+    bytes: *mut fmi2Byte,
+    size: usize,
+) -> fmi2Status {
     call::<M>(c, "fmi2SerializeFMUstate", |_| {
         let snap = snapshot_ref::<M>("fmi2SerializeFMUstate", state)?;
         let data = fmu_state::serialize::<M>(&snap.core)?;
@@ -423,9 +531,15 @@ pub unsafe fn fmi2SerializeFMUstate<M: FmuModel>(c: fmi2Component, state: fmi2FM
 }
 
 #[inline]
-pub unsafe fn fmi2DeSerializeFMUstate<M: FmuModel>(c: fmi2Component, bytes: *const fmi2Byte, size: usize, state: *mut fmi2FMUstate) -> fmi2Status {
+pub unsafe fn fmi2DeSerializeFMUstate<M: FmuModel>(
+    c: fmi2Component,
+    bytes: *const fmi2Byte,
+    size: usize,
+    state: *mut fmi2FMUstate,
+) -> fmi2Status {
     call::<M>(c, "fmi2DeSerializeFMUstate", |inst| {
-        let data = slice(bytes as *const u8, size).ok_or_else(|| null_argument("fmi2DeSerializeFMUstate", "serializedState"))?;
+        let data = slice(bytes as *const u8, size)
+            .ok_or_else(|| null_argument("fmi2DeSerializeFMUstate", "serializedState"))?;
         if state.is_null() {
             return Err(null_argument("fmi2DeSerializeFMUstate", "FMUstate"));
         }
@@ -477,7 +591,9 @@ pub unsafe fn fmi2GetRealOutputDerivatives<M: FmuModel>(
     _value: *mut fmi2Real,
 ) -> fmi2Status {
     call::<M>(c, "fmi2GetRealOutputDerivatives", |_| {
-        Err(Failure::error("fmi2GetRealOutputDerivatives: not supported (maxOutputDerivativeOrder=\"0\")"))
+        Err(Failure::error(
+            "fmi2GetRealOutputDerivatives: not supported (maxOutputDerivativeOrder=\"0\")",
+        ))
     })
 }
 
@@ -490,7 +606,9 @@ pub unsafe fn fmi2DoStep<M: FmuModel>(
 ) -> fmi2Status {
     // A rigid mechanism's ordinary step cannot panic (proved at link time, `Instance::quick_step`)
     // and needs no barrier; anything else takes the general path.
-    if !c.is_null() && (*(c as *mut Instance<M>)).quick_step(currentCommunicationPoint, communicationStepSize) {
+    if !c.is_null()
+        && (*(c as *mut Instance<M>)).quick_step(currentCommunicationPoint, communicationStepSize)
+    {
         return fmi2Status_fmi2OK;
     }
     do_step::<M>(c, currentCommunicationPoint, communicationStepSize)
@@ -510,15 +628,27 @@ pub unsafe fn fmi2CancelStep<M: FmuModel>(c: fmi2Component) -> fmi2Status {
 }
 
 #[inline]
-pub unsafe fn fmi2GetStatus<M: FmuModel>(c: fmi2Component, _s: fmi2StatusKind, _value: *mut fmi2Status) -> fmi2Status {
-    call::<M>(c, "fmi2GetStatus", |_| Err(Failure::discard("fmi2GetStatus: no status available (no asynchronous steps)")))
+pub unsafe fn fmi2GetStatus<M: FmuModel>(
+    c: fmi2Component,
+    _s: fmi2StatusKind,
+    _value: *mut fmi2Status,
+) -> fmi2Status {
+    call::<M>(c, "fmi2GetStatus", |_| {
+        Err(Failure::discard("fmi2GetStatus: no status available (no asynchronous steps)"))
+    })
 }
 
 #[inline]
-pub unsafe fn fmi2GetRealStatus<M: FmuModel>(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Real) -> fmi2Status {
+pub unsafe fn fmi2GetRealStatus<M: FmuModel>(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    value: *mut fmi2Real,
+) -> fmi2Status {
     call::<M>(c, "fmi2GetRealStatus", |inst| {
         if s != fmi2StatusKind_fmi2LastSuccessfulTime {
-            return Err(Failure::discard(format!("fmi2GetRealStatus: status kind {s} is not available")));
+            return Err(Failure::discard(format!(
+                "fmi2GetRealStatus: status kind {s} is not available"
+            )));
         }
         if value.is_null() {
             return Err(null_argument("fmi2GetRealStatus", "value"));
@@ -529,15 +659,27 @@ pub unsafe fn fmi2GetRealStatus<M: FmuModel>(c: fmi2Component, s: fmi2StatusKind
 }
 
 #[inline]
-pub unsafe fn fmi2GetIntegerStatus<M: FmuModel>(c: fmi2Component, s: fmi2StatusKind, _value: *mut fmi2Integer) -> fmi2Status {
-    call::<M>(c, "fmi2GetIntegerStatus", |_| Err(Failure::discard(format!("fmi2GetIntegerStatus: status kind {s} is not available"))))
+pub unsafe fn fmi2GetIntegerStatus<M: FmuModel>(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    _value: *mut fmi2Integer,
+) -> fmi2Status {
+    call::<M>(c, "fmi2GetIntegerStatus", |_| {
+        Err(Failure::discard(format!("fmi2GetIntegerStatus: status kind {s} is not available")))
+    })
 }
 
 #[inline]
-pub unsafe fn fmi2GetBooleanStatus<M: FmuModel>(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Boolean) -> fmi2Status {
+pub unsafe fn fmi2GetBooleanStatus<M: FmuModel>(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    value: *mut fmi2Boolean,
+) -> fmi2Status {
     call::<M>(c, "fmi2GetBooleanStatus", |_| {
         if s != fmi2StatusKind_fmi2Terminated {
-            return Err(Failure::discard(format!("fmi2GetBooleanStatus: status kind {s} is not available")));
+            return Err(Failure::discard(format!(
+                "fmi2GetBooleanStatus: status kind {s} is not available"
+            )));
         }
         if value.is_null() {
             return Err(null_argument("fmi2GetBooleanStatus", "value"));
@@ -549,8 +691,14 @@ pub unsafe fn fmi2GetBooleanStatus<M: FmuModel>(c: fmi2Component, s: fmi2StatusK
 }
 
 #[inline]
-pub unsafe fn fmi2GetStringStatus<M: FmuModel>(c: fmi2Component, s: fmi2StatusKind, _value: *mut fmi2String) -> fmi2Status {
-    call::<M>(c, "fmi2GetStringStatus", |_| Err(Failure::discard(format!("fmi2GetStringStatus: status kind {s} is not available"))))
+pub unsafe fn fmi2GetStringStatus<M: FmuModel>(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    _value: *mut fmi2String,
+) -> fmi2Status {
+    call::<M>(c, "fmi2GetStringStatus", |_| {
+        Err(Failure::discard(format!("fmi2GetStringStatus: status kind {s} is not available")))
+    })
 }
 
 // ------------------------------------------------------------------------------ exports
@@ -576,20 +724,55 @@ macro_rules! export_fmu {
                 glue::fmi2GetVersion()
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2SetDebugLogging(c: fmi2Component, loggingOn: fmi2Boolean, nCategories: usize, categories: *const fmi2String) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2SetDebugLogging(
+                c: fmi2Component,
+                loggingOn: fmi2Boolean,
+                nCategories: usize,
+                categories: *const fmi2String,
+            ) -> fmi2Status {
                 glue::fmi2SetDebugLogging::<M>(c, loggingOn, nCategories, categories)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2Instantiate(instanceName: fmi2String, fmuType: fmi2Type, fmuGUID: fmi2String, fmuResourceLocation: fmi2String, functions: *const fmi2CallbackFunctions, visible: fmi2Boolean, loggingOn: fmi2Boolean) -> fmi2Component {
-                glue::fmi2Instantiate::<M>(instanceName, fmuType, fmuGUID, fmuResourceLocation, functions, visible, loggingOn)
+            pub unsafe extern "C" fn fmi2Instantiate(
+                instanceName: fmi2String,
+                fmuType: fmi2Type,
+                fmuGUID: fmi2String,
+                fmuResourceLocation: fmi2String,
+                functions: *const fmi2CallbackFunctions,
+                visible: fmi2Boolean,
+                loggingOn: fmi2Boolean,
+            ) -> fmi2Component {
+                glue::fmi2Instantiate::<M>(
+                    instanceName,
+                    fmuType,
+                    fmuGUID,
+                    fmuResourceLocation,
+                    functions,
+                    visible,
+                    loggingOn,
+                )
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2FreeInstance(c: fmi2Component) {
                 glue::fmi2FreeInstance::<M>(c)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2SetupExperiment(c: fmi2Component, toleranceDefined: fmi2Boolean, tolerance: fmi2Real, startTime: fmi2Real, stopTimeDefined: fmi2Boolean, stopTime: fmi2Real) -> fmi2Status {
-                glue::fmi2SetupExperiment::<M>(c, toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime)
+            pub unsafe extern "C" fn fmi2SetupExperiment(
+                c: fmi2Component,
+                toleranceDefined: fmi2Boolean,
+                tolerance: fmi2Real,
+                startTime: fmi2Real,
+                stopTimeDefined: fmi2Boolean,
+                stopTime: fmi2Real,
+            ) -> fmi2Status {
+                glue::fmi2SetupExperiment::<M>(
+                    c,
+                    toleranceDefined,
+                    tolerance,
+                    startTime,
+                    stopTimeDefined,
+                    stopTime,
+                )
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2EnterInitializationMode(c: fmi2Component) -> fmi2Status {
@@ -608,99 +791,220 @@ macro_rules! export_fmu {
                 glue::fmi2Reset::<M>(c)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetReal(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Real) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2GetReal(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                nvr: usize,
+                value: *mut fmi2Real,
+            ) -> fmi2Status {
                 glue::fmi2GetReal::<M>(c, vr, nvr, value)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetInteger(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Integer) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2GetInteger(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                nvr: usize,
+                value: *mut fmi2Integer,
+            ) -> fmi2Status {
                 glue::fmi2GetInteger::<M>(c, vr, nvr, value)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetBoolean(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2Boolean) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2GetBoolean(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                nvr: usize,
+                value: *mut fmi2Boolean,
+            ) -> fmi2Status {
                 glue::fmi2GetBoolean::<M>(c, vr, nvr, value)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetString(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *mut fmi2String) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2GetString(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                nvr: usize,
+                value: *mut fmi2String,
+            ) -> fmi2Status {
                 glue::fmi2GetString::<M>(c, vr, nvr, value)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2SetReal(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Real) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2SetReal(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                nvr: usize,
+                value: *const fmi2Real,
+            ) -> fmi2Status {
                 glue::fmi2SetReal::<M>(c, vr, nvr, value)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2SetInteger(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Integer) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2SetInteger(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                nvr: usize,
+                value: *const fmi2Integer,
+            ) -> fmi2Status {
                 glue::fmi2SetInteger::<M>(c, vr, nvr, value)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2SetBoolean(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2Boolean) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2SetBoolean(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                nvr: usize,
+                value: *const fmi2Boolean,
+            ) -> fmi2Status {
                 glue::fmi2SetBoolean::<M>(c, vr, nvr, value)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2SetString(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, value: *const fmi2String) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2SetString(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                nvr: usize,
+                value: *const fmi2String,
+            ) -> fmi2Status {
                 glue::fmi2SetString::<M>(c, vr, nvr, value)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetFMUstate(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2GetFMUstate(
+                c: fmi2Component,
+                state: *mut fmi2FMUstate,
+            ) -> fmi2Status {
                 glue::fmi2GetFMUstate::<M>(c, state)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2SetFMUstate(c: fmi2Component, state: fmi2FMUstate) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2SetFMUstate(
+                c: fmi2Component,
+                state: fmi2FMUstate,
+            ) -> fmi2Status {
                 glue::fmi2SetFMUstate::<M>(c, state)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2FreeFMUstate(c: fmi2Component, state: *mut fmi2FMUstate) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2FreeFMUstate(
+                c: fmi2Component,
+                state: *mut fmi2FMUstate,
+            ) -> fmi2Status {
                 glue::fmi2FreeFMUstate::<M>(c, state)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2SerializedFMUstateSize(c: fmi2Component, state: fmi2FMUstate, size: *mut usize) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2SerializedFMUstateSize(
+                c: fmi2Component,
+                state: fmi2FMUstate,
+                size: *mut usize,
+            ) -> fmi2Status {
                 glue::fmi2SerializedFMUstateSize::<M>(c, state, size)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2SerializeFMUstate(c: fmi2Component, state: fmi2FMUstate, bytes: *mut fmi2Byte, size: usize) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2SerializeFMUstate(
+                c: fmi2Component,
+                state: fmi2FMUstate,
+                bytes: *mut fmi2Byte,
+                size: usize,
+            ) -> fmi2Status {
                 glue::fmi2SerializeFMUstate::<M>(c, state, bytes, size)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2DeSerializeFMUstate(c: fmi2Component, bytes: *const fmi2Byte, size: usize, state: *mut fmi2FMUstate) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
+                c: fmi2Component,
+                bytes: *const fmi2Byte,
+                size: usize,
+                state: *mut fmi2FMUstate,
+            ) -> fmi2Status {
                 glue::fmi2DeSerializeFMUstate::<M>(c, bytes, size, state)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetDirectionalDerivative(c: fmi2Component, vUnknown_ref: *const fmi2ValueReference, nUnknown: usize, vKnown_ref: *const fmi2ValueReference, nKnown: usize, dvKnown: *const fmi2Real, dvUnknown: *mut fmi2Real) -> fmi2Status {
-                glue::fmi2GetDirectionalDerivative::<M>(c, vUnknown_ref, nUnknown, vKnown_ref, nKnown, dvKnown, dvUnknown)
+            pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
+                c: fmi2Component,
+                vUnknown_ref: *const fmi2ValueReference,
+                nUnknown: usize,
+                vKnown_ref: *const fmi2ValueReference,
+                nKnown: usize,
+                dvKnown: *const fmi2Real,
+                dvUnknown: *mut fmi2Real,
+            ) -> fmi2Status {
+                glue::fmi2GetDirectionalDerivative::<M>(
+                    c,
+                    vUnknown_ref,
+                    nUnknown,
+                    vKnown_ref,
+                    nKnown,
+                    dvKnown,
+                    dvUnknown,
+                )
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2SetRealInputDerivatives(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, order: *const fmi2Integer, value: *const fmi2Real) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                nvr: usize,
+                order: *const fmi2Integer,
+                value: *const fmi2Real,
+            ) -> fmi2Status {
                 glue::fmi2SetRealInputDerivatives::<M>(c, vr, nvr, order, value)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetRealOutputDerivatives(c: fmi2Component, vr: *const fmi2ValueReference, nvr: usize, order: *const fmi2Integer, value: *mut fmi2Real) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2GetRealOutputDerivatives(
+                c: fmi2Component,
+                vr: *const fmi2ValueReference,
+                nvr: usize,
+                order: *const fmi2Integer,
+                value: *mut fmi2Real,
+            ) -> fmi2Status {
                 glue::fmi2GetRealOutputDerivatives::<M>(c, vr, nvr, order, value)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2DoStep(c: fmi2Component, currentCommunicationPoint: fmi2Real, communicationStepSize: fmi2Real, noSetFMUStatePriorToCurrentPoint: fmi2Boolean) -> fmi2Status {
-                glue::fmi2DoStep::<M>(c, currentCommunicationPoint, communicationStepSize, noSetFMUStatePriorToCurrentPoint)
+            pub unsafe extern "C" fn fmi2DoStep(
+                c: fmi2Component,
+                currentCommunicationPoint: fmi2Real,
+                communicationStepSize: fmi2Real,
+                noSetFMUStatePriorToCurrentPoint: fmi2Boolean,
+            ) -> fmi2Status {
+                glue::fmi2DoStep::<M>(
+                    c,
+                    currentCommunicationPoint,
+                    communicationStepSize,
+                    noSetFMUStatePriorToCurrentPoint,
+                )
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2CancelStep(c: fmi2Component) -> fmi2Status {
                 glue::fmi2CancelStep::<M>(c)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Status) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2GetStatus(
+                c: fmi2Component,
+                s: fmi2StatusKind,
+                value: *mut fmi2Status,
+            ) -> fmi2Status {
                 glue::fmi2GetStatus::<M>(c, s, value)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetRealStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Real) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2GetRealStatus(
+                c: fmi2Component,
+                s: fmi2StatusKind,
+                value: *mut fmi2Real,
+            ) -> fmi2Status {
                 glue::fmi2GetRealStatus::<M>(c, s, value)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetIntegerStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Integer) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2GetIntegerStatus(
+                c: fmi2Component,
+                s: fmi2StatusKind,
+                value: *mut fmi2Integer,
+            ) -> fmi2Status {
                 glue::fmi2GetIntegerStatus::<M>(c, s, value)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetBooleanStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2Boolean) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2GetBooleanStatus(
+                c: fmi2Component,
+                s: fmi2StatusKind,
+                value: *mut fmi2Boolean,
+            ) -> fmi2Status {
                 glue::fmi2GetBooleanStatus::<M>(c, s, value)
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetStringStatus(c: fmi2Component, s: fmi2StatusKind, value: *mut fmi2String) -> fmi2Status {
+            pub unsafe extern "C" fn fmi2GetStringStatus(
+                c: fmi2Component,
+                s: fmi2StatusKind,
+                value: *mut fmi2String,
+            ) -> fmi2Status {
                 glue::fmi2GetStringStatus::<M>(c, s, value)
             }
 

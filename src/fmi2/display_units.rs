@@ -50,7 +50,10 @@ mod tests {
     fn at_most_one_default_per_unit_and_unique_names() {
         for d in DISPLAY_UNITS {
             assert!(for_unit(d.unit).filter(|x| x.default).count() <= 1, "{}", d.unit);
-            assert_eq!(DISPLAY_UNITS.iter().filter(|x| x.unit == d.unit && x.name == d.name).count(), 1);
+            assert_eq!(
+                DISPLAY_UNITS.iter().filter(|x| x.unit == d.unit && x.name == d.name).count(),
+                1
+            );
             assert!(d.factor.is_finite() && d.factor > 0.0);
         }
     }

@@ -9,7 +9,11 @@ use crate::fmi2::variables::{Causality, VarType, Variability};
 pub fn generate<M: FmuModel>() -> String {
     let info = M::info();
     let mut h = String::new();
-    let _ = writeln!(h, "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{} FMU</title>", info.model_name);
+    let _ = writeln!(
+        h,
+        "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{} FMU</title>",
+        info.model_name
+    );
     h.push_str("<style>body{font-family:sans-serif;max-width:70em;margin:auto}td,th{border:1px solid #ccc;padding:2px 6px;vertical-align:top}table{border-collapse:collapse}code{background:#f4f4f4}</style>\n");
     let _ = writeln!(h, "</head><body>\n<h1>{}</h1>", info.model_name);
     h.push_str(info.documentation);
@@ -23,7 +27,8 @@ pub fn generate<M: FmuModel>() -> String {
             (Causality::Output, _) => "output",
         };
         let start = v.start().map(|s| format!("{s}")).unwrap_or_default();
-        let allowed = if v.causality == Causality::Parameter { v.range.describe("") } else { String::new() };
+        let allowed =
+            if v.causality == Causality::Parameter { v.range.describe("") } else { String::new() };
         let ty = match v.ty {
             VarType::Real => "Real",
             VarType::Integer => "Integer",
@@ -68,7 +73,10 @@ fn esc(s: &str) -> String {
 
 /// The title of a Markdown page: its first heading.
 pub fn markdown_title(markdown: &str) -> Option<String> {
-    markdown.lines().find(|l| l.starts_with('#')).map(|l| l.trim_start_matches('#').trim().to_string())
+    markdown
+        .lines()
+        .find(|l| l.starts_with('#'))
+        .map(|l| l.trim_start_matches('#').trim().to_string())
 }
 
 /// The anchor of a heading as GitHub renders it (lower case, punctuation dropped, spaces to
@@ -112,7 +120,8 @@ pub fn markdown_page(markdown: &str) -> String {
                     })
                     .collect();
                 let n = lvl as usize;
-                events[at] = Event::Html(CowStr::from(format!("<h{n} id=\"{}\">", esc(&anchor(&text)))));
+                events[at] =
+                    Event::Html(CowStr::from(format!("<h{n} id=\"{}\">", esc(&anchor(&text)))));
                 events.push(Event::Html(CowStr::from(format!("</h{n}>\n"))));
             }
             other => events.push(other),
@@ -121,7 +130,11 @@ pub fn markdown_page(markdown: &str) -> String {
     let mut body = String::new();
     pulldown_cmark::html::push_html(&mut body, events.into_iter());
     let mut h = String::new();
-    let _ = writeln!(h, "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{}</title>", esc(&title));
+    let _ = writeln!(
+        h,
+        "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{}</title>",
+        esc(&title)
+    );
     h.push_str("<style>body{font-family:sans-serif;max-width:70em;margin:auto}td,th{border:1px solid #ccc;padding:2px 6px;vertical-align:top}table{border-collapse:collapse}code,pre{background:#f4f4f4}img{max-width:100%}</style>\n");
     h.push_str("</head><body>\n<p><a href=\"index.html\">Variables and index</a></p>\n");
     h.push_str(&body);
@@ -155,7 +168,12 @@ mod tests {
         let md = "# Title\n\n## 8. Default machine and presets\n\nSee [the model](model.md#8-default-machine-and-presets), \
                   [x](https://example.com/a.md) and ![fig](figures/a.png).\n\n| a | b |\n|---|---|\n| 1 | 2 |\n";
         let h = markdown_page(md);
-        assert!(h.contains(r#"<h2 id="8-default-machine-and-presets">8. Default machine and presets</h2>"#), "{h}");
+        assert!(
+            h.contains(
+                r#"<h2 id="8-default-machine-and-presets">8. Default machine and presets</h2>"#
+            ),
+            "{h}"
+        );
         assert!(h.contains(r#"href="model.html#8-default-machine-and-presets""#), "{h}");
         assert!(h.contains(r#"href="https://example.com/a.md""#), "{h}");
         assert!(h.contains(r#"src="figures/a.png""#), "{h}");
@@ -164,7 +182,10 @@ mod tests {
 
     #[test]
     fn github_anchors() {
-        assert_eq!(anchor("2. Crank motion and stroke coordinate"), "2-crank-motion-and-stroke-coordinate");
+        assert_eq!(
+            anchor("2. Crank motion and stroke coordinate"),
+            "2-crank-motion-and-stroke-coordinate"
+        );
         assert_eq!(anchor("5.3 Solution and friction"), "53-solution-and-friction");
         assert_eq!(anchor("What importers pass"), "what-importers-pass");
     }

@@ -53,11 +53,16 @@ pub fn serialize<M: FmuModel>(core: &Core<M::State>) -> Result<Vec<u8>, Failure>
 pub fn deserialize<M: FmuModel>(bytes: &[u8]) -> Result<Core<M::State>, Failure> {
     let fail = |why: &str| Failure::error(format!("fmi2DeSerializeFMUstate: rejected: {why}"));
     if bytes.len() < HEADER + 4 || &bytes[..8] != MAGIC {
-        return Err(fail(&format!("not a {} FMU state (magic number missing)", M::info().model_identifier)));
+        return Err(fail(&format!(
+            "not a {} FMU state (magic number missing)",
+            M::info().model_identifier
+        )));
     }
     let version = u16::from_le_bytes([bytes[8], bytes[9]]);
     if version != FORMAT_VERSION {
-        return Err(fail(&format!("format version {version}, this FMU reads version {FORMAT_VERSION}")));
+        return Err(fail(&format!(
+            "format version {version}, this FMU reads version {FORMAT_VERSION}"
+        )));
     }
     let mut fp = [0u8; 8];
     fp.copy_from_slice(&bytes[10..18]);
@@ -66,7 +71,10 @@ pub fn deserialize<M: FmuModel>(bytes: &[u8]) -> Result<Core<M::State>, Failure>
     }
     let n = u32::from_le_bytes([bytes[18], bytes[19], bytes[20], bytes[21]]) as usize;
     if bytes.len() != HEADER + n + 4 {
-        return Err(fail(&format!("length {} does not match the declared payload of {n} bytes", bytes.len())));
+        return Err(fail(&format!(
+            "length {} does not match the declared payload of {n} bytes",
+            bytes.len()
+        )));
     }
     let body = &bytes[..HEADER + n];
     let tail = &bytes[HEADER + n..];
@@ -74,8 +82,9 @@ pub fn deserialize<M: FmuModel>(bytes: &[u8]) -> Result<Core<M::State>, Failure>
     if crc != crc32fast::hash(body) {
         return Err(fail("checksum mismatch (corrupted bytes)"));
     }
-    let (core, rest): (Core<M::State>, &[u8]) = postcard::take_from_bytes(&bytes[HEADER..HEADER + n])
-        .map_err(|e| fail(&format!("payload does not decode: {e}")))?;
+    let (core, rest): (Core<M::State>, &[u8]) =
+        postcard::take_from_bytes(&bytes[HEADER..HEADER + n])
+            .map_err(|e| fail(&format!("payload does not decode: {e}")))?;
     if !rest.is_empty() {
         return Err(fail("trailing bytes in the payload"));
     }

@@ -89,9 +89,18 @@ fn serialize_as_stale<S: serde::Serializer>(_: &bool, s: S) -> Result<S::Ok, S::
 
 impl<S> Core<S> {
     pub fn fresh<M: FmuModel<State = S>>() -> Core<S> {
-        let values: Vec<f64> = M::table().variables.iter().map(|v| v.start().unwrap_or(0.0)).collect();
+        let values: Vec<f64> =
+            M::table().variables.iter().map(|v| v.start().unwrap_or(0.0)).collect();
         let state = M::fresh_state(&values);
-        Core { mode: Mode::Instantiated, time: 0.0, tolerance: None, stop_time: None, values, state, outputs_valid: false }
+        Core {
+            mode: Mode::Instantiated,
+            time: 0.0,
+            tolerance: None,
+            stop_time: None,
+            values,
+            state,
+            outputs_valid: false,
+        }
     }
 
     /// Parameters as currently set, each checked against its declared range.
@@ -101,7 +110,12 @@ impl<S> Core<S> {
             if let Binding::Param { set, .. } = var.binding {
                 let v = self.values[vr];
                 if !var.range.contains(v) {
-                    return Err(ModelError::out_of_range(var.name, v, var.range.describe(var.unit)).into());
+                    return Err(ModelError::out_of_range(
+                        var.name,
+                        v,
+                        var.range.describe(var.unit),
+                    )
+                    .into());
                 }
                 set(&mut p, v);
             }
@@ -231,14 +245,23 @@ impl<M: FmuModel> Instance<M> {
         }
     }
 
-    pub fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: Option<f64>) -> Result<(), Failure> {
+    pub fn setup_experiment(
+        &mut self,
+        tolerance: Option<f64>,
+        start: f64,
+        stop: Option<f64>,
+    ) -> Result<(), Failure> {
         self.require("fmi2SetupExperiment", &[Mode::Instantiated])?;
         if !start.is_finite() {
-            return Err(Failure::error(format!("fmi2SetupExperiment: startTime = {start} must be finite")));
+            return Err(Failure::error(format!(
+                "fmi2SetupExperiment: startTime = {start} must be finite"
+            )));
         }
         if let Some(t) = tolerance {
             if !(t > 0.0 && t < 1.0) {
-                return Err(Failure::error(format!("fmi2SetupExperiment: tolerance = {t}; allowed: (0, 1)")));
+                return Err(Failure::error(format!(
+                    "fmi2SetupExperiment: tolerance = {t}; allowed: (0, 1)"
+                )));
             }
         }
         if let Some(s) = stop {
@@ -314,7 +337,10 @@ impl<M: FmuModel> Instance<M> {
                 "{function}: value reference {vr} is \"{}\" of type {:?}, not {ty:?}",
                 v.name, v.ty
             )),
-            None => Failure::error(format!("{function}: unknown value reference {vr} (valid: 0..{})", vars.len() - 1)),
+            None => Failure::error(format!(
+                "{function}: unknown value reference {vr} (valid: 0..{})",
+                vars.len() - 1
+            )),
         }
     }
 
@@ -325,10 +351,13 @@ impl<M: FmuModel> Instance<M> {
             return Ok(());
         }
         match &self.model {
-            Some(m) => M::update_outputs(m, &self.core.values, &self.core.state, &mut self.outputs)?,
+            Some(m) => {
+                M::update_outputs(m, &self.core.values, &self.core.state, &mut self.outputs)?
+            }
             None => {
                 let m = M::build(&self.core.params::<M>()?)?;
-                let state = M::initialize(&m, &self.core.values, &self.core.state, &mut self.outputs)?;
+                let state =
+                    M::initialize(&m, &self.core.values, &self.core.state, &mut self.outputs)?;
                 self.provisional = Some((m, state));
             }
         }
@@ -340,7 +369,13 @@ impl<M: FmuModel> Instance<M> {
     /// Every value reference is checked before anything is evaluated (a failing call changes
     /// nothing); outputs are evaluated at most once per change of time, inputs or parameters (a
     /// lazy model evaluates, in one [`FmuModel::prepare`], only what the call reads).
-    pub fn get(&mut self, function: &str, ty: VarType, vrs: &[u32], mut out: impl FnMut(usize, f64)) -> Result<(), Failure> {
+    pub fn get(
+        &mut self,
+        function: &str,
+        ty: VarType,
+        vrs: &[u32],
+        mut out: impl FnMut(usize, f64),
+    ) -> Result<(), Failure> {
         let outputs_available = match self.core.mode {
             Mode::InitializationMode | Mode::StepComplete | Mode::Terminated => true,
             // Parameters and inputs can be read right after instantiation (some importers do).
@@ -388,7 +423,9 @@ impl<M: FmuModel> Instance<M> {
             match info[i].output {
                 Some(get) => {
                     let Some(v) = M::read(outputs, get) else {
-                        return Err(Failure::error("output requested but not evaluated (internal error)"));
+                        return Err(Failure::error(
+                            "output requested but not evaluated (internal error)",
+                        ));
                     };
                     // No non-finite value leaves the FMU with fmi2OK (docs/hardening.md).
                     if !v.is_finite() && non_finite.len() < 8 {
@@ -421,11 +458,15 @@ impl<M: FmuModel> Instance<M> {
     /// evaluates the model, so it runs behind the panic barrier.
     #[inline]
     pub fn quick_get_real(&mut self, vrs: &[u32], out: &mut [f64]) -> bool {
-        if self.core.mode != Mode::StepComplete || self.logger.wants(Category::All) || vrs.len() != out.len() {
+        if self.core.mode != Mode::StepComplete
+            || self.logger.wants(Category::All)
+            || vrs.len() != out.len()
+        {
             return false;
         }
         if !self.plan.is_for(vrs) {
-            let Some(plan) = M::table().info_ready().and_then(|info| ReadPlan::resolve(info, vrs)) else {
+            let Some(plan) = M::table().info_ready().and_then(|info| ReadPlan::resolve(info, vrs))
+            else {
                 return false;
             };
             self.plan = plan;
@@ -468,7 +509,13 @@ impl<M: FmuModel> Instance<M> {
     /// call changes nothing. Inputs must be finite; a tunable parameter set while stepping is
     /// validated with the whole machine at once; other parameters are validated at
     /// fmi2ExitInitializationMode.
-    pub fn set(&mut self, function: &str, ty: VarType, vrs: &[u32], value: impl Fn(usize) -> f64) -> Result<(), Failure> {
+    pub fn set(
+        &mut self,
+        function: &str,
+        ty: VarType,
+        vrs: &[u32],
+        value: impl Fn(usize) -> f64,
+    ) -> Result<(), Failure> {
         let stepping = match self.core.mode {
             Mode::Instantiated | Mode::InitializationMode => false,
             Mode::StepComplete => true,
@@ -477,7 +524,8 @@ impl<M: FmuModel> Instance<M> {
         // Fast path, taken at every step by every master: finite values for inputs only.
         let info = M::table().info();
         let inputs_only = vrs.iter().enumerate().all(|(k, &vr)| {
-            matches!(info.get(vr as usize), Some(v) if v.ty == ty && v.slot.is_some()) && value(k).is_finite()
+            matches!(info.get(vr as usize), Some(v) if v.ty == ty && v.slot.is_some())
+                && value(k).is_finite()
         });
         if inputs_only {
             for (k, &vr) in vrs.iter().enumerate() {
@@ -497,10 +545,15 @@ impl<M: FmuModel> Instance<M> {
             let v = value(k);
             match var.causality {
                 Causality::Output | Causality::CalculatedParameter => {
-                    return Err(Failure::error(format!("{function}: \"{}\" is computed by the FMU and cannot be set", var.name)))
+                    return Err(Failure::error(format!(
+                        "{function}: \"{}\" is computed by the FMU and cannot be set",
+                        var.name
+                    )))
                 }
                 Causality::Input if !v.is_finite() => {
-                    return Err(ModelError::out_of_range(var.name, v, var.range.describe(var.unit)).into())
+                    return Err(
+                        ModelError::out_of_range(var.name, v, var.range.describe(var.unit)).into()
+                    )
                 }
                 Causality::Parameter if stepping => {
                     if var.variability != Variability::Tunable {
@@ -510,7 +563,12 @@ impl<M: FmuModel> Instance<M> {
                         )));
                     }
                     if !var.range.contains(v) {
-                        return Err(ModelError::out_of_range(var.name, v, var.range.describe(var.unit)).into());
+                        return Err(ModelError::out_of_range(
+                            var.name,
+                            v,
+                            var.range.describe(var.unit),
+                        )
+                        .into());
                     }
                     tunable_changed = true;
                 }
@@ -552,7 +610,9 @@ impl<M: FmuModel> Instance<M> {
             return false;
         }
         if !self.inputs.is_for(vrs) {
-            let Some(plan) = M::table().info_ready().and_then(|info| InputPlan::resolve(info, self.core.values.len(), vrs))
+            let Some(plan) = M::table()
+                .info_ready()
+                .and_then(|info| InputPlan::resolve(info, self.core.values.len(), vrs))
             else {
                 return false;
             };
@@ -641,18 +701,31 @@ impl<M: FmuModel> Instance<M> {
         let slack = 1e-6 * h + 1e-12 * self.core.time.abs();
         // One expression over all conditions (NaN fails each; h·0 and current·0 are 0 only when
         // finite), which keeps the test on the floating-point side.
-        (h > 0.0) & (h * 0.0 == 0.0) & (current * 0.0 == 0.0) & ((current - self.core.time).abs() <= slack)
+        (h > 0.0)
+            & (h * 0.0 == 0.0)
+            & (current * 0.0 == 0.0)
+            & ((current - self.core.time).abs() <= slack)
     }
 
     /// The step of a model with continuous state, after `do_step`'s checks. Out of line: its
     /// integrator would otherwise give the rigid path a kilobyte of stack frame to set up.
     #[inline(never)]
     fn integrate_step(&mut self, current: f64, h: f64) -> Result<(), Failure> {
-        let Some(model) = self.model.as_ref() else { return Err(Failure::illegal("fmi2DoStep", self.core.mode)) };
+        let Some(model) = self.model.as_ref() else {
+            return Err(Failure::illegal("fmi2DoStep", self.core.mode));
+        };
         // The master's tolerance (fmi2SetupExperiment) wins over the model's own (§6).
         let tol = self.core.tolerance.unwrap_or_else(|| M::default_tolerance(model));
         let mut stats = self.stats;
-        let state = match M::step(model, &self.core.values, &self.core.state, h, tol, &mut stats, &mut self.scratch) {
+        let state = match M::step(
+            model,
+            &self.core.values,
+            &self.core.state,
+            h,
+            tol,
+            &mut stats,
+            &mut self.scratch,
+        ) {
             Ok(state) => state,
             Err(e) => return Err(Self::step_failure(current, h, e)),
         };
@@ -672,7 +745,9 @@ impl<M: FmuModel> Instance<M> {
     #[inline(never)]
     fn step_arguments_failure(&self, current: f64, h: f64) -> Failure {
         if !(h > 0.0 && h.is_finite()) {
-            Failure::error(format!("fmi2DoStep: communicationStepSize = {h}; allowed: a finite number > 0"))
+            Failure::error(format!(
+                "fmi2DoStep: communicationStepSize = {h}; allowed: a finite number > 0"
+            ))
         } else {
             Failure::error(format!(
                 "fmi2DoStep: currentCommunicationPoint = {current} does not match the FMU's time {} \
@@ -723,7 +798,8 @@ impl<M: FmuModel> Instance<M> {
 
     /// Rebuilds a snapshot from deserialized data, validating it as untrusted input.
     pub fn snapshot_from_core(core: Core<M::State>) -> Result<Snapshot<M>, Failure> {
-        let bad = |what: &str| Failure::error(format!("fmi2DeSerializeFMUstate: invalid state: {what}"));
+        let bad =
+            |what: &str| Failure::error(format!("fmi2DeSerializeFMUstate: invalid state: {what}"));
         let vars = M::table().variables;
         if core.values.len() != vars.len() {
             return Err(bad("wrong number of variables"));
@@ -747,7 +823,12 @@ impl<M: FmuModel> Instance<M> {
                 _ => true,
             };
             if !ok {
-                return Err(bad(&format!("{} = {}; allowed: {}", var.name, num(*v), var.range.describe(var.unit))));
+                return Err(bad(&format!(
+                    "{} = {}; allowed: {}",
+                    var.name,
+                    num(*v),
+                    var.range.describe(var.unit)
+                )));
             }
         }
         if let Some(t) = core.tolerance {
@@ -759,7 +840,13 @@ impl<M: FmuModel> Instance<M> {
             Mode::StepComplete | Mode::Terminated => Some(M::build(&core.params::<M>()?)?),
             _ => None,
         };
-        Ok(Snapshot { magic: snapshot_magic::<M>(), core, outputs: M::Outputs::default(), model, provisional: None })
+        Ok(Snapshot {
+            magic: snapshot_magic::<M>(),
+            core,
+            outputs: M::Outputs::default(),
+            model,
+            provisional: None,
+        })
     }
 
     #[inline]

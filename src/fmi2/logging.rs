@@ -36,7 +36,13 @@ impl Logger {
         instance_name: CString,
         logging_on: bool,
     ) -> Logger {
-        Logger { callback, environment, instance_name, debug_logging: logging_on, enabled: [true; 4] }
+        Logger {
+            callback,
+            environment,
+            instance_name,
+            debug_logging: logging_on,
+            enabled: [true; 4],
+        }
     }
 
     /// fmi2SetDebugLogging: no categories given means all of them.
@@ -47,7 +53,10 @@ impl Logger {
                 Some(i) => enabled[i] = true,
                 None => {
                     let known: Vec<&str> = CATEGORIES.iter().map(|c| c.0).collect();
-                    return Err(format!("unknown log category \"{c}\"; known: {}", known.join(", ")));
+                    return Err(format!(
+                        "unknown log category \"{c}\"; known: {}",
+                        known.join(", ")
+                    ));
                 }
             }
         }
@@ -59,7 +68,8 @@ impl Logger {
     #[inline]
     pub fn wants(&self, category: Category) -> bool {
         category == Category::Error
-            || (self.debug_logging && (self.enabled[category as usize] || self.enabled[Category::All as usize]))
+            || (self.debug_logging
+                && (self.enabled[category as usize] || self.enabled[Category::All as usize]))
     }
 
     #[inline]

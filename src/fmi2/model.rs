@@ -89,14 +89,22 @@ pub trait FmuModel: Sized + 'static {
     /// The state the simulation starts from, and the outputs there written to `out`
     /// (fmi2ExitInitializationMode; in initialization mode also for fmi2GetReal). An error leaves
     /// the caller's state as it was (`out` is then unspecified and not used).
-    fn initialize(built: &Self::Built, values: &[f64], state: &Self::State, out: &mut Self::Outputs)
-        -> Result<Self::State, ModelError>;
+    fn initialize(
+        built: &Self::Built,
+        values: &[f64],
+        state: &Self::State,
+        out: &mut Self::Outputs,
+    ) -> Result<Self::State, ModelError>;
 
     /// Inputs, parameters or state changed since `cache` was last brought up to date: make it
     /// answer for `values` and `state` (eagerly, or by marking it stale). On error `cache` is
     /// unspecified and asked again only after another `update_outputs`.
-    fn update_outputs(built: &Self::Built, values: &[f64], state: &Self::State, cache: &mut Self::Outputs)
-        -> Result<(), ModelError>;
+    fn update_outputs(
+        built: &Self::Built,
+        values: &[f64],
+        state: &Self::State,
+        cache: &mut Self::Outputs,
+    ) -> Result<(), ModelError>;
 
     /// The model's mark of what `output` needs evaluated (a bit set; 0 for an eager model). The
     /// glue ORs the marks of every output one fmi2GetReal asks for and passes them to
@@ -109,8 +117,13 @@ pub trait FmuModel: Sized + 'static {
     /// Evaluates in one go what the outputs of one call need (`need`, from [`FmuModel::needs`]),
     /// so that reading them finds them cached. An error fails the call.
     #[inline]
-    fn prepare(_built: &Self::Built, _values: &[f64], _state: &Self::State, _cache: &mut Self::Outputs, _need: u8)
-        -> Result<(), ModelError> {
+    fn prepare(
+        _built: &Self::Built,
+        _values: &[f64],
+        _state: &Self::State,
+        _cache: &mut Self::Outputs,
+        _need: u8,
+    ) -> Result<(), ModelError> {
         Ok(())
     }
 
@@ -162,7 +175,11 @@ pub trait FmuModel: Sized + 'static {
     }
 
     /// A warning about a completed step from `before` to `after`.
-    fn step_warning(_built: &Self::Built, _before: &Self::State, _after: &Self::State) -> Option<String> {
+    fn step_warning(
+        _built: &Self::Built,
+        _before: &Self::State,
+        _after: &Self::State,
+    ) -> Option<String> {
         None
     }
 

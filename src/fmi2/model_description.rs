@@ -62,7 +62,12 @@ fn body<M: FmuModel>() -> String {
         }
         let mut display = String::new();
         for d in display_units::for_unit(name) {
-            let _ = write!(display, r#"<DisplayUnit name="{}" factor="{}"/>"#, esc(d.name), num(d.factor));
+            let _ = write!(
+                display,
+                r#"<DisplayUnit name="{}" factor="{}"/>"#,
+                esc(d.name),
+                num(d.factor)
+            );
         }
         let _ = writeln!(w, r#"    <Unit name="{}"><BaseUnit{attrs}/>{display}</Unit>"#, esc(name));
     }
@@ -72,7 +77,13 @@ fn body<M: FmuModel>() -> String {
         let _ = writeln!(w, r#"    <Category name="{name}" description="{}"/>"#, esc(desc));
     }
     let _ = writeln!(w, "  </LogCategories>");
-    let _ = writeln!(w, r#"  <DefaultExperiment startTime="{}" stopTime="{}" stepSize="{}"/>"#, num(start), num(stop), num(step));
+    let _ = writeln!(
+        w,
+        r#"  <DefaultExperiment startTime="{}" stopTime="{}" stepSize="{}"/>"#,
+        num(start),
+        num(stop),
+        num(step)
+    );
     let _ = writeln!(w, "  <ModelVariables>");
     for (vr, v) in M::table().variables.iter().enumerate() {
         let causality = match v.causality {
@@ -101,7 +112,8 @@ fn body<M: FmuModel>() -> String {
             }
         }
         if v.ty != VarType::Boolean {
-            let fmt = |b: f64| if v.ty == VarType::Integer { format!("{}", b as i64) } else { num(b) };
+            let fmt =
+                |b: f64| if v.ty == VarType::Integer { format!("{}", b as i64) } else { num(b) };
             if v.range.min.is_finite() {
                 let _ = write!(attrs, r#" min="{}""#, fmt(v.range.min));
             }
@@ -125,7 +137,8 @@ fn body<M: FmuModel>() -> String {
     let _ = writeln!(w, "    <Outputs>");
     for (vr, v) in M::table().variables.iter().enumerate() {
         if let (Causality::Output, Binding::Output { depends_on, .. }) = (v.causality, v.binding) {
-            let deps: Vec<String> = depends_on.iter().map(|s| input_index::<M>(*s).to_string()).collect();
+            let deps: Vec<String> =
+                depends_on.iter().map(|s| input_index::<M>(*s).to_string()).collect();
             let kinds: Vec<&str> = depends_on.iter().map(|_| "dependent").collect();
             let _ = writeln!(
                 w,

@@ -36,7 +36,9 @@ impl<M: FmuModel> InputPlan<M> {
         }
         let mut plan = Self::empty();
         for (k, &vr) in vrs.iter().enumerate() {
-            let v = info.get(vr as usize).filter(|v| v.ty == VarType::Real && (vr as usize) < values)?;
+            let v = info
+                .get(vr as usize)
+                .filter(|v| v.ty == VarType::Real && (vr as usize) < values)?;
             plan.slots[k] = Some(v.slot?);
             plan.vrs[k] = vr;
         }

@@ -37,10 +37,19 @@ pub enum Variability {
 /// How a variable is connected to the model. Values of every type are held as f64 in the
 /// instance (integers and booleans are exact in f64).
 pub enum Binding<M: FmuModel> {
-    Param { get: fn(&M::Params) -> f64, set: fn(&mut M::Params, f64) },
-    Input { slot: M::Input, start: f64 },
+    Param {
+        get: fn(&M::Params) -> f64,
+        set: fn(&mut M::Params, f64),
+    },
+    Input {
+        slot: M::Input,
+        start: f64,
+    },
     /// Outputs and calculated parameters: read through [`FmuModel::read`].
-    Output { get: M::Output, depends_on: &'static [M::Input] },
+    Output {
+        get: M::Output,
+        depends_on: &'static [M::Input],
+    },
 }
 
 impl<M: FmuModel> Clone for Binding<M> {
@@ -61,9 +70,12 @@ pub struct Range {
 }
 
 impl Range {
-    pub const ANY: Range = Range { min: f64::NEG_INFINITY, max: f64::INFINITY, min_open: true, max_open: true };
-    pub const POSITIVE: Range = Range { min: 0.0, max: f64::INFINITY, min_open: true, max_open: true };
-    pub const NON_NEGATIVE: Range = Range { min: 0.0, max: f64::INFINITY, min_open: false, max_open: true };
+    pub const ANY: Range =
+        Range { min: f64::NEG_INFINITY, max: f64::INFINITY, min_open: true, max_open: true };
+    pub const POSITIVE: Range =
+        Range { min: 0.0, max: f64::INFINITY, min_open: true, max_open: true };
+    pub const NON_NEGATIVE: Range =
+        Range { min: 0.0, max: f64::INFINITY, min_open: false, max_open: true };
     pub const fn closed(min: f64, max: f64) -> Range {
         Range { min, max, min_open: false, max_open: false }
     }
@@ -89,7 +101,8 @@ impl Range {
     pub fn describe(&self, unit: &str) -> String {
         let lo = if self.min_open { '(' } else { '[' };
         let hi = if self.max_open { ')' } else { ']' };
-        let mut s = format!("a finite number in {lo}{}, {}{hi}", fmt_bound(self.min), fmt_bound(self.max));
+        let mut s =
+            format!("a finite number in {lo}{}, {}{hi}", fmt_bound(self.min), fmt_bound(self.max));
         if !unit.is_empty() {
             s.push(' ');
             s.push_str(unit);
@@ -156,8 +169,17 @@ pub struct Table<M: FmuModel> {
 }
 
 impl<M: FmuModel> Table<M> {
-    pub const fn new(variables: &'static [Var<M>], units: &'static [(&'static str, [i32; 4])]) -> Table<M> {
-        Table { variables, units, info: OnceLock::new(), guid: OnceLock::new(), fingerprint: OnceLock::new() }
+    pub const fn new(
+        variables: &'static [Var<M>],
+        units: &'static [(&'static str, [i32; 4])],
+    ) -> Table<M> {
+        Table {
+            variables,
+            units,
+            info: OnceLock::new(),
+            guid: OnceLock::new(),
+            fingerprint: OnceLock::new(),
+        }
     }
 
     /// [`Self::info`] once it has been derived (the first instance derives it), without the
@@ -196,7 +218,9 @@ impl<M: FmuModel> Table<M> {
 
     /// Value reference of the input bound to `slot` (a scan: not for the hot path).
     pub fn input_vr(&self, slot: M::Input) -> Option<usize> {
-        self.variables.iter().position(|v| matches!(v.binding, Binding::Input { slot: s, .. } if s == slot))
+        self.variables
+            .iter()
+            .position(|v| matches!(v.binding, Binding::Input { slot: s, .. } if s == slot))
     }
 }
 
@@ -221,7 +245,11 @@ pub fn check_table<M: FmuModel>() {
         }
         if let Binding::Output { depends_on, .. } = v.binding {
             for d in depends_on {
-                assert!(t.input_vr(*d).is_some(), "{} depends on an input that is not in the table", v.name);
+                assert!(
+                    t.input_vr(*d).is_some(),
+                    "{} depends on an input that is not in the table",
+                    v.name
+                );
             }
         }
     }
@@ -238,7 +266,13 @@ pub fn check_table<M: FmuModel>() {
             for w in t.variables {
                 if let Binding::Param { get: g2, .. } = w.binding {
                     if w.name != v.name {
-                        assert_eq!(g2(&p), g2(&M::Params::default()), "{} changed {}", v.name, w.name);
+                        assert_eq!(
+                            g2(&p),
+                            g2(&M::Params::default()),
+                            "{} changed {}",
+                            v.name,
+                            w.name
+                        );
                     }
                 }
             }
@@ -276,7 +310,10 @@ macro_rules! param_at {
             unit: $unit,
             description: $desc,
             range: $range,
-            binding: $crate::fmi2::variables::Binding::Param { get: |p| p.$field[$i], set: |p, v| p.$field[$i] = v },
+            binding: $crate::fmi2::variables::Binding::Param {
+                get: |p| p.$field[$i],
+                set: |p, v| p.$field[$i] = v,
+            },
         }
     };
 }
@@ -291,7 +328,10 @@ macro_rules! param_bool {
             unit: "",
             description: $desc,
             range: $crate::fmi2::variables::Range::closed(0.0, 1.0),
-            binding: $crate::fmi2::variables::Binding::Param { get: |p| p.$field as i32 as f64, set: |p, v| p.$field = v != 0.0 },
+            binding: $crate::fmi2::variables::Binding::Param {
+                get: |p| p.$field as i32 as f64,
+                set: |p, v| p.$field = v != 0.0,
+            },
         }
     };
 }

@@ -97,7 +97,8 @@ mod tests {
     #[test]
     fn tuning_2_cancels_inertia_at_both_dead_centres() {
         let (r, l, w) = (0.2, 1.19, 2.0 * PI * 65.0 / 60.0);
-        let spec = BalancerSpec { tuning: 2, stiffness: 0.0, design_speed: w, neutral_position: -1.0 };
+        let spec =
+            BalancerSpec { tuning: 2, stiffness: 0.0, design_speed: w, neutral_position: -1.0 };
         let b = Balancer::new(&spec, &facts(r, l)).unwrap();
         let m = CrankSlider::new(r, l, 0.0).unwrap();
         for theta in [0.0, PI] {
@@ -112,15 +113,22 @@ mod tests {
         // Independent maximum of |TF|: golden-section search on the closed form of §3.1.
         let (r, l, w) = (0.2, 1.19, 6.0);
         let lam = r / l;
-        let tf = |t: f64| r * t.sin() * (1.0 + lam * t.cos() / (1.0 - lam * lam * t.sin().powi(2)).sqrt());
+        let tf = |t: f64| {
+            r * t.sin() * (1.0 + lam * t.cos() / (1.0 - lam * lam * t.sin().powi(2)).sqrt())
+        };
         let (mut a, mut c) = (0.5, 2.5);
         let g = 0.5 * (5f64.sqrt() - 1.0);
         for _ in 0..200 {
             let (x1, x2) = (c - g * (c - a), a + g * (c - a));
-            if tf(x1) > tf(x2) { c = x2 } else { a = x1 }
+            if tf(x1) > tf(x2) {
+                c = x2
+            } else {
+                a = x1
+            }
         }
         let vmax_over_rw = tf(0.5 * (a + c)) / r;
-        let spec = BalancerSpec { tuning: 1, stiffness: 0.0, design_speed: w, neutral_position: 5.0 };
+        let spec =
+            BalancerSpec { tuning: 1, stiffness: 0.0, design_speed: w, neutral_position: 5.0 };
         let b = Balancer::new(&spec, &facts(r, l)).unwrap();
         let expect = 300.0 * vmax_over_rw.powi(2) * w * w;
         assert!((b.stiffness - expect).abs() < 1e-10 * expect, "{} vs {expect}", b.stiffness);
@@ -132,14 +140,25 @@ mod tests {
     #[test]
     fn tuning_0_uses_the_given_values_and_mid_stroke_default() {
         let f = facts(0.2, 1.19);
-        let b = Balancer::new(&BalancerSpec { tuning: 0, stiffness: 5e4, design_speed: 1.0, neutral_position: -1.0 }, &f).unwrap();
+        let b = Balancer::new(
+            &BalancerSpec { tuning: 0, stiffness: 5e4, design_speed: 1.0, neutral_position: -1.0 },
+            &f,
+        )
+        .unwrap();
         assert_eq!(b.stiffness, 5e4);
         assert!((b.neutral_position - 0.2).abs() < 1e-15, "mid-stroke");
         assert!((b.force(0.3) + 5e4 * 0.1).abs() < 1e-9);
-        let b = Balancer::new(&BalancerSpec { tuning: 0, stiffness: 5e4, design_speed: 1.0, neutral_position: 0.05 }, &f).unwrap();
+        let b = Balancer::new(
+            &BalancerSpec { tuning: 0, stiffness: 5e4, design_speed: 1.0, neutral_position: 0.05 },
+            &f,
+        )
+        .unwrap();
         assert_eq!(b.neutral_position, 0.05);
-        let e = Balancer::new(&BalancerSpec { tuning: 2, stiffness: 0.0, design_speed: 1.0, neutral_position: 0.0 },
-            &MachineFacts { central_slider_lambda: None, ..f }).unwrap_err();
+        let e = Balancer::new(
+            &BalancerSpec { tuning: 2, stiffness: 0.0, design_speed: 1.0, neutral_position: 0.0 },
+            &MachineFacts { central_slider_lambda: None, ..f },
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("balancer.tuning"));
     }
 }

@@ -691,7 +691,8 @@ mod tests {
                 assert!(kin.tf.abs() < 1e-12, "TF = {} at dead position {g:?}", kin.tf);
                 ends.push((uy.atan2(ux), kin.s));
             }
-            let (lower, upper) = if ends[0].0 < ends[1].0 { (ends[0], ends[1]) } else { (ends[1], ends[0]) };
+            let (lower, upper) =
+                if ends[0].0 < ends[1].0 { (ends[0], ends[1]) } else { (ends[1], ends[0]) };
             assert!(lower.1.abs() < 1e-12, "s at bottom = {}", lower.1);
             assert!((upper.1 - u.stroke()).abs() < 1e-12);
             assert!(((upper.0 - lower.0) * g.front_arm - u.stroke()).abs() < 1e-12);
@@ -758,7 +759,10 @@ mod tests {
                 assert!((k.acceleration(omega, eps) - a_num).abs() < 1e-7);
                 assert!(((k.s - s0) - g.front_arm * (b - b0)).abs() < 1e-13);
             }
-            println!("{:?} rot {}: max |ΔTF| = {e1:.2e}, max |ΔTF'| = {e2:.2e}", g.class, g.rotation);
+            println!(
+                "{:?} rot {}: max |ΔTF| = {e1:.2e}, max |ΔTF'| = {e2:.2e}",
+                g.class, g.rotation
+            );
             assert!(e1 < 1e-9, "TF error {e1}");
             assert!(e2 < 2e-8, "TF' error {e2}");
         }
@@ -845,7 +849,10 @@ mod tests {
         ];
         for (name, g) in cases {
             let (e, t) = err_text(&g);
-            assert!(matches!(e, ModelError::OutOfRange { variable, .. } if variable == name), "{t}");
+            assert!(
+                matches!(e, ModelError::OutOfRange { variable, .. } if variable == name),
+                "{t}"
+            );
             assert!(t.contains(name) && t.contains("> 0"), "{t}");
         }
         for rot in [0.0, 2.0, -0.5, f64::NAN] {
@@ -855,7 +862,10 @@ mod tests {
         // Loop closes at no crank angle: pitman far too short (K − R = 3.517 ≥ C + P = 3.0).
         let (e, t) = err_text(&BeamUnitGeometry { pitman: 0.5, crank: 0.2, ..base });
         assert!(matches!(e, ModelError::Invalid { .. }));
-        assert!(t.contains("does not assemble") && t.contains("geometry.rod_length P = 0.5"), "{t}");
+        assert!(
+            t.contains("does not assemble") && t.contains("geometry.rod_length P = 0.5"),
+            "{t}"
+        );
         // R not the shortest link (R = 2.6 > C = 2.5), although the loop closes somewhere.
         let (e, t) = err_text(&BeamUnitGeometry { crank: 2.6, ..base });
         assert!(matches!(e, ModelError::Invalid { .. }));

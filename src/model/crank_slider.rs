@@ -122,7 +122,9 @@ mod tests {
 
     #[test]
     fn matches_vector_loop_at_720_angles_with_offset() {
-        for &(r, l, e) in &[(0.2, 1.19, 0.0), (0.2, 1.19, 0.05), (0.1, 0.35, -0.04), (1.0, 2.2, 0.9)] {
+        for &(r, l, e) in
+            &[(0.2, 1.19, 0.0), (0.2, 1.19, 0.05), (0.1, 0.35, -0.04), (1.0, 2.2, 0.9)]
+        {
             let m = CrankSlider::new(r, l, e).unwrap();
             let x_max = ((l + r).powi(2) - e * e).sqrt();
             for i in 0..720 {
@@ -172,9 +174,12 @@ mod tests {
             let d = (1.0 - lam * lam * t.sin().powi(2)).sqrt();
             let s = r * (1.0 - t.cos()) + l * (1.0 - d);
             let tf = r * t.sin() * (1.0 + lam * t.cos() / d);
-            let tfp = r * (t.cos() + lam * ((2.0 * t).cos() + lam * lam * t.sin().powi(4)) / d.powi(3));
+            let tfp =
+                r * (t.cos() + lam * ((2.0 * t).cos() + lam * lam * t.sin().powi(4)) / d.powi(3));
             let k = m.kinematics(t);
-            assert!((k.s - s).abs() < 1e-15 && (k.tf - tf).abs() < 1e-15 && (k.tfp - tfp).abs() < 1e-15);
+            assert!(
+                (k.s - s).abs() < 1e-15 && (k.tf - tf).abs() < 1e-15 && (k.tfp - tfp).abs() < 1e-15
+            );
         }
     }
 

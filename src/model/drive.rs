@@ -19,7 +19,9 @@ use crate::model::guide::{ClampFriction, Guide, GuideOutputs};
 use crate::model::integrator::{self, IntegratorState, IntegratorStats, SecondOrderRhs, Tolerance};
 use crate::model::kinematics::{max_abs_torque_factor, Kinematics};
 use crate::model::loads;
-use crate::model::params::{Params, MECHANISM_BEAM_CLASS_I, MECHANISM_BEAM_CLASS_III, MECHANISM_CRANK_SLIDER};
+use crate::model::params::{
+    Params, MECHANISM_BEAM_CLASS_I, MECHANISM_BEAM_CLASS_III, MECHANISM_CRANK_SLIDER,
+};
 
 /// Inputs of one evaluation besides the crank motion.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -162,7 +164,11 @@ impl Model {
             ));
         }
         if !(0..=2).contains(&p.load_profile) {
-            return Err(ModelError::out_of_range("load.profile", p.load_profile as f64, "0, 1 or 2"));
+            return Err(ModelError::out_of_range(
+                "load.profile",
+                p.load_profile as f64,
+                "0, 1 or 2",
+            ));
         }
         if p.rotation != 1 && p.rotation != -1 {
             return Err(ModelError::out_of_range("rotation", p.rotation as f64, "-1 or +1"));
@@ -209,11 +215,13 @@ impl Model {
         };
         let rod_table = match &mechanism {
             Mechanism::ElasticRodSlider(_, rod) => {
-                StiffnessTable::build(&rod.stiffness, rod.spec.flex_length, rod.spec.rigid_length).map(Arc::new)
+                StiffnessTable::build(&rod.stiffness, rod.spec.flex_length, rod.spec.rigid_length)
+                    .map(Arc::new)
             }
             _ => None,
         };
-        let mut model = Model { params: params.clone(), mechanism, balancer: None, guide: None, rod_table };
+        let mut model =
+            Model { params: params.clone(), mechanism, balancer: None, guide: None, rod_table };
         model.guide = Guide::new(&p.guide_spec()?, model.stroke())?;
         if p.balancer_enabled {
             for (name, v) in [
@@ -226,7 +234,9 @@ impl Model {
             }
             require_finite("balancer.neutral_position", p.balancer_neutral_position)?;
             let central = match model.mechanism {
-                Mechanism::CrankSlider(_) if p.slider_offset == 0.0 => Some(p.crank_radius / p.rod_length),
+                Mechanism::CrankSlider(_) if p.slider_offset == 0.0 => {
+                    Some(p.crank_radius / p.rod_length)
+                }
                 _ => None,
             };
             let facts = MachineFacts {
@@ -250,7 +260,11 @@ impl Model {
     fn elastic_rod_slider(p: &Params) -> Result<Mechanism, ModelError> {
         require_finite("geometry.slider_offset", p.slider_offset)?;
         if !(p.crank_radius > 0.0 && p.crank_radius.is_finite()) {
-            return Err(ModelError::out_of_range("geometry.crank_radius", p.crank_radius, "(0, inf) m"));
+            return Err(ModelError::out_of_range(
+                "geometry.crank_radius",
+                p.crank_radius,
+                "(0, inf) m",
+            ));
         }
         for (name, v) in [
             ("rod.load_eccentricity", p.rod_load_eccentricity),
@@ -344,7 +358,12 @@ impl Model {
     /// elastic rod also Δ, dΔ/dθ, Δ̈ of the piston law (§6), from the same sin_cos of θ.
     /// `sin_cos`: sinθ, cosθ when the caller has them (the integrator's stages), else computed.
     #[inline]
-    fn link_loads(&self, crank: &CrankState, inputs: &Inputs, sin_cos: Option<(f64, f64)>) -> LinkLoads {
+    fn link_loads(
+        &self,
+        crank: &CrankState,
+        inputs: &Inputs,
+        sin_cos: Option<(f64, f64)>,
+    ) -> LinkLoads {
         let (w, eps) = (crank.speed, crank.acceleration);
         let theta = self.model_angle(crank);
         let (k, piston) = match &self.mechanism {
@@ -360,14 +379,22 @@ impl Model {
         };
         let velocity = k.velocity(w);
         let acceleration = k.acceleration(w, eps);
-        let (inertia_force, balancer_force, p_base) = self.loads_at(theta, k.s, velocity, acceleration, inputs);
+        let (inertia_force, balancer_force, p_base) =
+            self.loads_at(theta, k.s, velocity, acceleration, inputs);
         LinkLoads { k, velocity, acceleration, inertia_force, balancer_force, p_base, piston }
     }
 
     /// The loads on the link that do not depend on P at model angle θ, position s, velocity v and
     /// acceleration a (§4, §7): (Φ, F_bal, p_base = F_ext + Φ + F_bal).
     #[inline]
-    fn loads_at(&self, theta: f64, s: f64, velocity: f64, acceleration: f64, inputs: &Inputs) -> (f64, f64, f64) {
+    fn loads_at(
+        &self,
+        theta: f64,
+        s: f64,
+        velocity: f64,
+        acceleration: f64,
+        inputs: &Inputs,
+    ) -> (f64, f64, f64) {
         let p = &self.params;
         let inertia_force = loads::inertia_force(p.mass, acceleration);
         let f_ext = inputs.external_force
@@ -393,7 +420,12 @@ impl Model {
     // Always inlined: `Instant` is large (it carries the beam column of an elastic rod), and
     // returning it through a `Result` otherwise costs a memcpy per evaluation.
     #[inline(always)]
-    fn instant(&self, crank: &CrankState, inputs: &Inputs, cage: &CageState) -> Result<Instant, ModelError> {
+    fn instant(
+        &self,
+        crank: &CrankState,
+        inputs: &Inputs,
+        cage: &CageState,
+    ) -> Result<Instant, ModelError> {
         let ll = self.link_loads(crank, inputs, None);
         let (guide, rod) = match (&self.mechanism, ll.piston) {
             (Mechanism::ElasticRodSlider(_, rod), Some(pp)) => {
@@ -406,20 +438,31 @@ impl Model {
                             .rod_table
                             .as_deref()
                             .and_then(|t| {
-                                solve_on_table(t, Some(&cf), ll.p_base, pp.delta, cage.theta, ll.p_base, 0, 1e-15)
+                                solve_on_table(
+                                    t,
+                                    Some(&cf),
+                                    ll.p_base,
+                                    pp.delta,
+                                    cage.theta,
+                                    ll.p_base,
+                                    0,
+                                    1e-15,
+                                )
                             })
                             .map_or(ll.p_base, |sol| sol.p);
                         let mut failure = None;
                         let mut last = None;
-                        let solved = g.solve_clamp_from(&cf, ll.p_base, guess, |pp_k| match rod.beam_column(pp_k) {
-                            Ok(bc) => {
-                                let loads = bc.clamp_loads(pp.delta, cage.theta);
-                                last = Some(bc);
-                                loads
-                            }
-                            Err(e) => {
-                                failure = Some(e);
-                                (f64::NAN, f64::NAN)
+                        let solved = g.solve_clamp_from(&cf, ll.p_base, guess, |pp_k| {
+                            match rod.beam_column(pp_k) {
+                                Ok(bc) => {
+                                    let loads = bc.clamp_loads(pp.delta, cage.theta);
+                                    last = Some(bc);
+                                    loads
+                                }
+                                Err(e) => {
+                                    failure = Some(e);
+                                    (f64::NAN, f64::NAN)
+                                }
                             }
                         });
                         if let Some(e) = failure {
@@ -434,14 +477,25 @@ impl Model {
                         };
                         (guide, bc)
                     }
-                    None => (GuideOutputs { rod_force: ll.p_base, ..GuideOutputs::default() }, rod.beam_column(ll.p_base)?),
+                    None => (
+                        GuideOutputs { rod_force: ll.p_base, ..GuideOutputs::default() },
+                        rod.beam_column(ll.p_base)?,
+                    ),
                 };
-                let loads = CageLoads { delta: pp.delta, delta_ddot: pp.delta_ddot, rod_force: guide.rod_force };
+                let loads = CageLoads {
+                    delta: pp.delta,
+                    delta_ddot: pp.delta_ddot,
+                    rod_force: guide.rod_force,
+                };
                 let transverse = bc.clamp_loads(pp.delta, cage.theta).1;
                 (guide, (bc, loads, pp.delta_rate, transverse))
             }
             // Rigid rods are evaluated by groups (`evaluate_groups`), never here.
-            _ => return Err(ModelError::evaluation("internal: Model::instant is for an elastic rod only")),
+            _ => {
+                return Err(ModelError::evaluation(
+                    "internal: Model::instant is for an elastic rod only",
+                ))
+            }
         };
         Ok(Instant {
             k: ll.k,
@@ -476,7 +530,12 @@ impl Model {
 
     /// All outputs at one instant. Inputs must be finite (checked here, so a NaN never reaches
     /// an output). `rod` is the cage state (ignored for a rigid rod).
-    pub fn evaluate(&self, crank: &CrankState, inputs: &Inputs, rod: &RodState) -> Result<Outputs, ModelError> {
+    pub fn evaluate(
+        &self,
+        crank: &CrankState,
+        inputs: &Inputs,
+        rod: &RodState,
+    ) -> Result<Outputs, ModelError> {
         let mut out = Outputs::default();
         self.evaluate_into(crank, inputs, rod, &mut out)?;
         Ok(out)
@@ -485,7 +544,13 @@ impl Model {
     /// [`Model::evaluate`] writing into `out`: every group at once. On error `out` is
     /// unspecified.
     #[inline]
-    pub fn evaluate_into(&self, crank: &CrankState, inputs: &Inputs, rod: &RodState, out: &mut Outputs) -> Result<(), ModelError> {
+    pub fn evaluate_into(
+        &self,
+        crank: &CrankState,
+        inputs: &Inputs,
+        rod: &RodState,
+        out: &mut Outputs,
+    ) -> Result<(), ModelError> {
         out.ready = 0;
         self.evaluate_groups(crank, inputs, rod, out, groups::ALL)
     }
@@ -497,7 +562,14 @@ impl Model {
     /// arithmetic in the same order whenever it runs. A group that fails (a self-locking guide)
     /// leaves the groups before it ready and itself not ready, so it fails again when asked again.
     #[inline(always)]
-    pub fn evaluate_groups(&self, crank: &CrankState, inputs: &Inputs, rod: &RodState, out: &mut Outputs, want: u8) -> Result<(), ModelError> {
+    pub fn evaluate_groups(
+        &self,
+        crank: &CrankState,
+        inputs: &Inputs,
+        rod: &RodState,
+        out: &mut Outputs,
+        want: u8,
+    ) -> Result<(), ModelError> {
         if want & !out.ready == 0 {
             return Ok(());
         }
@@ -506,7 +578,14 @@ impl Model {
 
     /// [`Model::evaluate_groups`] when something is missing.
     #[inline(never)]
-    fn evaluate_missing(&self, crank: &CrankState, inputs: &Inputs, rod: &RodState, out: &mut Outputs, want: u8) -> Result<(), ModelError> {
+    fn evaluate_missing(
+        &self,
+        crank: &CrankState,
+        inputs: &Inputs,
+        rod: &RodState,
+        out: &mut Outputs,
+        want: u8,
+    ) -> Result<(), ModelError> {
         let missing = want & !out.ready;
         if out.ready == 0 {
             Self::check_inputs(crank, inputs)?;
@@ -602,7 +681,11 @@ impl Model {
 
     /// The cage state at the start (§6 "Initial state"): quasi-static (ϑ solves the static cage
     /// equation together with P, found by iterating ϑ ↔ P; ϑ̇ = K_Δ·Δ̇/K_ϑ) or at rest.
-    pub fn initial_rod_state(&self, crank: &CrankState, inputs: &Inputs) -> Result<RodState, ModelError> {
+    pub fn initial_rod_state(
+        &self,
+        crank: &CrankState,
+        inputs: &Inputs,
+    ) -> Result<RodState, ModelError> {
         Self::check_inputs(crank, inputs)?;
         let Mechanism::ElasticRodSlider(law, rod) = &self.mechanism else {
             return Ok(RodState::default());
@@ -679,7 +762,10 @@ impl Model {
         )?;
         let (crank1, end) = rhs.link_at(h);
         let g1 = rhs.offset(&crank1, &end);
-        Ok(RodState { cage: CageState { theta: y[0] + g1[0], rate: y[1] + g1[1] }, integrator: integ })
+        Ok(RodState {
+            cage: CageState { theta: y[0] + g1[0], rate: y[1] + g1[1] },
+            integrator: integ,
+        })
     }
 
     /// The same machine without the stiffness table: every stage uses the exact beam column
@@ -754,17 +840,25 @@ fn solve_on_table(
     let Some(cf) = friction else {
         let cell = table.find(p_base, hint)?;
         let c = table.eval(cell, p_base);
-        return Some(TableSolution { p: p_base, k_theta: c.value[K_THETA], k_delta: c.value[K_DELTA], cell });
+        return Some(TableSolution {
+            p: p_base,
+            k_theta: c.value[K_THETA],
+            k_delta: c.value[K_DELTA],
+            cell,
+        });
     };
     // The solution when the step from p meets the stopping test, K_ϑ and K_Δ moved along it.
-    let settled = |p: f64, step: f64, f: f64, v: &[f64; FUNCTIONS], d: &[f64; FUNCTIONS], cell: usize| {
-        (step.abs() <= rel_tol * p.abs().max(p_base.abs()).max(f.abs())).then(|| TableSolution {
-            p: p + step,
-            k_theta: v[K_THETA] + d[K_THETA] * step,
-            k_delta: v[K_DELTA] + d[K_DELTA] * step,
-            cell,
-        })
-    };
+    let settled =
+        |p: f64, step: f64, f: f64, v: &[f64; FUNCTIONS], d: &[f64; FUNCTIONS], cell: usize| {
+            (step.abs() <= rel_tol * p.abs().max(p_base.abs()).max(f.abs())).then(|| {
+                TableSolution {
+                    p: p + step,
+                    k_theta: v[K_THETA] + d[K_THETA] * step,
+                    k_delta: v[K_DELTA] + d[K_DELTA] * step,
+                    cell,
+                }
+            })
+        };
     let mut p = guess;
     let mut cell = hint;
     for _ in 0..MAX_TABLE_NEWTON_STEPS {
@@ -789,7 +883,10 @@ fn solve_on_table(
         p += step;
         cell = table.find(p, cell)?;
         let v = table.values(cell, p);
-        let f = cf.total(v[M_DELTA] * delta + v[M_THETA] * theta, v[V_DELTA] * delta - v[K_DELTA] * theta);
+        let f = cf.total(
+            v[M_DELTA] * delta + v[M_THETA] * theta,
+            v[V_DELTA] * delta - v[K_DELTA] * theta,
+        );
         let step = (p_base + f - p) / denominator;
         if let Some(solution) = settled(p, step, f, &v, d, cell) {
             return Some(solution);
@@ -854,7 +951,9 @@ impl CageRhs<'_> {
             None => self.rod.beam_column(p).ok().map(|bc| (bc.k_theta, bc.k_delta)),
         };
         match k {
-            Some((k_theta, k_delta)) if k_theta > 0.0 && (k_delta / k_theta).is_finite() => k_delta / k_theta,
+            Some((k_theta, k_delta)) if k_theta > 0.0 && (k_delta / k_theta).is_finite() => {
+                k_delta / k_theta
+            }
             _ => 0.0,
         }
     }
@@ -870,7 +969,12 @@ impl CageRhs<'_> {
 
     /// ϑ̈ at τ for the cage state `cage`, with the crank and the link's loads there.
     #[inline]
-    fn theta_ddot(&mut self, crank: &CrankState, ll: &LinkLoads, cage: &CageState) -> Result<f64, ModelError> {
+    fn theta_ddot(
+        &mut self,
+        crank: &CrankState,
+        ll: &LinkLoads,
+        cage: &CageState,
+    ) -> Result<f64, ModelError> {
         if let (Some(table), Some(pp)) = (self.table, ll.piston) {
             let friction = match &self.model.guide {
                 Some(g) => Some(g.clamp_friction(ll.k.s, ll.velocity, ll.p_base)?),
@@ -889,7 +993,8 @@ impl CageRhs<'_> {
             ) {
                 self.friction_guess = sol.p - ll.p_base;
                 self.cell_hint = sol.cell;
-                let loads = CageLoads { delta: pp.delta, delta_ddot: pp.delta_ddot, rod_force: sol.p };
+                let loads =
+                    CageLoads { delta: pp.delta, delta_ddot: pp.delta_ddot, rod_force: sol.p };
                 return Ok(self.rod.acceleration_with(sol.k_theta, sol.k_delta, &loads, cage));
             }
         }
@@ -924,7 +1029,13 @@ mod tests {
         // §3.1 closed forms through the whole evaluation: Φ(0) = −m·rω²(1+λ).
         let m = Model::new(&Params::default()).unwrap();
         let w = DEFAULT_CRANK_SPEED;
-        let o = m.evaluate(&CrankState { angle: 0.0, speed: w, acceleration: 0.0 }, &Inputs::default(), &RodState::default()).unwrap();
+        let o = m
+            .evaluate(
+                &CrankState { angle: 0.0, speed: w, acceleration: 0.0 },
+                &Inputs::default(),
+                &RodState::default(),
+            )
+            .unwrap();
         let expect = -300.0 * 0.2 * w * w * (1.0 + 0.2 / 1.19);
         assert!((o.inertia_force - expect).abs() < 1e-9 * expect.abs());
         // At the dead centre v = 0, so tanh(v/v_ε) = 0 and the guide adds no friction.
@@ -939,8 +1050,14 @@ mod tests {
         let m0 = Model::new(&Params::default()).unwrap();
         let c = CrankState { angle: 0.3, speed: 5.0, acceleration: 1.0 };
         let c0 = CrankState { angle: 1.0, ..c };
-        let (a, b) = (m.evaluate(&c, &Inputs::default(), &RodState::default()).unwrap(), m0.evaluate(&c0, &Inputs::default(), &RodState::default()).unwrap());
-        assert!((a.position - b.position).abs() < 1e-15 && (a.acceleration - b.acceleration).abs() < 1e-12);
+        let (a, b) = (
+            m.evaluate(&c, &Inputs::default(), &RodState::default()).unwrap(),
+            m0.evaluate(&c0, &Inputs::default(), &RodState::default()).unwrap(),
+        );
+        assert!(
+            (a.position - b.position).abs() < 1e-15
+                && (a.acceleration - b.acceleration).abs() < 1e-12
+        );
     }
 
     /// The kvo630 machine of docs/model.md §8 (as in benches/host_loop.rs).
@@ -1022,9 +1139,22 @@ mod tests {
                     let a_exact = rod.acceleration(&bc, &loads, &cage);
                     let ll = m.link_loads(&c, &inputs, None);
                     let pp = ll.piston.unwrap();
-                    let cf = m.guide.as_ref().map(|g| g.clamp_friction(ll.k.s, ll.velocity, ll.p_base).unwrap());
+                    let cf = m
+                        .guide
+                        .as_ref()
+                        .map(|g| g.clamp_friction(ll.k.s, ll.velocity, ll.p_base).unwrap());
                     let p_tol = STAGE_P_TOLERANCE_FACTOR * tol;
-                    let cold = solve_on_table(table, cf.as_ref(), ll.p_base, pp.delta, theta, ll.p_base, 0, p_tol).unwrap();
+                    let cold = solve_on_table(
+                        table,
+                        cf.as_ref(),
+                        ll.p_base,
+                        pp.delta,
+                        theta,
+                        ll.p_base,
+                        0,
+                        p_tol,
+                    )
+                    .unwrap();
                     let p = exact.guide.rod_force;
                     assert!((cold.p - p).abs() <= p_tol * p.abs(), "τ {tau}: P {} vs {p}", cold.p);
                     let th = c.angle + params.crank_angle_offset;
@@ -1033,9 +1163,13 @@ mod tests {
                     let delta_dot = r * c.speed * th.cos();
                     let delta_ddot = r * (c.acceleration * th.cos() - c.speed * c.speed * th.sin());
                     let shift = warm.shift;
-                    let a_warm = warm.accel(tau, theta - shift * delta, 30.0 - shift * delta_dot).unwrap()
-                        + shift * delta_ddot;
-                    assert!((a_warm - a_exact).abs() <= 1e-12 * scale, "τ {tau}: ϑ̈ {a_warm} vs {a_exact}");
+                    let a_warm =
+                        warm.accel(tau, theta - shift * delta, 30.0 - shift * delta_dot).unwrap()
+                            + shift * delta_ddot;
+                    assert!(
+                        (a_warm - a_exact).abs() <= 1e-12 * scale,
+                        "τ {tau}: ϑ̈ {a_warm} vs {a_exact}"
+                    );
                 }
             }
         }
@@ -1082,7 +1216,11 @@ mod tests {
             let m = Model::new(&params).unwrap();
             let (_, stats) = run(&m, 1e-3, 300, 1e-8);
             let per_step = stats.rhs_evals as f64 / 300.0;
-            assert!(per_step <= bound, "rod.kind {}: {per_step} evaluations per 1 ms step", params.rod_kind);
+            assert!(
+                per_step <= bound,
+                "rod.kind {}: {per_step} evaluations per 1 ms step",
+                params.rod_kind
+            );
         }
     }
 
@@ -1120,7 +1258,9 @@ mod tests {
                     let err = run
                         .iter()
                         .zip(&reference)
-                        .map(|(a, b)| (a.theta - b.theta).abs().max((a.rate - b.rate).abs() / omega0))
+                        .map(|(a, b)| {
+                            (a.theta - b.theta).abs().max((a.rate - b.rate).abs() / omega0)
+                        })
                         .fold(0.0, f64::max);
                     println!(
                         "rod.kind {} {which:?} tol {tol:e}: {:.2} evaluations per 1 ms step, {} steps, {} rejected, largest error {err:.2e}",
@@ -1147,7 +1287,11 @@ mod tests {
         let mut rod = mid;
         let mut stats = IntegratorStats::default();
         for k in 100..150 {
-            let crank = CrankState { angle: KVO_SPEED * k as f64 * 1e-3, speed: KVO_SPEED, acceleration: 0.0 };
+            let crank = CrankState {
+                angle: KVO_SPEED * k as f64 * 1e-3,
+                speed: KVO_SPEED,
+                acceleration: 0.0,
+            };
             rod = m2.step(&crank, &inputs, &rod, 1e-3, 1e-8, &mut stats).unwrap();
         }
         assert_eq!(rod, a);
@@ -1210,7 +1354,11 @@ mod tests {
         }
         let m = Model::new(&Params::default()).unwrap();
         let e = m
-            .evaluate(&CrankState { angle: f64::NAN, speed: 1.0, acceleration: 0.0 }, &Inputs::default(), &RodState::default())
+            .evaluate(
+                &CrankState { angle: f64::NAN, speed: 1.0, acceleration: 0.0 },
+                &Inputs::default(),
+                &RodState::default(),
+            )
             .unwrap_err()
             .to_string();
         assert!(e.contains("crank.angle") && e.contains("NaN"), "{e}");

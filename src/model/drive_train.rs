@@ -15,7 +15,9 @@
 use serde::{Deserialize, Serialize};
 
 use crate::model::error::ModelError;
-use crate::model::integrator::{advance, IntegratorState, IntegratorStats, SecondOrderRhs, Tolerance};
+use crate::model::integrator::{
+    advance, IntegratorState, IntegratorStats, SecondOrderRhs, Tolerance,
+};
 
 /// Parameters as the variable table writes them; `Default` is the documented default drive
 /// (docs/closed-loop.md): a 4-pole 50 Hz motor through a 23:1 gearbox, the default pump at about
@@ -98,7 +100,11 @@ impl DriveTrain {
         pos("motor.synchronous_speed", p.synchronous_speed)?;
         pos("motor.breakdown_torque", p.breakdown_torque)?;
         if !(p.breakdown_slip > 0.0 && p.breakdown_slip < 1.0) {
-            return Err(ModelError::out_of_range("motor.breakdown_slip", p.breakdown_slip, "(0, 1)"));
+            return Err(ModelError::out_of_range(
+                "motor.breakdown_slip",
+                p.breakdown_slip,
+                "(0, 1)",
+            ));
         }
         for (name, v) in [("motor.inertia", p.motor_inertia), ("crank.inertia", p.crank_inertia)] {
             if !(v.is_finite() && v >= 0.0) {
@@ -112,7 +118,9 @@ impl DriveTrain {
                  allowed: > 0"
             )));
         }
-        for (name, v) in [("crank.angle_start", p.angle_start), ("crank.speed_start", p.speed_start)] {
+        for (name, v) in
+            [("crank.angle_start", p.angle_start), ("crank.speed_start", p.speed_start)]
+        {
             if !v.is_finite() {
                 return Err(ModelError::out_of_range(name, v, "a finite number"));
             }
@@ -138,7 +146,11 @@ impl DriveTrain {
     }
 
     pub fn initial_state(&self) -> DriveState {
-        DriveState { angle: self.p.angle_start, speed: self.p.speed_start, integrator: IntegratorState::default() }
+        DriveState {
+            angle: self.p.angle_start,
+            speed: self.p.speed_start,
+            integrator: IntegratorState::default(),
+        }
     }
 
     /// Integrates (θ, ω) over [t, t+h] with the load held. Tolerances: `tol` relative, and absolute
@@ -165,7 +177,15 @@ impl DriveTrain {
         let omega0 = self.p.synchronous_speed / self.p.gear_ratio;
         let tolerance = Tolerance::from_solver_tolerance(tol, omega0);
         let mut integ = state.integrator;
-        let [angle, speed] = advance(&mut Rhs(self, load), t, [state.angle, state.speed], h, &tolerance, &mut integ, stats)?;
+        let [angle, speed] = advance(
+            &mut Rhs(self, load),
+            t,
+            [state.angle, state.speed],
+            h,
+            &tolerance,
+            &mut integ,
+            stats,
+        )?;
         Ok(DriveState { angle, speed, integrator: integ })
     }
 
@@ -216,7 +236,11 @@ mod tests {
         let (mut lo, mut hi) = (0.0, 0.15);
         for _ in 0..200 {
             let s = 0.5 * (lo + hi);
-            if d.p.gear_ratio * 2.0 * 200.0 * s * 0.15 / (s * s + 0.0225) < load { lo = s } else { hi = s }
+            if d.p.gear_ratio * 2.0 * 200.0 * s * 0.15 / (s * s + 0.0225) < load {
+                lo = s
+            } else {
+                hi = s
+            }
         }
         let w_star = d.p.synchronous_speed * (1.0 - lo) / d.p.gear_ratio;
         assert!((st.speed - w_star).abs() < 1e-9 * w_star, "{} vs {w_star}", st.speed);

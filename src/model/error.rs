@@ -6,11 +6,7 @@ use std::fmt;
 #[derive(Clone, Debug, PartialEq)]
 pub enum ModelError {
     /// A single variable outside its allowed range (includes NaN and ±inf).
-    OutOfRange {
-        variable: &'static str,
-        value: f64,
-        allowed: String,
-    },
+    OutOfRange { variable: &'static str, value: f64, allowed: String },
     /// A combination of parameters that is not a valid machine (the linkage does not assemble,
     /// supports do not hold the link, ...). The message names the condition and the values.
     Invalid { message: String },

@@ -248,7 +248,8 @@ pub struct Pair<const S: usize> {
 }
 
 /// The pair the FMU integrates with (see the module doc).
-pub const VERNER_65: Pair<STAGES> = Pair { c: C, a: A, b: B, fsal: true, e: E, order: 6.0, est_exponent: 1.0 / 6.0 };
+pub const VERNER_65: Pair<STAGES> =
+    Pair { c: C, a: A, b: B, fsal: true, e: E, order: 6.0, est_exponent: 1.0 / 6.0 };
 const SAFETY: f64 = 0.9;
 const FAC_MIN: f64 = 0.2;
 const FAC_MAX: f64 = 10.0;
@@ -275,7 +276,9 @@ fn eval(
     } else {
         Err(ModelError::evaluation(format!(
             "non-finite second derivative {acc} {} s into the step, state ({}, {})",
-            num(t), num(y[0]), num(y[1])
+            num(t),
+            num(y[0]),
+            num(y[1])
         )))
     }
 }
@@ -373,7 +376,9 @@ pub fn advance(
     stats: &mut IntegratorStats,
 ) -> Result<[f64; 2], ModelError> {
     #[cfg(test)]
-    if let Some(r) = tests::compared::advance_with_pair_under_test(rhs, t0, y0, h, tol, state, stats) {
+    if let Some(r) =
+        tests::compared::advance_with_pair_under_test(rhs, t0, y0, h, tol, state, stats)
+    {
         return r;
     }
     advance_with(&VERNER_65, rhs, t0, y0, h, tol, state, stats)
@@ -470,7 +475,8 @@ pub fn advance_with<const S: usize>(
             if pair.fsal {
                 Ok((y_new, err, k[S - 1]))
             } else {
-                eval(rhs, if to_end { t_end } else { t + h }, y_new, &mut work).map(|f| (y_new, err, f))
+                eval(rhs, if to_end { t_end } else { t + h }, y_new, &mut work)
+                    .map(|f| (y_new, err, f))
             }
         };
         let (y_new, err, f_new) = match attempt {
@@ -1118,9 +1124,17 @@ pub(crate) mod tests {
         use std::cell::Cell;
 
         /// Dormand–Prince 5(4) (Hairer, Nørsett & Wanner, Solving ODE I, Table II.5.2).
-        pub const DP5_B: [f64; 7] = [35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0, 0.0];
-        pub const DP5_B_HAT: [f64; 7] =
-            [5179.0 / 57600.0, 0.0, 7571.0 / 16695.0, 393.0 / 640.0, -92097.0 / 339200.0, 187.0 / 2100.0, 1.0 / 40.0];
+        pub const DP5_B: [f64; 7] =
+            [35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0, 0.0];
+        pub const DP5_B_HAT: [f64; 7] = [
+            5179.0 / 57600.0,
+            0.0,
+            7571.0 / 16695.0,
+            393.0 / 640.0,
+            -92097.0 / 339200.0,
+            187.0 / 2100.0,
+            1.0 / 40.0,
+        ];
         #[rustfmt::skip]
         pub const DP5: Pair<7> = Pair {
             c: [0.0, 0.2, 0.3, 0.8, 8.0 / 9.0, 1.0, 1.0],
@@ -1186,16 +1200,28 @@ pub(crate) mod tests {
         /// Verner's "most efficient" 7(6) pair, RKV76.IIa (10 stages, not FSAL: 10 evaluations
         /// a step; coefficients as published by J. H. Verner, as in jacobwilliams/rklib `rkv76e`).
         pub const V76_B: [f64; 10] = [
-            0.04715561848627222170431765108838175679569, 0.0, 0.0,
-            0.2575056429843415189596436101037687580986, 0.2621665397741262047713863095764527711129,
-            0.1521609265673855740323133199165117535523, 0.4939969170032484246907175893227876844296,
-            -0.2943031171403250441557244744092703429139, 0.08131747232495109999734599440136761892478, 0.0,
+            0.04715561848627222170431765108838175679569,
+            0.0,
+            0.0,
+            0.2575056429843415189596436101037687580986,
+            0.2621665397741262047713863095764527711129,
+            0.1521609265673855740323133199165117535523,
+            0.4939969170032484246907175893227876844296,
+            -0.2943031171403250441557244744092703429139,
+            0.08131747232495109999734599440136761892478,
+            0.0,
         ];
         pub const V76_B_HAT: [f64; 10] = [
-            0.04460860660634117628731817597479197781432, 0.0, 0.0,
-            0.2671640378571372680509102260943837899738, 0.2201018300177293019979715776650753096323,
-            0.2188431703143156830983120833512893824578, 0.2289871705411202883378173889763552365362,
-            0.0, 0.0, 0.02029518466335628222767054793810430358554,
+            0.04460860660634117628731817597479197781432,
+            0.0,
+            0.0,
+            0.2671640378571372680509102260943837899738,
+            0.2201018300177293019979715776650753096323,
+            0.2188431703143156830983120833512893824578,
+            0.2289871705411202883378173889763552365362,
+            0.0,
+            0.0,
+            0.02029518466335628222767054793810430358554,
         ];
         #[rustfmt::skip]
         pub const V76: Pair<10> = Pair {
@@ -1277,7 +1303,9 @@ pub(crate) mod tests {
     #[test]
     fn the_compared_pairs_satisfy_their_order_conditions() {
         use compared::*;
-        for (name, pair, b, b_hat) in [("DP5", &DP5, DP5_B, DP5_B_HAT), ("Tsit5", &TSIT5, TSIT5_B, TSIT5_B_HAT)] {
+        for (name, pair, b, b_hat) in
+            [("DP5", &DP5, DP5_B, DP5_B_HAT), ("Tsit5", &TSIT5, TSIT5_B, TSIT5_B_HAT)]
+        {
             for i in 1..7 {
                 let row: f64 = pair.a[i].iter().sum();
                 assert!((row - pair.c[i]).abs() < 1e-14, "{name} row {i}: {row} vs {}", pair.c[i]);
@@ -1296,7 +1324,11 @@ pub(crate) mod tests {
         for i in 1..10 {
             let row: f64 = V76.a[i].iter().sum();
             let mag: f64 = V76.a[i].iter().map(|v| v.abs()).sum();
-            assert!((row - V76.c[i]).abs() <= 8.0 * f64::EPSILON * mag, "V76 row {i}: {row} vs {}", V76.c[i]);
+            assert!(
+                (row - V76.c[i]).abs() <= 8.0 * f64::EPSILON * mag,
+                "V76 row {i}: {row} vs {}",
+                V76.c[i]
+            );
         }
         let rb = order_residuals(&V76.a, &V76_B, 7);
         let rh = order_residuals(&V76.a, &V76_B_HAT, 7);

@@ -121,11 +121,38 @@ impl Default for Params {
             link_lateral_load: 0.0,
             supports: [
                 // A: piston in its liner (clamp moving with the link), the reference axis.
-                SupportParams { kind: 2, attached: 0, z: 0.125, offset: 0.0, tilt: 0.0, length: 0.25, stiffness: 0.0, friction: 0.0 },
+                SupportParams {
+                    kind: 2,
+                    attached: 0,
+                    z: 0.125,
+                    offset: 0.0,
+                    tilt: 0.0,
+                    length: 0.25,
+                    stiffness: 0.0,
+                    friction: 0.0,
+                },
                 // B: crosshead in its guide (two-edge guide), slightly misaligned.
-                SupportParams { kind: 3, attached: 0, z: 1.90, offset: 0.3e-3, tilt: 1e-4, length: 0.40, stiffness: 0.0, friction: 0.10 },
+                SupportParams {
+                    kind: 3,
+                    attached: 0,
+                    z: 1.90,
+                    offset: 0.3e-3,
+                    tilt: 1e-4,
+                    length: 0.40,
+                    stiffness: 0.0,
+                    friction: 0.10,
+                },
                 // C: diaphragm gland (pin fixed in the frame), elastic.
-                SupportParams { kind: 1, attached: 1, z: 1.60, offset: 0.1e-3, tilt: 0.0, length: 0.0, stiffness: 2e6, friction: 0.0 },
+                SupportParams {
+                    kind: 1,
+                    attached: 1,
+                    z: 1.60,
+                    offset: 0.1e-3,
+                    tilt: 0.0,
+                    length: 0.0,
+                    stiffness: 2e6,
+                    friction: 0.0,
+                },
             ],
             rod_side_force: true,
             // Rigid rod by default; the elastic-rod data are those of the kvo630 spring (§8), so
@@ -167,7 +194,11 @@ impl Params {
         let mut supports = [SupportSpec::NONE; 3];
         for (x, sp) in self.supports.iter().enumerate() {
             let kind = SupportKind::from_i32(sp.kind).ok_or_else(|| {
-                ModelError::out_of_range(NAMES[x].0, sp.kind as f64, "0 (none), 1 (pin), 2 (clamp) or 3 (two-edge guide)")
+                ModelError::out_of_range(
+                    NAMES[x].0,
+                    sp.kind as f64,
+                    "0 (none), 1 (pin), 2 (clamp) or 3 (two-edge guide)",
+                )
             })?;
             if !(sp.attached == 0 || sp.attached == 1) {
                 return Err(ModelError::out_of_range(

@@ -50,7 +50,13 @@ extern "C" fn logger6(
     fmt: fmi2String,
     arg: *const c_char,
 ) {
-    let s = |p: *const c_char| if p.is_null() { String::new() } else { unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned() };
+    let s = |p: *const c_char| {
+        if p.is_null() {
+            String::new()
+        } else {
+            unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()
+        }
+    };
     assert_eq!(s(fmt), "%s", "the FMU must pass its message through a %s format");
     if env.is_null() {
         return;
@@ -63,8 +69,22 @@ pub fn logger_fn() -> fmi2CallbackLogger {
     // SAFETY: see logger6.
     Some(unsafe {
         std::mem::transmute::<
-            extern "C" fn(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String, *const c_char),
-            unsafe extern "C" fn(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String, ...),
+            extern "C" fn(
+                fmi2ComponentEnvironment,
+                fmi2String,
+                fmi2Status,
+                fmi2String,
+                fmi2String,
+                *const c_char,
+            ),
+            unsafe extern "C" fn(
+                fmi2ComponentEnvironment,
+                fmi2String,
+                fmi2Status,
+                fmi2String,
+                fmi2String,
+                ...
+            ),
         >(logger6)
     })
 }
@@ -112,7 +132,8 @@ fns! {
 }
 
 pub fn vr(name: &str) -> u32 {
-    reciprocating_drive::fmus::reciprocating_drive::value_reference(name).unwrap_or_else(|| panic!("no variable {name}")) as u32
+    reciprocating_drive::fmus::reciprocating_drive::value_reference(name)
+        .unwrap_or_else(|| panic!("no variable {name}")) as u32
 }
 
 /// One instance with its log sink; freed on drop.
@@ -129,11 +150,25 @@ impl<'a> Inst<'a> {
     }
 
     pub fn with(api: &'a Api, name: &str, resources: Option<&str>, logging_on: bool) -> Inst<'a> {
-        Self::try_with(api, name, resources, logging_on, reciprocating_drive::fmi2::model_description::guid::<reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive>())
-            .expect("fmi2Instantiate returned NULL")
+        Self::try_with(
+            api,
+            name,
+            resources,
+            logging_on,
+            reciprocating_drive::fmi2::model_description::guid::<
+                reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive,
+            >(),
+        )
+        .expect("fmi2Instantiate returned NULL")
     }
 
-    pub fn try_with(api: &'a Api, name: &str, resources: Option<&str>, logging_on: bool, guid: &str) -> Result<Inst<'a>, Arc<LogSink>> {
+    pub fn try_with(
+        api: &'a Api,
+        name: &str,
+        resources: Option<&str>,
+        logging_on: bool,
+        guid: &str,
+    ) -> Result<Inst<'a>, Arc<LogSink>> {
         let log = Arc::new(LogSink::default());
         let callbacks = Box::new(fmi2CallbackFunctions {
             logger: logger_fn(),
@@ -201,13 +236,18 @@ impl<'a> Inst<'a> {
         }
     }
     pub fn get(&self, name: &str) -> f64 {
-        self.try_get(name).unwrap_or_else(|s| panic!("fmi2GetReal({name}) = {s}: {}", self.log.last()))
+        self.try_get(name)
+            .unwrap_or_else(|s| panic!("fmi2GetReal({name}) = {s}: {}", self.log.last()))
     }
     pub fn try_get(&self, name: &str) -> Result<f64, fmi2Status> {
         let r = vr(name);
         let mut v = f64::NAN;
         let s = unsafe { (self.api.fmi2GetReal)(self.c, &r, 1, &mut v) };
-        if s == OK { Ok(v) } else { Err(s) }
+        if s == OK {
+            Ok(v)
+        } else {
+            Err(s)
+        }
     }
     pub fn get_many(&self, names: &[&str]) -> Vec<f64> {
         let vrs: Vec<u32> = names.iter().map(|n| vr(n)).collect();
@@ -235,13 +275,29 @@ impl<'a> Inst<'a> {
         let mut n = 0usize;
         assert_eq!(unsafe { (self.api.fmi2SerializedFMUstateSize)(self.c, s, &mut n) }, OK);
         let mut buf = vec![0u8; n];
-        assert_eq!(unsafe { (self.api.fmi2SerializeFMUstate)(self.c, s, buf.as_mut_ptr() as *mut c_char, n) }, OK);
+        assert_eq!(
+            unsafe {
+                (self.api.fmi2SerializeFMUstate)(self.c, s, buf.as_mut_ptr() as *mut c_char, n)
+            },
+            OK
+        );
         buf
     }
     pub fn deserialize(&self, bytes: &[u8]) -> Result<fmi2FMUstate, fmi2Status> {
         let mut s: fmi2FMUstate = std::ptr::null_mut();
-        let st = unsafe { (self.api.fmi2DeSerializeFMUstate)(self.c, bytes.as_ptr() as *const c_char, bytes.len(), &mut s) };
-        if st == OK { Ok(s) } else { Err(st) }
+        let st = unsafe {
+            (self.api.fmi2DeSerializeFMUstate)(
+                self.c,
+                bytes.as_ptr() as *const c_char,
+                bytes.len(),
+                &mut s,
+            )
+        };
+        if st == OK {
+            Ok(s)
+        } else {
+            Err(st)
+        }
     }
 }
 

@@ -21,7 +21,9 @@ sys.path.insert(0, str(ROOT / "python"))
 
 
 def _fmu_path() -> pathlib.Path:
-    return pathlib.Path(os.environ.get("RD_FMU", ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
+    return pathlib.Path(
+        os.environ.get("RD_FMU", ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu")
+    )
 
 
 @pytest.fixture(scope="session")

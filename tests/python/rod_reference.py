@@ -59,7 +59,7 @@ def fundamental(x: float, z: float) -> tuple[float, float, float, float]:
                 term *= u / ((2 * n + k - 1) * (2 * n + k))
                 if abs(term) < 1e-19 * abs(sums[k]) or n > 60:
                     break
-        return sums[0], z * sums[1], z * z * sums[2], z ** 3 * sums[3]
+        return sums[0], z * sums[1], z * z * sums[2], z**3 * sums[3]
     if x > 0:
         a = math.sqrt(x)
         c, s = math.cosh(a * z), math.sinh(a * z) / a
@@ -92,21 +92,30 @@ class RodColumn:
 class Rod:
     """The elastic rod's stiffnesses A1, A2, A3 and P-dependent coefficients (docs/model.md §6)."""
 
-    def __init__(self, kind: int, flex_length: float, rigid_length: float, wire_diameter: float,
-                 coil_diameter: float, coils: float, e_modulus: float, poisson: float):
+    def __init__(
+        self,
+        kind: int,
+        flex_length: float,
+        rigid_length: float,
+        wire_diameter: float,
+        coil_diameter: float,
+        coils: float,
+        e_modulus: float,
+        poisson: float,
+    ):
         self.kind, self.l, self.f = kind, flex_length, rigid_length
         self.d, self.D, self.i = wire_diameter, coil_diameter, coils
         E, d = e_modulus, wire_diameter
         G = E / (2.0 * (1.0 + poisson))
         if kind == 1:
-            self.a2 = E * math.pi * d ** 4 / 64.0
-            self.a1 = SHEAR_FACTOR_THIN_ROD * G * math.pi * d ** 2 / 4.0
-            self.a3 = E * math.pi * d ** 2 / 4.0
+            self.a2 = E * math.pi * d**4 / 64.0
+            self.a1 = SHEAR_FACTOR_THIN_ROD * G * math.pi * d**2 / 4.0
+            self.a3 = E * math.pi * d**2 / 4.0
         elif kind == 2:
             h = flex_length / coils  # pitch
-            bt = G * math.pi * d ** 4 / 32.0
-            bb = E * math.pi * d ** 4 / 64.0
-            D3 = math.pi * coil_diameter ** 3
+            bt = G * math.pi * d**4 / 32.0
+            bb = E * math.pi * d**4 / 64.0
+            D3 = math.pi * coil_diameter**3
             self.a1 = 8.0 * h * bb / D3
             self.a3 = 4.0 * h * bt / D3
             self.a2 = (2.0 * h / (math.pi * coil_diameter)) * bt * bb / (bt + bb)
@@ -114,9 +123,17 @@ class Rod:
             raise ValueError(f"rod.kind {kind}")
 
     @classmethod
-    def from_values(cls, v: dict) -> "Rod":
-        return cls(int(v["rod.kind"]), v["rod.flex_length"], v["rod.rigid_length"], v["rod.wire_diameter"],
-                   v["rod.coil_diameter"], v["rod.coils"], v["rod.E"], v["rod.poisson"])
+    def from_values(cls, v: dict) -> Rod:
+        return cls(
+            int(v["rod.kind"]),
+            v["rod.flex_length"],
+            v["rod.rigid_length"],
+            v["rod.wire_diameter"],
+            v["rod.coil_diameter"],
+            v["rod.coils"],
+            v["rod.E"],
+            v["rod.poisson"],
+        )
 
     def column(self, P: float) -> RodColumn:
         a1, a2, l = self.a1, self.a2, self.l
@@ -150,7 +167,7 @@ class Rod:
     def clamp_loads(self, col: RodColumn, delta: float, theta: float) -> tuple[float, float]:
         """(M_0, V) the rod exerts on the link at the clamp (§5.4)."""
         c3, c4 = self.constants(col, delta, theta)
-        return self.a2 * c3 / col.s_n, -self.a2 * c4 / col.s_n ** 2
+        return self.a2 * c3 / col.s_n, -self.a2 * c4 / col.s_n**2
 
     def stations(self) -> int:
         return 16 if self.kind == 1 else int(math.ceil(self.i))
@@ -167,8 +184,8 @@ class Rod:
         if self.kind == 2:
             ci = self.D / d
             kw = (4 * ci - 1) / (4 * ci - 4) + 0.615 / ci
-            return kw * (m_max + N * self.D / 2) / (math.pi * d ** 3 / 16)
-        return m_max * 32 / (math.pi * d ** 3) + N * 4 / (math.pi * d ** 2)
+            return kw * (m_max + N * self.D / 2) / (math.pi * d**3 / 16)
+        return m_max * 32 / (math.pi * d**3) + N * 4 / (math.pi * d**2)
 
 
 # ------------------------------------------------------------------------------ crank motion
@@ -183,7 +200,11 @@ class Motion:
     theta0: float = 0.0
 
     def at(self, t: float) -> tuple[float, float, float]:
-        return self.theta0 + self.omega0 * t + 0.5 * self.eps * t * t, self.omega0 + self.eps * t, self.eps
+        return (
+            self.theta0 + self.omega0 * t + 0.5 * self.eps * t * t,
+            self.omega0 + self.eps * t,
+            self.eps,
+        )
 
 
 # ------------------------------------------------------------------------------ the drive
@@ -209,7 +230,11 @@ class Drive:
         self.mf_fm = v["rod.rigid_mass"] * v["rod.rigid_lever"]
         k0 = self.rod.column(0.0).k_theta
         self.omega0 = math.sqrt(k0 / self.J)
-        self.B = v["rod.damping"] if v["rod.damping"] > 0 else 2 * v["rod.damping_ratio"] * math.sqrt(k0 * self.J)
+        self.B = (
+            v["rod.damping"]
+            if v["rod.damping"] > 0
+            else 2 * v["rod.damping_ratio"] * math.sqrt(k0 * self.J)
+        )
         kinds = [int(v[f"support_{x}.kind"]) for x in "ABC"]
         self.guide = kinds[1] == 3 and kinds[0] == 0 and kinds[2] == 0
         if not self.guide:
@@ -231,8 +256,13 @@ class Drive:
         th = theta_in + self.offset
         r, sn, cs = self.r, math.sin(th), math.cos(th)
         return dict(
-            theta=th, s=r * (1 - cs), v=r * sn * w, a=r * sn * eps + r * cs * w * w,
-            delta=r * sn - self.e, delta_dot=r * cs * w, delta_ddot=r * (eps * cs - w * w * sn),
+            theta=th,
+            s=r * (1 - cs),
+            v=r * sn * w,
+            a=r * sn * eps + r * cs * w * w,
+            delta=r * sn - self.e,
+            delta_dot=r * cs * w,
+            delta_ddot=r * (eps * cs - w * w * sn),
         )
 
     def p_base(self, k: dict, f_ext_input: float) -> float:
@@ -282,17 +312,26 @@ class Drive:
 
     def accel(self, k: dict, P: float, theta: float, rate: float) -> float:
         col = self.rod.column(P)
-        return (col.k_delta * k["delta"] + self.e_p * P + self.mf_fm * k["delta_ddot"]
-                - self.B * rate - col.k_theta * theta) / self.J
+        return (
+            col.k_delta * k["delta"]
+            + self.e_p * P
+            + self.mf_fm * k["delta_ddot"]
+            - self.B * rate
+            - col.k_theta * theta
+        ) / self.J
 
     def outputs(self, k: dict, theta: float, rate: float, f_ext_input: float = 0.0) -> dict:
         P = self.rod_force(k, theta, f_ext_input)
         col = self.rod.column(P)
         g = self.guide_state(P, k["delta"], theta, k["v"])
         return {
-            "rod.angle": theta, "rod.angular_velocity": rate, "rod.force": P,
+            "rod.angle": theta,
+            "rod.angular_velocity": rate,
+            "rod.force": P,
             "rod.stress_max": self.rod.stress_max(col, k["delta"], theta),
-            "guide.friction": g["F"], "guide.reaction": g["R"], "guide.moment": g["M"],
+            "guide.friction": g["F"],
+            "guide.reaction": g["R"],
+            "guide.moment": g["M"],
             "rod.axial_deflection": P * self.rod.l / self.rod.a3,
         }
 
@@ -306,7 +345,9 @@ class Drive:
         for _ in range(200):
             P = self.rod_force(k, theta, f_ext_input)
             col = self.rod.column(P)
-            new = (col.k_delta * k["delta"] + self.e_p * P + self.mf_fm * k["delta_ddot"]) / col.k_theta
+            new = (
+                col.k_delta * k["delta"] + self.e_p * P + self.mf_fm * k["delta_ddot"]
+            ) / col.k_theta
             if abs(new - theta) <= 1e-16 * max(abs(new), 1e-300):
                 theta = new
                 break
@@ -323,18 +364,35 @@ class Drive:
 
         return f
 
-    def integrate(self, motion: Motion, times, y0=None, method="DOP853", rtol=1e-11, atol_theta=1e-14,
-                  f_ext_input: float = 0.0):
+    def integrate(
+        self,
+        motion: Motion,
+        times,
+        y0=None,
+        method="DOP853",
+        rtol=1e-11,
+        atol_theta=1e-14,
+        f_ext_input: float = 0.0,
+    ):
         """ϑ, ϑ̇ at `times` (from times[0] = 0). atol on ϑ̇ is atol_theta·Ω0 (the FMU's scaling)."""
         times = np.asarray(times, dtype=float)
         if y0 is None:
             y0 = self.initial_state(motion, f_ext_input)
-        sol = solve_ivp(self.rhs(motion, f_ext_input), (times[0], times[-1]), list(y0), method=method,
-                        t_eval=times, rtol=rtol, atol=[atol_theta, atol_theta * self.omega0])
+        sol = solve_ivp(
+            self.rhs(motion, f_ext_input),
+            (times[0], times[-1]),
+            list(y0),
+            method=method,
+            t_eval=times,
+            rtol=rtol,
+            atol=[atol_theta, atol_theta * self.omega0],
+        )
         assert sol.success, sol.message
         return sol
 
     def outputs_along(self, motion: Motion, times, y, f_ext_input: float = 0.0) -> dict:
-        rows = [self.outputs(self.kinematics(*motion.at(t)), th, rt, f_ext_input)
-                for t, th, rt in zip(times, y[0], y[1])]
+        rows = [
+            self.outputs(self.kinematics(*motion.at(t)), th, rt, f_ext_input)
+            for t, th, rt in zip(times, y[0], y[1])
+        ]
         return {n: np.array([r[n] for r in rows]) for n in rows[0]}

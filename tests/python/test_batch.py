@@ -12,7 +12,6 @@ import math
 
 import numpy as np
 import pytest
-
 from reciprocating_drive import batch
 from reciprocating_drive.fmu import Fmu, FmuError
 from reciprocating_drive.presets import preset_values
@@ -75,14 +74,14 @@ def test_a_failing_call_stops_the_batch_with_the_fmus_message(fmu_path, bad, fun
     t, x = crank_motion(100, 6.8)
     k = 60
     if bad == "time":
-        t[k] = t[k - 1] - 5e-4          # a step backwards: the FMU refuses it
+        t[k] = t[k - 1] - 5e-4  # a step backwards: the FMU refuses it
     else:
-        x[k, 1] = math.nan              # crank.speed = NaN: the FMU refuses it
+        x[k, 1] = math.nan  # crank.speed = NaN: the FMU refuses it
     # The reference message: the same calls one by one through fmpy.
     f1, ch1 = started(fmu_path, "default")
     ref = per_sample(ch1, t[:k], x[:k])
     with pytest.raises(FmuError) as want:
-        per_sample(ch1, t[k:k + 1], x[k:k + 1])
+        per_sample(ch1, t[k : k + 1], x[k : k + 1])
     f2, ch2 = started(fmu_path, "default")
     out = np.full((len(t), len(ch2.outputs)), np.nan)
     with pytest.raises(FmuError) as got:
@@ -108,10 +107,50 @@ def test_bad_arguments_are_refused_without_a_crash(fmu_path):
     lib = batch.library()
     fail = batch.Failure()
     # Null function pointers, component or failure record: BAD_ARGUMENTS (-1), nothing called.
-    assert lib.fmi2_batch_run(None, None, None, None, None, 0, None, 0, 0.0, 0, None, None, 0, None, 0, 0, 1,
-                              ctypes.byref(fail)) == -1
-    assert lib.fmi2_batch_run(*ch._addresses, f._component, None, 4, None, 1, 0.0, 1, None, None, 4, None, 1, 0, 1,
-                              None) == -1
+    assert (
+        lib.fmi2_batch_run(
+            None,
+            None,
+            None,
+            None,
+            None,
+            0,
+            None,
+            0,
+            0.0,
+            0,
+            None,
+            None,
+            0,
+            None,
+            0,
+            0,
+            1,
+            ctypes.byref(fail),
+        )
+        == -1
+    )
+    assert (
+        lib.fmi2_batch_run(
+            *ch._addresses,
+            f._component,
+            None,
+            4,
+            None,
+            1,
+            0.0,
+            1,
+            None,
+            None,
+            4,
+            None,
+            1,
+            0,
+            1,
+            None,
+        )
+        == -1
+    )
     assert lib.fmi2_batch_format_csv(None, 1, 1, 1, None, 100) == -1
     f.close()
 
@@ -119,13 +158,28 @@ def test_bad_arguments_are_refused_without_a_crash(fmu_path):
 def test_csv_numbers_are_pythons_repr():
     rng = np.random.default_rng(7)
     bits = rng.integers(0, 2**64, size=100_000, dtype=np.uint64).view(np.float64)
-    values = np.concatenate([
-        bits[np.isfinite(bits)],
-        rng.normal(size=50_000) * 10.0 ** rng.integers(-30, 30, 50_000),
-        np.round(rng.normal(size=5_000), 3),
-        10.0 ** np.arange(-320, 309), -(10.0 ** np.arange(-20, 20)),
-        [0.0, -0.0, 5e-324, 1.7976931348623157e308, 1e16, 1e-5, 1e-4, 9999999999999998.0, math.inf, -math.inf, math.nan],
-    ])
+    values = np.concatenate(
+        [
+            bits[np.isfinite(bits)],
+            rng.normal(size=50_000) * 10.0 ** rng.integers(-30, 30, 50_000),
+            np.round(rng.normal(size=5_000), 3),
+            10.0 ** np.arange(-320, 309),
+            -(10.0 ** np.arange(-20, 20)),
+            [
+                0.0,
+                -0.0,
+                5e-324,
+                1.7976931348623157e308,
+                1e16,
+                1e-5,
+                1e-4,
+                9999999999999998.0,
+                math.inf,
+                -math.inf,
+                math.nan,
+            ],
+        ]
+    )
     table = np.resize(values, (len(values) // 7, 7))
     text = batch.format_csv(table).decode()
     want = "".join(",".join(map(repr, row)) + "\n" for row in table.tolist())
@@ -149,7 +203,9 @@ def test_local_cubic_agrees_with_the_numpy_fit(half):
     rng = np.random.default_rng(half)
     n = 600
     t = np.sort(np.arange(n) * 1e-3 + rng.normal(0, 2e-5, n))
-    theta = 6.8 * t + 0.1 * np.sin(13.6 * t) + np.floor(rng.uniform(0, 1, n) * 4) * (2 * math.pi / 4096)
+    theta = (
+        6.8 * t + 0.1 * np.sin(13.6 * t) + np.floor(rng.uniform(0, 1, n) * 4) * (2 * math.pi / 4096)
+    )
     w_ref, e_ref = cond.derivatives(t, theta, half)
     w, e = batch.local_cubic(t, theta, half, 0, n)
     assert np.allclose(w, w_ref, rtol=0, atol=1e-9 * np.abs(w_ref).max())

@@ -18,20 +18,33 @@ import math
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
-
 from reciprocating_drive.system import build_ssp, run_fmpy, run_libcosim, speed_fluctuation
+from scipy.integrate import solve_ivp
 
 R, L, M, F = 0.2, 1.19, 300.0, 5000.0
 I, WS, TB, SB, JM, JC = 23.0, 2 * math.pi * 1500 / 60, 200.0, 0.15, 0.5, 50.0
 W0 = 2 * math.pi * 65 / 60
 T_END = 3.0
 
-PUMP = {"support_A.kind": 0, "support_B.kind": 0, "support_C.kind": 0, "mass.reciprocating": M,
-        "load.profile": 0, "load.mean": F, "load.amplitude": 0.0}
-DRIVE = {"drive.gear_ratio": I, "motor.synchronous_speed": WS, "motor.breakdown_torque": TB,
-         "motor.breakdown_slip": SB, "motor.inertia": JM, "crank.inertia": JC,
-         "crank.angle_start": 0.0, "crank.speed_start": W0}
+PUMP = {
+    "support_A.kind": 0,
+    "support_B.kind": 0,
+    "support_C.kind": 0,
+    "mass.reciprocating": M,
+    "load.profile": 0,
+    "load.mean": F,
+    "load.amplitude": 0.0,
+}
+DRIVE = {
+    "drive.gear_ratio": I,
+    "motor.synchronous_speed": WS,
+    "motor.breakdown_torque": TB,
+    "motor.breakdown_slip": SB,
+    "motor.inertia": JM,
+    "crank.inertia": JC,
+    "crank.angle_start": 0.0,
+    "crank.speed_start": W0,
+}
 
 
 def tf(th):
@@ -51,8 +64,16 @@ def monolithic(t_eval):
         a, b = tf(th)
         return [w, (I * tm + F * a - M * a * b * w * w) / (J + M * a * a)]
 
-    sol = solve_ivp(rhs, (0.0, t_eval[-1]), [0.0, W0], method="DOP853", rtol=1e-12, atol=1e-12,
-                    t_eval=t_eval, dense_output=False)
+    sol = solve_ivp(
+        rhs,
+        (0.0, t_eval[-1]),
+        [0.0, W0],
+        method="DOP853",
+        rtol=1e-12,
+        atol=1e-12,
+        t_eval=t_eval,
+        dense_output=False,
+    )
     assert sol.success
     return sol.y[1]
 
@@ -63,7 +84,9 @@ def ssp(tmp_path_factory, fmu_path):
 
     fmu_dir = pathlib.Path(fmu_path).parent
     assert (fmu_dir / "DriveTrain.fmu").is_file(), "DriveTrain.fmu: scripts/build-fmu.sh builds it"
-    return build_ssp(tmp_path_factory.mktemp("ssp") / "Validation.ssp", pump=PUMP, drive=DRIVE, fmu_dir=fmu_dir)
+    return build_ssp(
+        tmp_path_factory.mktemp("ssp") / "Validation.ssp", pump=PUMP, drive=DRIVE, fmu_dir=fmu_dir
+    )
 
 
 def errors(run, ssp):
@@ -117,7 +140,9 @@ def test_loop_stability_condition(tmp_path, fmu_path, jc, stable):
 
     sb = 0.9
     drive = dict(DRIVE, **{"motor.inertia": 0.0, "crank.inertia": jc, "motor.breakdown_slip": sb})
-    s = build_ssp(tmp_path / "loop.ssp", pump=PUMP, drive=drive, fmu_dir=pathlib.Path(fmu_path).parent)
+    s = build_ssp(
+        tmp_path / "loop.ssp", pump=PUMP, drive=drive, fmu_dir=pathlib.Path(fmu_path).parent
+    )
     tau = jc / (I * I * 2 * TB / (sb * WS))
     rho = M * max(tf(x)[0] ** 2 for x in np.linspace(0, math.pi, 2001)) / jc * math.exp(-1e-3 / tau)
     assert (rho < 1) == stable, rho

@@ -35,12 +35,21 @@ def test_factors(model_description):
         assert off == 0.0, key
 
 
-@pytest.mark.parametrize("name,display", [
-    ("crank.angle", "deg"), ("crank.model_angle", "deg"), ("rod.angle", "deg"),
-    ("crank.speed", "rpm"), ("crank.model_speed", "rpm"),
-    ("rod.force", "kN"), ("inertia.force", "kN"), ("guide.friction", "kN"),
-    ("crank.torque", "kN.m"), ("rod.stress_max", "MPa"),
-])
+@pytest.mark.parametrize(
+    "name,display",
+    [
+        ("crank.angle", "deg"),
+        ("crank.model_angle", "deg"),
+        ("rod.angle", "deg"),
+        ("crank.speed", "rpm"),
+        ("crank.model_speed", "rpm"),
+        ("rod.force", "kN"),
+        ("inertia.force", "kN"),
+        ("guide.friction", "kN"),
+        ("crank.torque", "kN.m"),
+        ("rod.stress_max", "MPa"),
+    ],
+)
 def test_variables_carry_their_display_unit(model_description, name, display):
     v = {v.name: v for v in model_description.modelVariables}[name]
     assert v.displayUnit == display
@@ -48,8 +57,13 @@ def test_variables_carry_their_display_unit(model_description, name, display):
 
 def test_default_speed_reads_65_rpm(model_description):
     v = {v.name: v for v in model_description.modelVariables}["crank.speed"]
-    rpm = next(d for u in model_description.unitDefinitions if u.name == "rad/s" for d in u.displayUnits
-               if d.name == "rpm")
+    rpm = next(
+        d
+        for u in model_description.unitDefinitions
+        if u.name == "rad/s"
+        for d in u.displayUnits
+        if d.name == "rpm"
+    )
     assert float(v.start) * float(rpm.factor) == pytest.approx(65.0, rel=1e-14)
 
 

@@ -11,14 +11,15 @@ import re
 import subprocess
 
 import pytest
-
 from conftest import ROOT
 
 DOCS = ROOT / "docs"
 
 
 def tracked_text_files():
-    out = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True, check=True).stdout
+    out = subprocess.run(
+        ["git", "ls-files"], cwd=ROOT, capture_output=True, text=True, check=True
+    ).stdout
     for rel in out.split():
         p = ROOT / rel
         if p.suffix in (".png", ".fmu", ".csv", ".lock", ".ssp") or not p.is_file():
@@ -30,7 +31,9 @@ def tracked_text_files():
 
 
 def headings(page: pathlib.Path) -> list[str]:
-    return [line.lstrip("#").strip() for line in page.read_text().splitlines() if line.startswith("#")]
+    return [
+        line.lstrip("#").strip() for line in page.read_text().splitlines() if line.startswith("#")
+    ]
 
 
 def section_numbers(page: pathlib.Path) -> set[str]:
@@ -47,7 +50,9 @@ def test_every_variable_is_in_the_interface_page(model_description):
     rows = {m.group(1): m.group(0) for m in re.finditer(r"^\| `([^`]+)` \|.*$", text, re.M)}
     for v in model_description.modelVariables:
         assert v.name in rows, f"{v.name} missing from docs/fmi-interface.md"
-        assert f"| {v.causality} |" in rows[v.name] and f"| {v.valueReference} |" in rows[v.name], rows[v.name]
+        assert f"| {v.causality} |" in rows[v.name] and f"| {v.valueReference} |" in rows[v.name], (
+            rows[v.name]
+        )
     assert len(rows) == len(model_description.modelVariables)
 
 
@@ -66,7 +71,9 @@ def test_every_section_citation_exists():
             for m in bare.finditer(text):
                 if m.group(1).rstrip(".") not in pages["model.md"]:
                     missing.append(f"{rel}: §{m.group(1)}")
-    assert not missing, "citations of sections that do not exist:\n" + "\n".join(sorted(set(missing)))
+    assert not missing, "citations of sections that do not exist:\n" + "\n".join(
+        sorted(set(missing))
+    )
 
 
 def test_links_and_figures_resolve():
@@ -76,12 +83,15 @@ def test_links_and_figures_resolve():
             target = m.group(1)
             if "://" in target:
                 continue
-            assert (page.parent / target).exists(), f"{page.relative_to(ROOT)}: {target} does not exist"
+            assert (page.parent / target).exists(), (
+                f"{page.relative_to(ROOT)}: {target} does not exist"
+            )
 
 
 def test_anchors_resolve():
     """Links like model.md#8-default-machine-and-presets point at a heading of that page
     (GitHub's anchor rule: lower case, punctuation dropped, spaces to hyphens)."""
+
     def anchor(h):
         return re.sub(r"\s", "-", re.sub(r"[^\w\s-]", "", h.lower()))
 
@@ -93,7 +103,9 @@ def test_anchors_resolve():
 
 def test_nothing_points_outside_the_repository():
     bad = re.compile(r"\.\./shared|/work" r"/shared|(?<![\w/-])physics\.md|(?<![\w/-])fmi\.md")
-    hits = [f"{rel}: {m.group(0)}" for rel, text in tracked_text_files() for m in bad.finditer(text)]
+    hits = [
+        f"{rel}: {m.group(0)}" for rel, text in tracked_text_files() for m in bad.finditer(text)
+    ]
     assert not hits, "\n".join(hits)
 
 
@@ -116,7 +128,11 @@ def test_defaults_in_the_model_page_are_the_fmus_start_values(model_description)
             if token in ("true", "false"):
                 assert str(want).lower() == token, (n, want, v)
             else:
-                assert float(want) == pytest.approx(float(token), rel=1e-12, abs=1e-15), (n, want, v)
+                assert float(want) == pytest.approx(float(token), rel=1e-12, abs=1e-15), (
+                    n,
+                    want,
+                    v,
+                )
             checked += 1
     assert checked >= 10
 
@@ -138,7 +154,9 @@ def test_figures_regenerate(tmp_path, fmu_path, monkeypatch):
         assert png.is_file() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
     # The variable table in the page is what the script generates from the FMU.
     table = make_docs.variable_table(pathlib.Path(fmu_path))
-    assert table in (DOCS / "fmi-interface.md").read_text(), "docs/fmi-interface.md: run scripts/make_docs.py --table-only"
+    assert table in (DOCS / "fmi-interface.md").read_text(), (
+        "docs/fmi-interface.md: run scripts/make_docs.py --table-only"
+    )
 
 
 def test_fmu_carries_the_documentation_as_html(fmu_path):

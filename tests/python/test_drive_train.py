@@ -10,9 +10,8 @@ import pathlib
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
-
 from reciprocating_drive import Fmu, FmuError
+from scipy.integrate import solve_ivp
 
 I, WS, TB, SB, JM, JC = 23.0, 2 * math.pi * 1500 / 60, 200.0, 0.15, 0.5, 50.0
 
@@ -47,8 +46,15 @@ def test_run_up_and_steady_slip(drive_fmu):
         slip, torque, acc = f.get(["motor.slip", "motor.torque", "crank.acceleration"])
     J = JC + I * I * JM
     t = np.arange(n + 1) * h
-    ref = solve_ivp(lambda t, y: [(I * kloss(y[0]) - load) / J], (0, t[-1]), [0.0], method="DOP853",
-                    rtol=1e-12, atol=1e-12, t_eval=t).y[0]
+    ref = solve_ivp(
+        lambda t, y: [(I * kloss(y[0]) - load) / J],
+        (0, t[-1]),
+        [0.0],
+        method="DOP853",
+        rtol=1e-12,
+        atol=1e-12,
+        t_eval=t,
+    ).y[0]
     assert np.max(np.abs(np.array(w) - ref)) < 1e-6 * WS / I  # the FMU's tolerance is 1e-8
     # Steady state: i·T_m(s*) = T_L on the stable branch (s < s_b), by bisection.
     lo, hi = 0.0, SB
@@ -99,6 +105,9 @@ def test_no_non_finite_output_with_ok(drive_fmu):
     the other outputs stay readable."""
     with Fmu(drive_fmu) as f:
         f.start({"crank.inertia": 1e-300, "motor.inertia": 0.0, "load.torque": -1e308})
-        with pytest.raises(FmuError, match=r"non-finite outputs.*crank\.acceleration = inf.*crank\.inertia = 1e-300"):
+        with pytest.raises(
+            FmuError,
+            match=r"non-finite outputs.*crank\.acceleration = inf.*crank\.inertia = 1e-300",
+        ):
             f.get(["crank.speed", "crank.acceleration"])
         assert f.get(["crank.speed"]) == [pytest.approx(2 * math.pi * 65 / 60)]

@@ -24,31 +24,50 @@ import math
 import numpy as np
 import pytest
 from fmpy.fmi2 import FMU2Slave
-
 from reciprocating_drive.presets import preset_values  # noqa: E402
-from rod_reference import Buckled, Drive, Motion, Rod, fundamental, SERIES_CUT  # noqa: E402
+from rod_reference import SERIES_CUT, Buckled, Drive, Motion, Rod, fundamental  # noqa: E402
 
 KVO = preset_values("kvo630")
 W = KVO["crank.speed"]  # 2π·1500/60
 ANGLE_TOL = 1e-7  # rad, the brief's bound on rod.angle (10 tolerance units of the FMU, see above)
-STATE_OUTPUTS = ["rod.force", "rod.stress_max", "guide.reaction", "guide.moment", "guide.friction",
-                 "rod.axial_deflection"]
+STATE_OUTPUTS = [
+    "rod.force",
+    "rod.stress_max",
+    "guide.reaction",
+    "guide.moment",
+    "guide.friction",
+    "rod.axial_deflection",
+]
 OUTPUTS = ["rod.angle", "rod.angular_velocity"] + STATE_OUTPUTS
 
 
 # ------------------------------------------------------------------------------ FMU driver
 
 
-def run_fmu(md, unzipdir, values: dict, motion: Motion, t_end: float, h: float, outputs=OUTPUTS,
-            tolerance=None, f_ext=0.0, eps_input=True):
+def run_fmu(
+    md,
+    unzipdir,
+    values: dict,
+    motion: Motion,
+    t_end: float,
+    h: float,
+    outputs=OUTPUTS,
+    tolerance=None,
+    f_ext=0.0,
+    eps_input=True,
+):
     """Sets `values` in initialization mode, the crank inputs θ(t_k), ω(t_k), ε at every
     communication point t_k = k·h (θ, ω from `motion`, exact), steps to t_end; returns the times
     and the outputs at t_0 = 0 (after initialization) and after each step. `eps_input=False`
     withholds crank.acceleration (left at 0) as a master that does not supply it would."""
     vr = {v.name: v.valueReference for v in md.modelVariables}
     types = {v.name: v.type for v in md.modelVariables}
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
-                    instanceName="elastic rod")
+    fmu = FMU2Slave(
+        guid=md.guid,
+        unzipDirectory=unzipdir,
+        modelIdentifier=md.coSimulation.modelIdentifier,
+        instanceName="elastic rod",
+    )
     fmu.instantiate()
     try:
         fmu.setupExperiment(tolerance=tolerance, startTime=0.0)
@@ -99,7 +118,7 @@ def sensitivity(drive: Drive, motion: Motion, times, y, names, d=1e-6) -> dict:
     return out
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def kvo630_reference(t_end: float, h: float, rtol: float = 1e-11):
     d, m = Drive(KVO), Motion(W)
     times = np.arange(int(round(t_end / h)) + 1) * h
@@ -120,18 +139,21 @@ def test_reference_reproduces_the_textbook_limits_of_section_6():
     eb = Rod.from_values(KVO)
     eb.a1 = 1e30
     c = eb.column(1e-12)
-    assert c.w_star == pytest.approx(l ** 4 / 12, rel=1e-12)
-    assert c.k_theta == pytest.approx(EJ * (4 / l + 12 * f / l ** 2 + 12 * f ** 2 / l ** 3), rel=1e-12)
-    assert c.k_delta == pytest.approx(EJ * (6 / l ** 2 + 12 * f / l ** 3), rel=1e-12)
+    assert c.w_star == pytest.approx(l**4 / 12, rel=1e-12)
+    assert c.k_theta == pytest.approx(EJ * (4 / l + 12 * f / l**2 + 12 * f**2 / l**3), rel=1e-12)
+    assert c.k_delta == pytest.approx(EJ * (6 / l**2 + 12 * f / l**3), rel=1e-12)
     eb.f = 0.0
     c = eb.column(0.0)
     assert c.k_delta / c.k_theta == pytest.approx(3 / (2 * l), rel=1e-13)  # propped cantilever
     c3, c4 = eb.constants(c, 1e-3, 0.0)  # beam clamped at both ends, end offset Δ (§5.5)
-    assert (c3, c4) == (pytest.approx(6e-3 / l ** 2, rel=1e-13), pytest.approx(-12e-3 / l ** 3, rel=1e-13))
+    assert (c3, c4) == (
+        pytest.approx(6e-3 / l**2, rel=1e-13),
+        pytest.approx(-12e-3 / l**3, rel=1e-13),
+    )
     # Shear, P = 0, f = 0.
     sh = Rod.from_values(KVO)
     sh.f = 0.0
-    phi = 12 * EJ / (sh.a1 * l ** 2)
+    phi = 12 * EJ / (sh.a1 * l**2)
     assert sh.column(0.0).k_theta == pytest.approx(EJ * (4 + phi) / (l * (1 + phi)), rel=1e-13)
     # Buckling of the clamped-pinned column with shear (f = 0): tan(κl) = κl/(1 + P/A1).
     from scipy.optimize import brentq
@@ -142,7 +164,9 @@ def test_reference_reproduces_the_textbook_limits_of_section_6():
 
     # κl between π and 3π/2 (the clamped-pinned root 4.49 without shear)
     lo = brentq(lambda P: math.sqrt(P * (1 + P / sh.a1) / EJ) * l - 1.0001 * math.pi, 1e-9, 1e6)
-    hi = brentq(lambda P: math.sqrt(P * (1 + P / sh.a1) / EJ) * l - 0.9999 * 1.5 * math.pi, 1e-9, 1e6)
+    hi = brentq(
+        lambda P: math.sqrt(P * (1 + P / sh.a1) / EJ) * l - 0.9999 * 1.5 * math.pi, 1e-9, 1e6
+    )
     p_cr = brentq(g, lo, hi, xtol=1e-14)
     assert 0 < sh.column(p_cr * (1 - 1e-7)).k_theta < 1e-5 * sh.column(0.0).k_theta
     with pytest.raises(Buckled):
@@ -150,7 +174,7 @@ def test_reference_reproduces_the_textbook_limits_of_section_6():
     # Series vs closed forms across the switch, both signs of x.
     z = rod.l
     for sign in (1, -1):
-        x_in, x_out = sign * SERIES_CUT / z ** 2 * (1 - 2e-15), sign * SERIES_CUT / z ** 2 * (1 + 2e-15)
+        x_in, x_out = sign * SERIES_CUT / z**2 * (1 - 2e-15), sign * SERIES_CUT / z**2 * (1 + 2e-15)
         a, b = fundamental(x_in, z), fundamental(x_out, z)
         for u, v in zip(a, b):
             assert u == pytest.approx(v, rel=1e-13)
@@ -164,8 +188,10 @@ def test_reference_reproduces_the_textbook_limits_of_section_6():
         except Buckled:
             hi = mid
     p_kvo = lo
-    print(f"\nkvo630 rod: A1 = {rod.a1:.6g} N, A2 = {rod.a2:.6g} N·m², A3 = {rod.a3:.6g} N, "
-          f"buckling load {p_kvo:.6g} N")
+    print(
+        f"\nkvo630 rod: A1 = {rod.a1:.6g} N, A2 = {rod.a2:.6g} N·m², A3 = {rod.a3:.6g} N, "
+        f"buckling load {p_kvo:.6g} N"
+    )
     assert 25.0 < p_kvo < 40.0
 
 
@@ -184,20 +210,28 @@ def test_kvo630_preset_against_independent_solution(model_description, unzipdir)
     assert np.allclose(t, times, rtol=0, atol=1e-15)
     d = Drive(KVO)
     err = np.abs(got["rod.angle"] - ref["rod.angle"])
-    assert err.max() <= ANGLE_TOL, f"rod.angle: max error {err.max():.3e} rad at t = {t[err.argmax()]}"
+    assert err.max() <= ANGLE_TOL, (
+        f"rod.angle: max error {err.max():.3e} rad at t = {t[err.argmax()]}"
+    )
     # ϑ̇: the same tolerance in the FMU's scaling of the rate, ϑ̇/Ω0 (Ω0 at P = 0).
     err_rate = np.abs(got["rod.angular_velocity"] - ref["rod.angular_velocity"])
-    assert err_rate.max() <= ANGLE_TOL * d.omega0, f"rod.angular_velocity: {err_rate.max():.3e} rad/s"
+    assert err_rate.max() <= ANGLE_TOL * d.omega0, (
+        f"rod.angular_velocity: {err_rate.max():.3e} rad/s"
+    )
     sens = sensitivity(d, Motion(W), times, y, STATE_OUTPUTS)
     for n in STATE_OUTPUTS:
         e = np.abs(got[n] - ref[n])
         bound = ANGLE_TOL * sens[n] + 1e-12 * np.abs(ref[n]).max()
-        assert e.max() <= bound, f"{n}: max error {e.max():.3e} > {bound:.3e} (|∂/∂ϑ| ≤ {sens[n]:.3e})"
+        assert e.max() <= bound, (
+            f"{n}: max error {e.max():.3e} > {bound:.3e} (|∂/∂ϑ| ≤ {sens[n]:.3e})"
+        )
     # Not trivially satisfied: the cage really swings, the friction is really on.
     assert np.abs(ref["rod.angle"]).max() > 0.03 and np.abs(ref["guide.friction"]).max() > 0.01
-    print(f"\nkvo630 vs reference: max |Δϑ| = {err.max():.2e} rad, max |Δϑ̇| = {err_rate.max():.2e} rad/s, "
-          f"max |ΔP| = {np.abs(got['rod.force'] - ref['rod.force']).max():.2e} N, "
-          f"max |Δτ| = {np.abs(got['rod.stress_max'] - ref['rod.stress_max']).max():.3g} Pa")
+    print(
+        f"\nkvo630 vs reference: max |Δϑ| = {err.max():.2e} rad, max |Δϑ̇| = {err_rate.max():.2e} rad/s, "
+        f"max |ΔP| = {np.abs(got['rod.force'] - ref['rod.force']).max():.2e} N, "
+        f"max |Δτ| = {np.abs(got['rod.stress_max'] - ref['rod.stress_max']).max():.3g} Pa"
+    )
 
 
 def test_kvo630_key_results(model_description, unzipdir):
@@ -214,9 +248,11 @@ def test_kvo630_key_results(model_description, unzipdir):
     sens = sensitivity(Drive(KVO), Motion(W), times, y, ["rod.stress_max"])["rod.stress_max"]
     assert abs(tau - tau_ref) <= ANGLE_TOL * sens + 1e-12 * tau_ref
     d = Drive(KVO)
-    print(f"\nkvo630: damping time 1/(ζ·Ω0) = {2 * d.J / d.B * 1e3:.2f} ms; steady-state cage amplitude "
-          f"max|ϑ| = {amp:.9f} rad (reference {amp_ref:.9f}); largest coil stress "
-          f"max rod.stress_max = {tau / 1e6:.4f} MPa (reference {tau_ref / 1e6:.4f} MPa)")
+    print(
+        f"\nkvo630: damping time 1/(ζ·Ω0) = {2 * d.J / d.B * 1e3:.2f} ms; steady-state cage amplitude "
+        f"max|ϑ| = {amp:.9f} rad (reference {amp_ref:.9f}); largest coil stress "
+        f"max rod.stress_max = {tau / 1e6:.4f} MPa (reference {tau_ref / 1e6:.4f} MPa)"
+    )
 
 
 # ------------------------------------------------------------------------------ linear case
@@ -224,14 +260,28 @@ def test_kvo630_key_results(model_description, unzipdir):
 
 def linear_case(p_const: float) -> dict:
     v = dict(KVO)
-    v.update({"support_A.kind": 0, "support_B.kind": 0, "support_C.kind": 0, "mass.reciprocating": 0.0,
-              "load.profile": 0, "load.amplitude": 0.0, "load.mean": p_const, "geometry.slider_offset": 0.0})
+    v.update(
+        {
+            "support_A.kind": 0,
+            "support_B.kind": 0,
+            "support_C.kind": 0,
+            "mass.reciprocating": 0.0,
+            "load.profile": 0,
+            "load.amplitude": 0.0,
+            "load.mean": p_const,
+            "geometry.slider_offset": 0.0,
+        }
+    )
     return v
 
 
 @pytest.mark.parametrize("tol", [None, 1e-10])
-@pytest.mark.parametrize("p_const", [14.7, 0.0, -20.0])  # compression (cos/sin), P = 0 (series), tension
-def test_constant_load_reaches_the_exact_periodic_steady_state(model_description, unzipdir, p_const, tol):
+@pytest.mark.parametrize(
+    "p_const", [14.7, 0.0, -20.0]
+)  # compression (cos/sin), P = 0 (series), tension
+def test_constant_load_reaches_the_exact_periodic_steady_state(
+    model_description, unzipdir, p_const, tol
+):
     """No friction, m = 0, P = load.mean constant, e = 0: J ϑ̈ + B ϑ̇ + K ϑ = K_Δ r sin(ωt), whose
     periodic solution is A·sin(ωt − φ), A = K_Δ r / sqrt((K − Jω²)² + (Bω)²), φ = atan2(Bω, K − Jω²),
     with K, K_Δ, B from the independent §6 code. Compared after 25 damping times 1/(ζΩ0) (the
@@ -244,8 +294,16 @@ def test_constant_load_reaches_the_exact_periodic_steady_state(model_description
     phi = math.atan2(B * W, K - J * W * W)
     settle = 25 * 2 * J / B
     t_end, h = settle + 0.05, 1e-3
-    t, got = run_fmu(model_description, unzipdir, v, Motion(W), t_end, h, ["rod.angle", "rod.angular_velocity"],
-                     tolerance=tol)
+    t, got = run_fmu(
+        model_description,
+        unzipdir,
+        v,
+        Motion(W),
+        t_end,
+        h,
+        ["rod.angle", "rod.angular_velocity"],
+        tolerance=tol,
+    )
     sel = t >= settle
     exact = amp * np.sin(W * t[sel] - phi)
     exact_rate = amp * W * np.cos(W * t[sel] - phi)
@@ -255,7 +313,9 @@ def test_constant_load_reaches_the_exact_periodic_steady_state(model_description
     err = np.abs(got["rod.angle"][sel] - exact).max()
     err_rate = np.abs(got["rod.angular_velocity"][sel] - exact_rate).max()
     assert err <= bound, f"rod.angle: {err:.3e} > {bound:.3e} (amplitude {amp:.6f} rad)"
-    assert err_rate <= bound * d.omega0, f"rod.angular_velocity: {err_rate:.3e} > {bound * d.omega0:.3e}"
+    assert err_rate <= bound * d.omega0, (
+        f"rod.angular_velocity: {err_rate:.3e} > {bound * d.omega0:.3e}"
+    )
     # P really is the constant load (no inertia, no friction).
     assert amp > 0.02
 
@@ -307,5 +367,7 @@ def test_speed_ramp_with_acceleration_input(model_description, unzipdir):
     for n in ("rod.force", "rod.stress_max"):
         e = np.abs(got[n] - ref[n]).max()
         assert e <= ANGLE_TOL * sens[n] + 1e-12 * np.abs(ref[n]).max(), f"{n}: {e:.3e}"
-    _, no_eps = run_fmu(model_description, unzipdir, KVO, motion, t_end, h, ["rod.angle"], eps_input=False)
+    _, no_eps = run_fmu(
+        model_description, unzipdir, KVO, motion, t_end, h, ["rod.angle"], eps_input=False
+    )
     assert np.abs(no_eps["rod.angle"] - ref["rod.angle"]).max() > 10 * ANGLE_TOL

@@ -20,10 +20,21 @@ SCRIPT = ROOT / "scripts" / "lib" / "ensure-build-deps.sh"
 
 def run(tree: pathlib.Path, install: str = "echo INSTALLER-CALLED >&2") -> tuple[int, str, str]:
     env = {k: v for k, v in os.environ.items() if k != "LIBCLANG_PATH"}
-    env.update(RD_LIBCLANG_DIRS=f"{tree}/usr/lib/llvm-*/lib:{tree}/usr/lib*:{tree}/usr/lib/*",
-               RD_LIBCLANG_INSTALL=install)
-    p = subprocess.run(["bash", "-c", f'source "{SCRIPT}"; ensure_libclang && echo "LIBCLANG_PATH=$LIBCLANG_PATH"'],
-                       env=env, capture_output=True, text=True, timeout=30)
+    env.update(
+        RD_LIBCLANG_DIRS=f"{tree}/usr/lib/llvm-*/lib:{tree}/usr/lib*:{tree}/usr/lib/*",
+        RD_LIBCLANG_INSTALL=install,
+    )
+    p = subprocess.run(
+        [
+            "bash",
+            "-c",
+            f'source "{SCRIPT}"; ensure_libclang && echo "LIBCLANG_PATH=$LIBCLANG_PATH"',
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
     return p.returncode, p.stdout, p.stderr
 
 
@@ -42,7 +53,9 @@ def test_only_libclang_cpp_is_not_libclang(tmp_path):
     assert rc != 0 and "still missing" in err  # the fake installer installed nothing
 
 
-@pytest.mark.parametrize("name", ["libclang-14.so.1", "libclang.so.1", "libclang-14.so", "libclang.so"])
+@pytest.mark.parametrize(
+    "name", ["libclang-14.so.1", "libclang.so.1", "libclang-14.so", "libclang.so"]
+)
 def test_versioned_libclang_outside_the_default_path_is_found(tmp_path, name):
     touch(tmp_path, "usr/lib/llvm-14/lib/libclang-cpp.so.14")
     lib = touch(tmp_path, f"usr/lib/llvm-14/lib/{name}")
@@ -55,7 +68,10 @@ def test_versioned_libclang_outside_the_default_path_is_found(tmp_path, name):
 def test_none_installs_then_finds(tmp_path):
     # The "installer" puts a libclang where apt's libclang-dev would (a versioned file).
     target = tmp_path / "usr/lib/llvm-16/lib"
-    rc, out, err = run(tmp_path, install=f'echo INSTALLER-CALLED >&2; mkdir -p "{target}"; touch "{target}/libclang-16.so.16"')
+    rc, out, err = run(
+        tmp_path,
+        install=f'echo INSTALLER-CALLED >&2; mkdir -p "{target}"; touch "{target}/libclang-16.so.16"',
+    )
     assert "INSTALLER-CALLED" in err
     assert rc == 0, err
     assert f"LIBCLANG_PATH={target}" in out
@@ -65,8 +81,13 @@ def test_this_machine_has_a_usable_libclang():
     """After the scripts ran (scripts/test.sh runs ensure_build_deps first) the real search finds
     a library with a usable name that exists."""
     env = {k: v for k, v in os.environ.items() if k != "LIBCLANG_PATH"}
-    p = subprocess.run(["bash", "-c", f'source "{SCRIPT}"; find_libclang'], env=env,
-                       capture_output=True, text=True, timeout=30)
+    p = subprocess.run(
+        ["bash", "-c", f'source "{SCRIPT}"; find_libclang'],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
     assert p.returncode == 0, p.stderr
     path = pathlib.Path(p.stdout.strip())
     assert path.exists() and "libclang-cpp" not in path.name

@@ -31,7 +31,6 @@ import math
 import numpy as np
 import pytest
 from fmpy import simulate_fmu
-
 from reference import OUTPUTS, Machine
 
 OMEGA = 2 * math.pi * 65 / 60  # default machine: 65 strokes/min (docs/model.md §8)
@@ -104,8 +103,14 @@ def test_constant_speed_offset_machine_with_loads(fmu_path):
     """A different geometry with a guide offset e ≠ 0 and a crank.angle_offset, set through start
     values, plus a process force (input + profile 0) so rod.force and crank.torque carry load."""
     m = Machine(
-        r=0.15, l=0.62, e=-0.07, m=120.0, angle_offset=0.4,
-        load_mean=-3.0e3, load_amplitude=8.0e3, load_phase=0.7,
+        r=0.15,
+        l=0.62,
+        e=-0.07,
+        m=120.0,
+        angle_offset=0.4,
+        load_mean=-3.0e3,
+        load_amplitude=8.0e3,
+        load_phase=0.7,
     )
     th, dth = m.odc_check()
     assert abs(dth) < 1e-25  # the reference's X_max is the true maximum
@@ -126,7 +131,9 @@ def test_speed_ramp_with_acceleration_supplied(fmu_path, omega0, eps):
     res = run(fmu_path, m, 2.0, 0.01, theta, omega, eps=eps)
     compare(res, m, theta, omega, eps=eps, expect_points=201)
     # The ε term matters: the same outputs with ε ignored would be off by |TF·ε| ~ r ε.
-    ref_no_eps = [m.outputs(theta(t), omega(t), 0.0)["suspension.acceleration"] for t in res["time"]]
+    ref_no_eps = [
+        m.outputs(theta(t), omega(t), 0.0)["suspension.acceleration"] for t in res["time"]
+    ]
     assert np.max(np.abs(res["suspension.acceleration"] - ref_no_eps)) > 0.1 * m.r * abs(eps)
 
 
@@ -139,14 +146,27 @@ def test_uneven_step_sizes_are_exact_too(fmu_path):
     dt = 0.0173
     t_stop = n * dt + 0.0061
     tt = [k * dt for k in range(n + 1)] + [t_stop]
-    sig = np.zeros(len(tt), dtype=[("time", np.float64), ("crank.angle", np.float64),
-                                   ("crank.speed", np.float64), ("crank.acceleration", np.float64),
-                                   ("link.external_force", np.float64)])
+    sig = np.zeros(
+        len(tt),
+        dtype=[
+            ("time", np.float64),
+            ("crank.angle", np.float64),
+            ("crank.speed", np.float64),
+            ("crank.acceleration", np.float64),
+            ("link.external_force", np.float64),
+        ],
+    )
     sig["time"] = tt
     sig["crank.angle"] = [theta(x) for x in tt]
     sig["crank.speed"] = OMEGA
-    res = simulate_fmu(fmu_path, stop_time=t_stop, output_interval=dt, input=sig,
-                       start_values=m.start_values(), output=list(OUTPUTS))
+    res = simulate_fmu(
+        fmu_path,
+        stop_time=t_stop,
+        output_interval=dt,
+        input=sig,
+        start_values=m.start_values(),
+        output=list(OUTPUTS),
+    )
     assert abs(res["time"][-1] - t_stop) < 1e-12
     compare(res, m, theta, omega)
 
@@ -156,8 +176,13 @@ def test_fmpy_simulate_without_inputs_uses_start_values(fmu_path):
     ε = 0) and the FMU advances the crank itself by its extrapolation, θ = ω t (docs/model.md §2)."""
     m = Machine()
     w = 2 * np.pi * 65 / 60
-    res = simulate_fmu(fmu_path, stop_time=1.0, output_interval=0.01, start_values=m.start_values(),
-                       output=list(OUTPUTS))
+    res = simulate_fmu(
+        fmu_path,
+        stop_time=1.0,
+        output_interval=0.01,
+        start_values=m.start_values(),
+        output=list(OUTPUTS),
+    )
     sc = m.scales(w)
     for row in res[::10]:
         ref = m.outputs(w * row["time"], w)

@@ -181,7 +181,9 @@ class BeamFE:
                     "tilt": p[f"support_{x}.tilt"],
                     "length": p[f"support_{x}.length"],
                     "k": p[f"support_{x}.stiffness"],
-                    "f": p["guide.friction_coefficient"] if x == "B" else p[f"support_{x}.friction"],
+                    "f": p["guide.friction_coefficient"]
+                    if x == "B"
+                    else p[f"support_{x}.friction"],
                 }
             )
 
@@ -204,7 +206,10 @@ class BeamFE:
             zc = self.centre(sup, s)
             # Frame position of the centre at mid-stroke (Z = z + s at s = S/2).
             z_ref = (zc + 0.5 * self.stroke) if not sup["frame_fixed"] else sup["z"]
-            axis = lambda z_link: sup["offset"] + sup["tilt"] * ((z_link + s) - z_ref)  # noqa: E731
+
+            def axis(z_link, sup=sup, z_ref=z_ref):
+                return sup["offset"] + sup["tilt"] * ((z_link + s) - z_ref)
+
             if sup["kind"] == 1:
                 pts = [zc]
             elif sup["kind"] == 2:
@@ -266,7 +271,7 @@ class BeamFE:
         # Scale of the constraint rows (keeps partial pivoting meaningful): EJ/L³.
         c_scale = num(max(self.ej)) / num(self.L) ** 3
         row = 2 * n
-        for (_sup, dof, z, value, k) in cons:
+        for _sup, dof, z, value, k in cons:
             node = index(z)
             d = 2 * node + (0 if dof == "w" else 1)
             if dof == "w" and k > 0:
@@ -287,7 +292,7 @@ class BeamFE:
         """Per support (R, M about its centre) from the solution column `col`."""
         out = [[0.0, 0.0] for _ in range(3)]
         row = 2 * n
-        for (sup, dof, z, value, k) in cons:
+        for sup, dof, z, value, k in cons:
             node = index(z)
             if dof == "w" and k > 0:
                 w = sol[2 * node][col]
@@ -321,7 +326,9 @@ class BeamFE:
             cols = [[x[0][i], x[1][i]] for i in range(len(rhs))]
             base = self._gather(cols, cons, index, c_scale, s, len(nodes), 0)
             per_q = self._gather(cols, cons, index, c_scale, s, len(nodes), 1)
-            return np.array([[float(x) for x in r] for r in base]), np.array([[float(x) for x in r] for r in per_q])
+            return np.array([[float(x) for x in r] for r in base]), np.array(
+                [[float(x) for x in r] for r in per_q]
+            )
 
     def friction(self, rm, sign):
         """Signed friction of each support for reactions rm = [(R, M)] and sign = tanh(v/v_ε)."""
@@ -346,7 +353,9 @@ class Reference:
         p = params
         assert p["mechanism"] == 1 and p.get("rod.kind", 0) == 0  # rigid crank-slider rod
         self.p = p
-        self.kin = Slider(p["geometry.crank_radius"], p["geometry.rod_length"], p["geometry.slider_offset"])
+        self.kin = Slider(
+            p["geometry.crank_radius"], p["geometry.rod_length"], p["geometry.slider_offset"]
+        )
         self.fe = BeamFE(p, self.kin.stroke)
 
     def process_force(self, th, v, f_input):
@@ -384,7 +393,14 @@ class Reference:
             width = 2 * abs(f0) + 1.0
             while h(p_base - width) * h(p_base + width) > 0:
                 width *= 2
-            P = brentq(h, p_base - width, p_base + width, xtol=1e-15 * (abs(p_base) + width), rtol=8.9e-16, maxiter=500)
+            P = brentq(
+                h,
+                p_base - width,
+                p_base + width,
+                xtol=1e-15 * (abs(p_base) + width),
+                rtol=8.9e-16,
+                maxiter=500,
+            )
         rm = reactions(P)
         fr = self.fe.friction(rm, sign)
         b = self.fe.supports[1]
@@ -438,7 +454,14 @@ def run_fmu(fmu_path, start_values, n=N_REV, omega=OMEGA, revolutions=1, f_input
         output_interval=h,
         input=sig,
         start_values=start_values,
-        output=COMPARED + ["suspension.position", "suspension.velocity", "rod.angle", "crank.torque", "inertia.force"],
+        output=COMPARED
+        + [
+            "suspension.position",
+            "suspension.velocity",
+            "rod.angle",
+            "crank.torque",
+            "inertia.force",
+        ],
     )
 
 
@@ -496,12 +519,26 @@ def test_reference_reproduces_the_textbook_limits():
 
     def beam(supports):
         p = {f"link.l{i}": 0.0 for i in range(1, 5)} | {f"link.d{i}": d for i in range(1, 5)}
-        p |= {"link.l1": 1.2, "link.l2": 0.8, "link.E": E, "link.lateral_load": 0.0,
-              "guide.rod_side_force": True, "guide.velocity_scale": 0.02, "guide.friction_coefficient": 0.0}
+        p |= {
+            "link.l1": 1.2,
+            "link.l2": 0.8,
+            "link.E": E,
+            "link.lateral_load": 0.0,
+            "guide.rod_side_force": True,
+            "guide.velocity_scale": 0.02,
+            "guide.friction_coefficient": 0.0,
+        }
         for x in "ABC":
-            p |= {f"support_{x}.kind": 0, f"support_{x}.attached": 0, f"support_{x}.z": 0.0,
-                  f"support_{x}.offset": 0.0, f"support_{x}.tilt": 0.0, f"support_{x}.length": 0.0,
-                  f"support_{x}.stiffness": 0.0, f"support_{x}.friction": 0.0}
+            p |= {
+                f"support_{x}.kind": 0,
+                f"support_{x}.attached": 0,
+                f"support_{x}.z": 0.0,
+                f"support_{x}.offset": 0.0,
+                f"support_{x}.tilt": 0.0,
+                f"support_{x}.length": 0.0,
+                f"support_{x}.stiffness": 0.0,
+                f"support_{x}.friction": 0.0,
+            }
         for x, vals in supports.items():
             p |= {f"support_{x}.{k}": v for k, v in vals.items()}
         return BeamFE(p, 0.0)
@@ -527,7 +564,9 @@ def test_reference_reproduces_the_textbook_limits():
     k_beam = 3 * EJ / L**3
     assert fe.influence(0.0)[0][2][0] == pytest.approx(delta / (1 / k + 1 / k_beam), rel=1e-10)
     # Pin displaced δ at the middle of a beam clamped at both ends: 192EJδ/L³.
-    fe = beam({"A": {"kind": 2}, "B": {"kind": 1, "z": L / 2, "offset": delta}, "C": {"kind": 2, "z": L}})
+    fe = beam(
+        {"A": {"kind": 2}, "B": {"kind": 1, "z": L / 2, "offset": delta}, "C": {"kind": 2, "z": L}}
+    )
     assert fe.influence(0.0)[0][1][0] == pytest.approx(192 * EJ * delta / L**3, rel=1e-10)
 
 
@@ -545,7 +584,9 @@ def test_reference_self_consistency(params):
             assert np.max(np.abs(fine_b - base)) <= 1e-11 * scale_b
             assert np.max(np.abs(fine_q - per_q)) <= 1e-11 * scale_q
             mp_b, mp_q = ref.fe.influence_mp(s)
-            assert np.max(np.abs(mp_b - base)) <= 1e-13 * scale_b, np.max(np.abs(mp_b - base)) / scale_b
+            assert np.max(np.abs(mp_b - base)) <= 1e-13 * scale_b, (
+                np.max(np.abs(mp_b - base)) / scale_b
+            )
             assert np.max(np.abs(mp_q - per_q)) <= 1e-13 * scale_q
             # ΣR + lateral load = 0 and ΣR per unit Q = −1.
             assert abs(base[:, 0].sum() + p["link.lateral_load"]) <= 1e-10 * scale_b
@@ -574,7 +615,9 @@ def test_unb600a_matches_the_independent_model(fmu_path, params):
 def test_frame_fixed_elastic_gland_with_tilts_matches_the_independent_model(fmu_path, params):
     f_input = lambda t: 1.5e4 * math.sin(2 * OMEGA * t + 0.2)  # noqa: E731
     res = run_fmu(fmu_path, CONFIG_C, f_input=f_input)
-    rows, worst = compare(res, Reference(params | CONFIG_C), "frame-fixed elastic C", f_input=f_input)
+    rows, worst = compare(
+        res, Reference(params | CONFIG_C), "frame-fixed elastic C", f_input=f_input
+    )
     print("config (c), worst errors:", {k: f"{v:.2g}" for k, v in worst.items()})
     # Every support carries load and A and C rub: the total differs from B's friction.
     for name in ("support_A.reaction", "support_C.reaction", "guide.reaction", "guide.moment"):
@@ -604,7 +647,11 @@ def test_reference_distinguishes_wrong_models(params):
             if sup is None or sup["f"] == 0.0:
                 continue
             r, m = rm[i]
-            mag = sup["f"] * abs(r) if sup["kind"] == 1 or sup["length"] == 0 else sup["f"] * abs(0.5 * r + m / sup["length"])
+            mag = (
+                sup["f"] * abs(r)
+                if sup["kind"] == 1 or sup["length"] == 0
+                else sup["f"] * abs(0.5 * r + m / sup["length"])
+            )
             out[i] = -mag * sign
         return out
 
@@ -658,7 +705,10 @@ def test_friction_report_figures_agree_with_the_independent_model(fmu_path, para
     print(f"{case}: max {rep['max']}, min {rep['min']}, work {rep['work']:.9g} J")
     for key, sign in (("max", 1.0), ("min", -1.0)):
         th, val = rep[key]
-        f = lambda deg: sign * ref.at(math.radians(deg), w)["guide.friction"]  # noqa: E731
+
+        def f(deg, sign=sign):
+            return sign * ref.at(math.radians(deg), w)["guide.friction"]
+
         assert abs(sign * f(th) - val) <= RTOL * abs(val), (key, th, val, sign * f(th))
         th_ref, _ = friction_report.golden_max(f, th - 0.1, th + 0.1, 1e-7)
         assert abs(th_ref - th) <= 1e-4, (key, th, th_ref)

@@ -23,7 +23,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from reference import OUTPUTS, Machine
 from test_fmpy_kinematics import run
 
@@ -79,8 +78,16 @@ def cosim_run(fmu_path, machine: Machine, n_steps: int, instance_name: str):
 
 
 def test_libcosim_agrees_with_fmpy_and_reference(fmu_path):
-    m = Machine(r=0.2, l=1.19, e=0.04, m=300.0, angle_offset=0.25,
-                load_mean=1.0e3, load_amplitude=4.0e3, load_phase=-0.3)
+    m = Machine(
+        r=0.2,
+        l=1.19,
+        e=0.04,
+        m=300.0,
+        angle_offset=0.25,
+        load_mean=1.0e3,
+        load_amplitude=4.0e3,
+        load_phase=-0.3,
+    )
     h = STEP_NS * 1e-9
     n = int(round(T_END / h))
     t_cs, y_cs = cosim_run(fmu_path, m, n, instance_name="mud pump drive")
@@ -104,11 +111,20 @@ def test_libcosim_agrees_with_fmpy_and_reference(fmu_path):
         w_x = omega(tk) + eps(tk) * h
         ref = m.outputs(th_x, w_x, eps(tk))
         for j, name in enumerate(OUTPUTS):
-            assert abs(y_cs[i, j] - ref[name]) <= 1e-9 * scales[name], (name, t_cs[i], y_cs[i, j], ref[name])
+            assert abs(y_cs[i, j] - ref[name]) <= 1e-9 * scales[name], (
+                name,
+                t_cs[i],
+                y_cs[i, j],
+                ref[name],
+            )
         # The true motion at t_{k+1} differs by the cubic term ~ A Ω³ h³ / 6: far above 1e-9.
         true = m.outputs(theta(tk + h), omega(tk + h), eps(tk + h))
-        worst_exact = max(worst_exact, abs(true["suspension.position"] - ref["suspension.position"]) / m.r)
-    assert worst_exact > 1e-8, "the test motion should not be reproduced exactly by the extrapolation"
+        worst_exact = max(
+            worst_exact, abs(true["suspension.position"] - ref["suspension.position"]) / m.r
+        )
+    assert worst_exact > 1e-8, (
+        "the test motion should not be reproduced exactly by the extrapolation"
+    )
 
 
 def test_libcosim_two_instances_in_one_execution(fmu_path):
@@ -145,4 +161,3 @@ def test_libcosim_two_instances_in_one_execution(fmu_path):
             ref, sc = m.outputs(5.0 * t, 5.0), m.scales(5.0)
             for j, name in enumerate(OUTPUTS):
                 assert abs(got[j] - ref[name]) <= 1e-9 * sc[name], (idx, name, t)
-

@@ -24,15 +24,21 @@ from fmpy.fmi2 import (
     fmi2CoSimulation,
     fmi2Error,
 )
-
 from reference import OUTPUTS, Machine
 
 OMEGA = 2 * math.pi * 65 / 60
 
 
 # The FMI 2.0 logger with its one variadic argument (see Log).
-LOGGER6 = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p,
-                           ctypes.c_char_p, ctypes.c_char_p)
+LOGGER6 = ctypes.CFUNCTYPE(
+    None,
+    ctypes.c_void_p,
+    ctypes.c_char_p,
+    ctypes.c_int,
+    ctypes.c_char_p,
+    ctypes.c_char_p,
+    ctypes.c_char_p,
+)
 
 
 class Log:
@@ -49,9 +55,13 @@ class Log:
         def logger(env, name, status, category, fmt, message):
             self.formats.add(fmt)
             self.lines.append(
-                (env, name.decode() if name else None, status,
-                 category.decode() if category else None,
-                 message.decode() if fmt == b"%s" and message else "")
+                (
+                    env,
+                    name.decode() if name else None,
+                    status,
+                    category.decode() if category else None,
+                    message.decode() if fmt == b"%s" and message else "",
+                )
             )
 
         self.callbacks = fmi2CallbackFunctions()
@@ -69,10 +79,16 @@ class Log:
         return "\n".join(self.messages())
 
 
-def new_slave(md, unzipdir, name="ReciprocatingDrive", logging_on=False, environment=None, log=None):
+def new_slave(
+    md, unzipdir, name="ReciprocatingDrive", logging_on=False, environment=None, log=None
+):
     log = log or Log(environment)
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
-                    instanceName=name)
+    fmu = FMU2Slave(
+        guid=md.guid,
+        unzipDirectory=unzipdir,
+        modelIdentifier=md.coSimulation.modelIdentifier,
+        instanceName=name,
+    )
     fmu.instantiate(callbacks=log.callbacks, loggingOn=logging_on)
     return fmu, log
 
@@ -85,7 +101,9 @@ def start(fmu, vr, machine: Machine, theta=0.0, omega=OMEGA, eps=0.0):
         else:
             fmu.setReal([vr[name]], [value])
     fmu.enterInitializationMode()
-    fmu.setReal([vr["crank.angle"], vr["crank.speed"], vr["crank.acceleration"]], [theta, omega, eps])
+    fmu.setReal(
+        [vr["crank.angle"], vr["crank.speed"], vr["crank.acceleration"]], [theta, omega, eps]
+    )
     fmu.exitInitializationMode()
 
 
@@ -122,14 +140,16 @@ def close(fmu):
 @pytest.mark.parametrize(
     "rod_length,offset",
     [
-        (0.15, 0.0),     # l < r: the crank cannot turn round
-        (0.2, 0.0),      # l = r: assembly needs l > r + |e| strictly (docs/model.md §3.1)
-        (0.25, 0.05),    # l = r + |e| with an offset
-        (0.0, 0.0),      # non-positive: outside the declared range (0, inf)
+        (0.15, 0.0),  # l < r: the crank cannot turn round
+        (0.2, 0.0),  # l = r: assembly needs l > r + |e| strictly (docs/model.md §3.1)
+        (0.25, 0.05),  # l = r + |e| with an offset
+        (0.0, 0.0),  # non-positive: outside the declared range (0, inf)
         (-1.19, 0.0),
     ],
 )
-def test_bad_rod_length_rejected_at_exit_initialization(model_description, unzipdir, vr, rod_length, offset):
+def test_bad_rod_length_rejected_at_exit_initialization(
+    model_description, unzipdir, vr, rod_length, offset
+):
     fmu, log = new_slave(model_description, unzipdir)
     try:
         fmu.setupExperiment(startTime=0.0)
@@ -154,8 +174,12 @@ def test_bad_rod_length_rejected_at_exit_initialization(model_description, unzip
 
 
 def test_other_out_of_range_parameters_name_variable_and_value(model_description, unzipdir, vr):
-    for name, bad in [("geometry.crank_radius", -0.2), ("mass.reciprocating", -5.0),
-                      ("guide.velocity_scale", 0.0), ("crank.angle_offset", float("inf"))]:
+    for name, bad in [
+        ("geometry.crank_radius", -0.2),
+        ("mass.reciprocating", -5.0),
+        ("guide.velocity_scale", 0.0),
+        ("crank.angle_offset", float("inf")),
+    ]:
         fmu, log = new_slave(model_description, unzipdir)
         try:
             fmu.setupExperiment(startTime=0.0)
@@ -187,8 +211,12 @@ def test_other_out_of_range_parameters_name_variable_and_value(model_description
 
 
 @pytest.mark.parametrize("bad", [float("nan"), float("inf"), float("-inf")])
-@pytest.mark.parametrize("name", ["crank.angle", "crank.speed", "crank.acceleration", "link.external_force"])
-def test_non_finite_input_rejected_and_fmu_keeps_working(model_description, unzipdir, vr, name, bad):
+@pytest.mark.parametrize(
+    "name", ["crank.angle", "crank.speed", "crank.acceleration", "link.external_force"]
+)
+def test_non_finite_input_rejected_and_fmu_keeps_working(
+    model_description, unzipdir, vr, name, bad
+):
     m = Machine(e=0.02)
     fmu, log = new_slave(model_description, unzipdir)
     try:
@@ -237,9 +265,20 @@ def test_direct_feedthrough_without_step(model_description, unzipdir, vr):
     try:
         start(fmu, vr, m)
         assert_matches(outputs(fmu, vr), m, 0.0, OMEGA)
-        for theta, w, eps, f in [(1.1, 4.0, 0.0, 0.0), (2.5, -3.0, 7.0, 1.0e4), (-4.0, 12.0, -1.0, -2e3)]:
-            fmu.setReal([vr["crank.angle"], vr["crank.speed"], vr["crank.acceleration"],
-                         vr["link.external_force"]], [theta, w, eps, f])
+        for theta, w, eps, f in [
+            (1.1, 4.0, 0.0, 0.0),
+            (2.5, -3.0, 7.0, 1.0e4),
+            (-4.0, 12.0, -1.0, -2e3),
+        ]:
+            fmu.setReal(
+                [
+                    vr["crank.angle"],
+                    vr["crank.speed"],
+                    vr["crank.acceleration"],
+                    vr["link.external_force"],
+                ],
+                [theta, w, eps, f],
+            )
             assert_matches(outputs(fmu, vr), m, theta, w, eps, f)
     finally:
         close(fmu)
@@ -310,8 +349,8 @@ def test_multiple_instances_in_one_process_are_independent(model_description, un
         for i, (fmu, m) in enumerate(zip(slaves, machines)):
             start(fmu, vr, m, theta=0.1 * i, omega=3.0 + i)
         t = 0.0
-        for k in range(20):
-            for i, fmu in enumerate(slaves):  # interleaved
+        for _ in range(20):
+            for fmu in slaves:  # interleaved
                 fmu.doStep(t, 0.05)
             t += 0.05
             for i, (fmu, m) in enumerate(zip(slaves, machines)):
@@ -358,16 +397,29 @@ def test_resource_location_forms(model_description, unzipdir, vr, tmp_path, form
     res = tmp_path / "a dir" / "resources"
     res.mkdir(parents=True)
     posix = str(res).lstrip("/")
-    location = None if form == "none" else form.format(p=posix, q=pathlib.Path(res).as_uri()[len("file:///"):])
+    location = (
+        None
+        if form == "none"
+        else form.format(p=posix, q=pathlib.Path(res).as_uri()[len("file:///") :])
+    )
     if form == "file:///{q}":
         assert "%20" in location
     log = Log()
-    fmu = FMU2Slave(guid=model_description.guid, unzipDirectory=unzipdir,
-                    modelIdentifier="ReciprocatingDrive", instanceName="res test")
+    fmu = FMU2Slave(
+        guid=model_description.guid,
+        unzipDirectory=unzipdir,
+        modelIdentifier="ReciprocatingDrive",
+        instanceName="res test",
+    )
     fmu.callbacks = log.callbacks
     fmu.component = fmu.fmi2Instantiate(
-        b"res test", fmi2CoSimulation, model_description.guid.encode(),
-        None if location is None else location.encode(), ctypes.byref(log.callbacks), 0, 1,
+        b"res test",
+        fmi2CoSimulation,
+        model_description.guid.encode(),
+        None if location is None else location.encode(),
+        ctypes.byref(log.callbacks),
+        0,
+        1,
     )
     assert fmu.component, f"fmi2Instantiate refused {location!r}: {log.text()}"
     try:
@@ -382,16 +434,31 @@ def test_resource_location_forms(model_description, unzipdir, vr, tmp_path, form
 
 def test_instantiate_refuses_wrong_guid_and_type_with_a_message(model_description, unzipdir):
     log = Log()
-    fmu = FMU2Slave(guid=model_description.guid, unzipDirectory=unzipdir,
-                    modelIdentifier="ReciprocatingDrive", instanceName="x")
+    fmu = FMU2Slave(
+        guid=model_description.guid,
+        unzipDirectory=unzipdir,
+        modelIdentifier="ReciprocatingDrive",
+        instanceName="x",
+    )
     try:
         loc = pathlib.Path(unzipdir, "resources").as_uri().encode()
-        c = fmu.fmi2Instantiate(b"x", fmi2CoSimulation, b"{not-the-guid}", loc, ctypes.byref(log.callbacks), 0, 0)
+        c = fmu.fmi2Instantiate(
+            b"x", fmi2CoSimulation, b"{not-the-guid}", loc, ctypes.byref(log.callbacks), 0, 0
+        )
         assert not c and "GUID" in log.text()
-        c = fmu.fmi2Instantiate(b"x", 0, model_description.guid.encode(), loc, ctypes.byref(log.callbacks), 0, 0)
+        c = fmu.fmi2Instantiate(
+            b"x", 0, model_description.guid.encode(), loc, ctypes.byref(log.callbacks), 0, 0
+        )
         assert not c and log.messages(fmi2Error)
-        c = fmu.fmi2Instantiate(b"", fmi2CoSimulation, model_description.guid.encode(), loc,
-                                ctypes.byref(log.callbacks), 0, 0)
+        c = fmu.fmi2Instantiate(
+            b"",
+            fmi2CoSimulation,
+            model_description.guid.encode(),
+            loc,
+            ctypes.byref(log.callbacks),
+            0,
+            0,
+        )
         assert not c
     finally:
         fmu.freeLibrary()

@@ -18,7 +18,6 @@ import math
 
 import mpmath as mp
 import pytest
-
 from conftest import ROOT
 
 spec = importlib.util.spec_from_file_location("simulate", ROOT / "scripts" / "simulate.py")
@@ -72,7 +71,7 @@ def beam_position(theta):
     q = -theta
     cx, cy = R * mp.sin(q), R * mp.cos(q)
     # E = B − C(cos b, sin b); |E − crank pin| = P  →  solve for b near 0.
-    f = lambda b: (I - C * mp.cos(b) - cx) ** 2 + (HG - C * mp.sin(b) - cy) ** 2 - P ** 2  # noqa: E731
+    f = lambda b: (I - C * mp.cos(b) - cx) ** 2 + (HG - C * mp.sin(b) - cy) ** 2 - P**2  # noqa: E731
     return A * mp.findroot(f, mp.mpf(0))
 
 
@@ -87,7 +86,7 @@ def test_beam_unit_summary(summaries):
     # Acceleration a = ω²·d²s/dθ² at constant speed: extremes by an independent search.
     w = 2 * math.pi * 10.9 / 60
     acc = lambda th: w * w * mp.diff(beam_position, th, 2)  # noqa: E731
-    for key, sign in (("max", 1), ("min", -1)):
+    for key in ("max", "min"):
         e = s["extremes"]["suspension.acceleration"]
         th0 = mp.radians(e[f"{key}_angle_deg"])
         th = mp.findroot(lambda x: mp.diff(lambda y: acc(y), x), th0)
@@ -104,8 +103,12 @@ def test_elastic_rod_summary(summaries):
     assert s["rod"] == "helical-spring rod"
     assert s["stroke"] == pytest.approx(2 * r, rel=1e-9)
     acc = s["extremes"]["suspension.acceleration"]
-    assert acc["max"] == pytest.approx(r * w * w, rel=1e-9) and angle_close(acc["max_angle_deg"], 0.0)
-    assert acc["min"] == pytest.approx(-r * w * w, rel=1e-9) and angle_close(acc["min_angle_deg"], 180.0)
+    assert acc["max"] == pytest.approx(r * w * w, rel=1e-9) and angle_close(
+        acc["max_angle_deg"], 0.0
+    )
+    assert acc["min"] == pytest.approx(-r * w * w, rel=1e-9) and angle_close(
+        acc["min_angle_deg"], 180.0
+    )
     # The cage oscillates within the validity limit of the linear theory, and the transient is
     # over before the summarised revolution.
     assert 0 < s["rod_angle_amplitude"] < 0.2

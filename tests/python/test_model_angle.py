@@ -15,7 +15,6 @@ import math
 
 import numpy as np
 import pytest
-
 from reciprocating_drive import Fmu
 
 R, L = 0.2, 1.19  # default machine (§8)
@@ -27,7 +26,11 @@ FRICTION_OFF = {"support_A.kind": 0, "support_B.kind": 0, "support_C.kind": 0}
 
 def measured(t):
     """A master's crank signal: θ, ω, ε at time t (smooth, not constant-speed)."""
-    return (2.0 + 5.0 * t + 0.1 * math.sin(3 * t), 5.0 + 0.3 * math.cos(3 * t), -0.9 * math.sin(3 * t))
+    return (
+        2.0 + 5.0 * t + 0.1 * math.sin(3 * t),
+        5.0 + 0.3 * math.cos(3 * t),
+        -0.9 * math.sin(3 * t),
+    )
 
 
 def position(theta):
@@ -59,8 +62,15 @@ def drive(fmu, set_every, last, n=N, h=H, start=0):
 def start(fmu_path):
     f = Fmu(fmu_path)
     th, w, e = measured(0.0)
-    f.start({**FRICTION_OFF, "crank.angle_offset": OFFSET, "crank.angle": th, "crank.speed": w,
-             "crank.acceleration": e})
+    f.start(
+        {
+            **FRICTION_OFF,
+            "crank.angle_offset": OFFSET,
+            "crank.angle": th,
+            "crank.speed": w,
+            "crank.acceleration": e,
+        }
+    )
     return f
 
 
@@ -77,7 +87,9 @@ def check_rule(rows):
     assert np.max(np.abs(pos - np.array([position(a) for a in ang]))) < 1e-12
 
 
-@pytest.mark.parametrize("set_every", [1, 0, 10], ids=["every step", "once, then held", "every 10th step"])
+@pytest.mark.parametrize(
+    "set_every", [1, 0, 10], ids=["every step", "once, then held", "every 10th step"]
+)
 def test_model_angle_follows_the_rule(fmu_path, set_every):
     with start(fmu_path) as f:
         rows = drive(f, set_every, SET_AT_0)

@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 import pytest
-
 from reciprocating_drive import Fmu, FmuError
 
 W = 2 * math.pi * 65 / 60

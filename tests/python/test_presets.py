@@ -15,11 +15,16 @@ import zipfile
 
 import numpy as np
 import pytest
-
 from reciprocating_drive.presets import preset_values_from_fmu  # noqa: E402
 
 PRESETS = ["unb600a", "sk8-3.5-4000", "kvo630"]
-OUTS = ["suspension.position", "suspension.acceleration", "inertia.force", "rod.force", "crank.torque"]
+OUTS = [
+    "suspension.position",
+    "suspension.acceleration",
+    "inertia.force",
+    "rod.force",
+    "crank.torque",
+]
 
 
 def fmpy_run(fmu_path, values, revolutions=2, n_per_rev=720):
@@ -32,8 +37,15 @@ def fmpy_run(fmu_path, values, revolutions=2, n_per_rev=720):
     sig = np.zeros(t.size, dtype=[("time", float), ("crank.angle", float), ("crank.speed", float)])
     sig["time"], sig["crank.angle"], sig["crank.speed"] = t, w * t, w
     start = {k: v for k, v in values.items() if k != "crank.speed"}
-    res = simulate_fmu(fmu_path, stop_time=t_end, step_size=h, output_interval=h, input=sig,
-                       start_values=start, output=OUTS)
+    res = simulate_fmu(
+        fmu_path,
+        stop_time=t_end,
+        step_size=h,
+        output_interval=h,
+        input=sig,
+        start_values=start,
+        output=OUTS,
+    )
     return res, h
 
 
@@ -91,14 +103,30 @@ def fmpy_run_on_grid(fmu_path, values, h, n):
     sig = np.zeros(t.size, dtype=[("time", float), ("crank.angle", float), ("crank.speed", float)])
     sig["time"], sig["crank.angle"], sig["crank.speed"] = t, w * t, w
     start = {k: v for k, v in values.items() if k != "crank.speed"}
-    return simulate_fmu(fmu_path, stop_time=n * h, step_size=h, output_interval=h, input=sig,
-                        start_values=start, output=OUTS), h
+    return simulate_fmu(
+        fmu_path,
+        stop_time=n * h,
+        step_size=h,
+        output_interval=h,
+        input=sig,
+        start_values=start,
+        output=OUTS,
+    ), h
 
 
 def test_sk8_preset_reproduces_seed_001_and_the_closed_form_stroke(fmu_path):
     v = preset_values_from_fmu(fmu_path, "sk8-3.5-4000")
-    A, C, I, HG, P, R = (v[k] for k in ("geometry.beam_front_arm", "geometry.beam_rear_arm", "geometry.pivot_dx",
-                                         "geometry.pivot_dy", "geometry.rod_length", "geometry.crank_radius"))
+    A, C, I, HG, P, R = (
+        v[k]
+        for k in (
+            "geometry.beam_front_arm",
+            "geometry.beam_rear_arm",
+            "geometry.pivot_dx",
+            "geometry.pivot_dy",
+            "geometry.rod_length",
+            "geometry.crank_radius",
+        )
+    )
     res, h = fmpy_run(fmu_path, v, revolutions=1, n_per_rev=3600)
     K = math.hypot(I, HG)
     psi = lambda d: math.acos((C * C + K * K - d * d) / (2 * C * K))  # noqa: E731
@@ -108,18 +136,30 @@ def test_sk8_preset_reproduces_seed_001_and_the_closed_form_stroke(fmu_path):
     assert abs(res["suspension.position"].min()) < 2e-6
     # Seed 001 at the paper's two angles, through the FMU's input and the §3.2 angle mapping.
     from fmpy import simulate_fmu
+
     shift = math.pi / 2 - math.atan2(HG, I)
     w = v["crank.speed"]
     for phi1, printed, digits in [(37.51, 2.72, 2), (192.51, -1.4909, 4)]:
         th = math.radians(phi1) - shift
-        sig = np.array([(0.0, th, w), (1.0, th, w)], dtype=[("time", float), ("crank.angle", float), ("crank.speed", float)])
+        sig = np.array(
+            [(0.0, th, w), (1.0, th, w)],
+            dtype=[("time", float), ("crank.angle", float), ("crank.speed", float)],
+        )
         start = {k: x for k, x in v.items() if k != "crank.speed"}
-        r = simulate_fmu(fmu_path, stop_time=1e-9, step_size=1e-9, input=sig, start_values=start,
-                         output=["suspension.acceleration"])
+        r = simulate_fmu(
+            fmu_path,
+            stop_time=1e-9,
+            step_size=1e-9,
+            input=sig,
+            start_values=start,
+            output=["suspension.acceleration"],
+        )
         assert round(r["suspension.acceleration"][0], digits) == printed
 
 
 def test_presets_ship_inside_the_fmu(fmu_path):
     with zipfile.ZipFile(fmu_path) as z:
-        shipped = sorted(n for n in z.namelist() if n.startswith("resources/presets/") and n.endswith(".ssv"))
+        shipped = sorted(
+            n for n in z.namelist() if n.startswith("resources/presets/") and n.endswith(".ssv")
+        )
     assert shipped == sorted(f"resources/presets/{p}.ssv" for p in PRESETS)

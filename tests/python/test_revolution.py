@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 import pytest
-
 from reciprocating_drive.revolution import summarize_revolutions
 
 W = 2 * math.pi * 65 / 60
@@ -34,7 +33,9 @@ def test_boundaries_and_speed_of_a_non_uniform_rotation():
 def test_extremes_and_their_angles():
     t, th, _ = rotation(fluct=0.0, dt=2e-3)
     phi = 1.0  # rad: the maximum of cos(θ − φ) is 1 at θ = φ, the minimum −1 at φ + π
-    revs = summarize_revolutions(t, th, {"rod.force": 5.0 * np.cos(th - phi)}, quantities=["rod.force"])
+    revs = summarize_revolutions(
+        t, th, {"rod.force": 5.0 * np.cos(th - phi)}, quantities=["rod.force"]
+    )
     for r in revs:
         e = r.extremes["rod.force"]
         # Parabolic refinement over Δθ = ω·dt ≈ 0.0136 rad: error ~ 5·Δθ³ ≈ 1e-5 in value.
@@ -69,14 +70,24 @@ def test_a_revolution_does_not_depend_on_the_others_in_the_call():
     own samples and their two neighbours alone (what the live twin computes, one at a time)."""
     t, th, w = rotation(n_rev=6.0, fluct=0.05)
     rng = np.random.default_rng(3)
-    series = {"suspension.position": 0.2 * (1 - np.cos(th)), "link.friction_total": -300 * np.sin(th) + rng.normal(size=len(t)),
-              "rod.angle": 0.03 * np.sin(3 * th), "rod.stress_max": 2e8 + 1e7 * np.cos(th),
-              "rod.force": rng.normal(size=len(t)), "crank.torque": np.round(np.cos(2 * th), 1)}
+    series = {
+        "suspension.position": 0.2 * (1 - np.cos(th)),
+        "link.friction_total": -300 * np.sin(th) + rng.normal(size=len(t)),
+        "rod.angle": 0.03 * np.sin(3 * th),
+        "rod.stress_max": 2e8 + 1e7 * np.cos(th),
+        "rod.force": rng.normal(size=len(t)),
+        "crank.torque": np.round(np.cos(2 * th), 1),
+    }
     whole = summarize_revolutions(t, th, series, speed=w)
     assert [r.index for r in whole] == list(range(6))
     for r in whole:
         a = max(0, int(np.searchsorted(th, 2 * math.pi * r.index)) - 1)
         b = int(np.searchsorted(th, 2 * math.pi * (r.index + 1))) + 1
-        alone = [s for s in summarize_revolutions(t[a:b], th[a:b], {k: v[a:b] for k, v in series.items()}, speed=w[a:b])
-                 if s.index == r.index]
+        alone = [
+            s
+            for s in summarize_revolutions(
+                t[a:b], th[a:b], {k: v[a:b] for k, v in series.items()}, speed=w[a:b]
+            )
+            if s.index == r.index
+        ]
         assert [s.as_row() for s in alone] == [r.as_row()]

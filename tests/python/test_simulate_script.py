@@ -44,7 +44,9 @@ def check_rows(header, rows, machine, omega, every=25):
     for r in rows[::every]:
         theta_in = r[col["crank angle"]] - machine.angle_offset
         assert abs(theta_in - omega * r[col["time"]]) < 1e-12
-        assert abs(math.degrees(r[col["crank angle"]]) - r[header.index("crank angle [deg]")]) < 1e-9
+        assert (
+            abs(math.degrees(r[col["crank angle"]]) - r[header.index("crank angle [deg]")]) < 1e-9
+        )
         ref = machine.outputs(theta_in, omega)
         # The reference has no guide friction; the run's friction (checked against an independent
         # beam model in test_guide_friction.py) enters the rod force and the crank torque (§4).
@@ -56,8 +58,21 @@ def check_rows(header, rows, machine, omega, every=25):
 
 
 def test_default_run_writes_csv_and_png(fmu_path, tmp_path):
-    rc = simulate.main(["default", "--fmu", fmu_path, "--out-dir", str(tmp_path),
-                        "--resources", str(tmp_path / "none"), "--revolutions", "1", "--step", "0.001"])
+    rc = simulate.main(
+        [
+            "default",
+            "--fmu",
+            fmu_path,
+            "--out-dir",
+            str(tmp_path),
+            "--resources",
+            str(tmp_path / "none"),
+            "--revolutions",
+            "1",
+            "--step",
+            "0.001",
+        ]
+    )
     assert rc == 0
     header, rows = read(tmp_path / "default.csv")
     period = 2 * math.pi / (2 * math.pi * 65 / 60)
@@ -74,12 +89,27 @@ def test_ssv_preset(fmu_path, tmp_path):
     res.mkdir()
     (res / "small.ssv").write_text(SSV)
     assert simulate.available_presets(res) == ["default", "small"]
-    rc = simulate.main(["small", "--fmu", fmu_path, "--out-dir", str(tmp_path), "--resources", str(res),
-                        "--revolutions", "1", "--step", "0.002"])
+    rc = simulate.main(
+        [
+            "small",
+            "--fmu",
+            fmu_path,
+            "--out-dir",
+            str(tmp_path),
+            "--resources",
+            str(res),
+            "--revolutions",
+            "1",
+            "--step",
+            "0.002",
+        ]
+    )
     assert rc == 0
     header, rows = read(tmp_path / "small.csv")
     assert rows[-1][0] >= 2 * math.pi / 12.5
-    check_rows(header, rows, Machine(r=0.1, l=0.45, e=0.01, m=40.0, angle_offset=0.5), 12.5, every=10)
+    check_rows(
+        header, rows, Machine(r=0.1, l=0.45, e=0.01, m=40.0, angle_offset=0.5), 12.5, every=10
+    )
 
 
 def test_unknown_preset_is_an_error(tmp_path, capsys):

@@ -16,7 +16,6 @@ import time
 
 import numpy as np
 import pytest
-
 from conftest import ROOT
 from reciprocating_drive.study import StudyError, load_study, study_from_dict
 from reciprocating_drive.sweep import load_rows, run_batch, run_sweep
@@ -32,8 +31,10 @@ SMALL = {
     "steps_per_revolution": 120,
     "metrics": ["friction_work", "torque_peak", "acceleration_max"],
     # rod_length 0.15 m < crank radius 0.2 m: the crank-slider cannot assemble (rejected case).
-    "parameters": {"mass.reciprocating": {"values": [200.0, 300.0, 400.0]},
-                   "geometry.rod_length": {"values": [1.19, 0.15]}},
+    "parameters": {
+        "mass.reciprocating": {"values": [200.0, 300.0, 400.0]},
+        "geometry.rod_length": {"values": [1.19, 0.15]},
+    },
 }
 
 
@@ -49,12 +50,42 @@ def real_cluster():
     port = free_port()
     addr = f"tcp://127.0.0.1:{port}"
     env = {**os.environ, "PYTHONPATH": str(ROOT / "python")}
-    procs = [subprocess.Popen([str(VENV_BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(port),
-                               "--no-dashboard"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    procs = [
+        subprocess.Popen(
+            [
+                str(VENV_BIN / "dask"),
+                "scheduler",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(port),
+                "--no-dashboard",
+            ],
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+    ]
     for _ in range(2):
-        procs.append(subprocess.Popen([str(VENV_BIN / "dask"), "worker", addr, "--nthreads", "1", "--nworkers", "1",
-                                       "--no-dashboard", "--host", "127.0.0.1"], env=env,
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        procs.append(
+            subprocess.Popen(
+                [
+                    str(VENV_BIN / "dask"),
+                    "worker",
+                    addr,
+                    "--nthreads",
+                    "1",
+                    "--nworkers",
+                    "1",
+                    "--no-dashboard",
+                    "--host",
+                    "127.0.0.1",
+                ],
+                env=env,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
+        )
     from dask.distributed import Client
 
     deadline = time.time() + 60
@@ -77,20 +108,26 @@ def real_cluster():
 def test_local_cluster_and_real_scheduler_agree(fmu_path, tmp_path, real_cluster):
     study = study_from_dict(SMALL)
     a = run_sweep(study, fmu_path, tmp_path / "local", workers=2, progress=False, batch_size=1)
-    b = run_sweep(study, fmu_path, tmp_path / "remote", scheduler=real_cluster, progress=False, batch_size=1)
+    b = run_sweep(
+        study, fmu_path, tmp_path / "remote", scheduler=real_cluster, progress=False, batch_size=1
+    )
     assert a.computed == b.computed == 6 and b.workers == 2
     ra, rb = load_rows(a.csv, study), load_rows(b.csv, study)
     keys = ["case", *study.varied, *study.metrics, "status", "message"]
     for x, y in zip(ra, rb):
         for k in keys:
-            same = (x[k] == y[k]) or (isinstance(x[k], float) and math.isnan(x[k]) and math.isnan(y[k]))
+            same = (x[k] == y[k]) or (
+                isinstance(x[k], float) and math.isnan(x[k]) and math.isnan(y[k])
+            )
             assert same, (k, x[k], y[k])
     # Both clusters really spread the work over two worker processes.
     assert len({r["worker"] for r in rb}) == 2
     # The rejected cases are rows with the FMU's message, not the end of the sweep.
     bad = [r for r in ra if r["status"] == "error"]
-    assert len(bad) == 3 and all("cannot assemble" in r["message"] and "geometry.rod_length = 0.15" in r["message"]
-                                 for r in bad)
+    assert len(bad) == 3 and all(
+        "cannot assemble" in r["message"] and "geometry.rod_length = 0.15" in r["message"]
+        for r in bad
+    )
     assert all(math.isnan(r["friction_work"]) for r in bad)
     # Parquet holds the same table.
     import pyarrow.parquet as pq
@@ -115,8 +152,20 @@ metrics = ["friction_work", "torque_peak"]
 "mass.reciprocating" = { start = 100, stop = 500, num = 24 }
 """)
     out = tmp_path / "out"
-    cmd = [sys.executable, str(ROOT / "scripts" / "sweep.py"), str(study_file), "--fmu", fmu_path,
-           "--out-dir", str(out), "--workers", "1", "--batch-size", "1", "--no-progress"]
+    cmd = [
+        sys.executable,
+        str(ROOT / "scripts" / "sweep.py"),
+        str(study_file),
+        "--fmu",
+        fmu_path,
+        "--out-dir",
+        str(out),
+        "--workers",
+        "1",
+        "--batch-size",
+        "1",
+        "--no-progress",
+    ]
     p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     csv_path = out / "slow.csv"
     deadline = time.time() + 120
@@ -144,7 +193,11 @@ def direct_fmpy(fmu_path, study, params):
     """The case run by fmpy.simulate_fmu, metrics from the raw samples (independent code)."""
     from fmpy import simulate_fmu
 
-    sv = {k: v for k, v in study.base_values.items() if k not in ("crank.angle", "crank.speed", "crank.acceleration")}
+    sv = {
+        k: v
+        for k, v in study.base_values.items()
+        if k not in ("crank.angle", "crank.speed", "crank.acceleration")
+    }
     w = study.crank_speed
     for k, v in params.items():
         if k == "strokes_per_minute":
@@ -158,9 +211,20 @@ def direct_fmpy(fmu_path, study, params):
     t = np.arange(n + 1) * h
     sig = np.zeros(n + 1, dtype=[("time", float), ("crank.angle", float), ("crank.speed", float)])
     sig["time"], sig["crank.angle"], sig["crank.speed"] = t, w * t, w
-    res = simulate_fmu(fmu_path, stop_time=n * h, output_interval=h, start_values=sv, input=sig,
-                       output=["suspension.position", "link.friction_total", "crank.torque", "rod.angle",
-                               "rod.stress_max"])
+    res = simulate_fmu(
+        fmu_path,
+        stop_time=n * h,
+        output_interval=h,
+        start_values=sv,
+        input=sig,
+        output=[
+            "suspension.position",
+            "link.friction_total",
+            "crank.torque",
+            "rod.angle",
+            "rod.stress_max",
+        ],
+    )
     ev = slice(study.skip_revolutions * n_per, n + 1)
     x, f = res["suspension.position"][ev], res["link.friction_total"][ev]
     tq = np.abs(res["crank.torque"][ev])
@@ -177,7 +241,9 @@ def direct_fmpy(fmu_path, study, params):
     }
 
 
-@pytest.mark.parametrize("name,case", [("unb600a_friction", 30), ("kvo630_resonance", 25), ("default_balancer", 12)])
+@pytest.mark.parametrize(
+    "name,case", [("unb600a_friction", 30), ("kvo630_resonance", 25), ("default_balancer", 12)]
+)
 def test_example_case_agrees_with_direct_fmpy(fmu_path, name, case):
     study = load_study(ROOT / "studies" / f"{name}.toml")
     (row,) = run_batch(fmu_path, study, [case])
@@ -186,23 +252,40 @@ def test_example_case_agrees_with_direct_fmpy(fmu_path, name, case):
     for m in study.metrics:
         if m == "torque_peak":
             # Same samples; the sweep refines the sampled peak by a parabola (docs/sweeps.md).
-            assert ref[m] - 1e-12 * ref[m] <= row[m] <= ref[m] + ref["torque_peak_bound"], (row[m], ref[m])
+            assert ref[m] - 1e-12 * ref[m] <= row[m] <= ref[m] + ref["torque_peak_bound"], (
+                row[m],
+                ref[m],
+            )
         elif m in ref:
             assert row[m] == pytest.approx(ref[m], rel=1e-9, abs=1e-12), (m, row[m], ref[m])
 
 
 def test_lhs_design_is_stratified_and_bad_studies_are_refused(tmp_path):
-    st = study_from_dict({"name": "l", "design": {"kind": "lhs", "samples": 16, "seed": 3},
-                          "parameters": {"mass.reciprocating": {"min": 100, "max": 500},
-                                         "guide.friction_coefficient": {"min": 0.0, "max": 0.2}}})
+    st = study_from_dict(
+        {
+            "name": "l",
+            "design": {"kind": "lhs", "samples": 16, "seed": 3},
+            "parameters": {
+                "mass.reciprocating": {"min": 100, "max": 500},
+                "guide.friction_coefficient": {"min": 0.0, "max": 0.2},
+            },
+        }
+    )
     assert len(st.case_values) == 16
-    for p, (lo, hi) in {"mass.reciprocating": (100, 500), "guide.friction_coefficient": (0.0, 0.2)}.items():
+    for p, (lo, hi) in {
+        "mass.reciprocating": (100, 500),
+        "guide.friction_coefficient": (0.0, 0.2),
+    }.items():
         u = sorted((c[p] - lo) / (hi - lo) for c in st.case_values)
         # Latin hypercube: exactly one sample in each of the 16 strata of every dimension.
         assert [int(x * 16) for x in u] == list(range(16))
     with pytest.raises(StudyError, match="unknown"):
-        study_from_dict({"metrics": ["nonsense"], "parameters": {"mass.reciprocating": {"values": [1.0]}}})
+        study_from_dict(
+            {"metrics": ["nonsense"], "parameters": {"mass.reciprocating": {"values": [1.0]}}}
+        )
     with pytest.raises(StudyError, match="empty"):
         study_from_dict({"parameters": {}})
     with pytest.raises(StudyError, match="not a preset"):
-        study_from_dict({"machine": "nosuch", "parameters": {"mass.reciprocating": {"values": [1.0]}}})
+        study_from_dict(
+            {"machine": "nosuch", "parameters": {"mass.reciprocating": {"values": [1.0]}}}
+        )

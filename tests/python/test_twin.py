@@ -22,7 +22,6 @@ import sys
 
 import numpy as np
 import pytest
-
 from conftest import ROOT
 from reciprocating_drive.twin_sample import crank_slider_acceleration, truth
 
@@ -32,8 +31,13 @@ ENCODER = ["--angle-unit", "counts", "--counts-per-rev", "4096"]
 
 
 def run(args, fmu_path, stdin=None, check=True):
-    p = subprocess.run(TWIN + list(map(str, args)) + ["--fmu", fmu_path], input=stdin, capture_output=True,
-                       text=True, timeout=300)
+    p = subprocess.run(
+        TWIN + list(map(str, args)) + ["--fmu", fmu_path],
+        input=stdin,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     if check:
         assert p.returncode == 0, p.stderr
     return p
@@ -50,7 +54,10 @@ def test_exact_angles_give_the_exact_acceleration(fmu_path, tmp_path):
     t = np.arange(3001) / 1000.0
     theta, _, _ = truth(t)
     src = tmp_path / "exact.csv"
-    src.write_text("time,crank_angle\n" + "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(t, np.mod(theta, 2 * math.pi))))
+    src.write_text(
+        "time,crank_angle\n"
+        + "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(t, np.mod(theta, 2 * math.pi)))
+    )
     # Noise-free data wants a short window (docs/twin.md: the cubic's bias grows with the window
     # squared; 6 ms gives 3.5e-5 of the peak here, the default 0.1 s, made for encoders, 8e-3).
     run([src, "--out", tmp_path / "o.csv", "--window", "0.006"], fmu_path)
@@ -62,12 +69,18 @@ def test_exact_angles_give_the_exact_acceleration(fmu_path, tmp_path):
 
 
 def test_encoder_data_within_one_percent_away_from_the_gap(fmu_path, tmp_path):
-    p = run([SAMPLE, *ENCODER, "--out", tmp_path / "o.csv", "--plots", tmp_path / "plots"], fmu_path)
+    p = run(
+        [SAMPLE, *ENCODER, "--out", tmp_path / "o.csv", "--plots", tmp_path / "plots"], fmu_path
+    )
     assert "gap of 0.201" in p.stderr and "re-initialized" in p.stderr
     o = read(tmp_path / "o.csv")
     th, w, e = truth(o["time"])
     exact = crank_slider_acceleration(th, w, e)
-    away = (np.abs(o["time"] - 6.1) > 0.1 + 0.1) & (o["time"] > 0.1) & (o["time"] < o["time"][-1] - 0.1)
+    away = (
+        (np.abs(o["time"] - 6.1) > 0.1 + 0.1)
+        & (o["time"] > 0.1)
+        & (o["time"] < o["time"][-1] - 0.1)
+    )
     err = np.max(np.abs(o["suspension.acceleration"][away] - exact[away])) / np.max(np.abs(exact))
     assert err <= 0.01, err
     # Per-revolution summary: mean speed of the truth (ω0 on average) and its fluctuation (±3 %).
@@ -79,15 +92,34 @@ def test_encoder_data_within_one_percent_away_from_the_gap(fmu_path, tmp_path):
         assert (tmp_path / "plots" / name).read_bytes()[:4] == b"\x89PNG"
 
 
-@pytest.mark.parametrize("text,args,message", [
-    ("time,crank_angle\n0,0\n0.001,abc\n", [], "line 3: crank_angle = 'abc' is not a number"),
-    ("time,crank_angle\n0,0\n0.002,0.01\n0.001,0.02\n", [], "line 4: time 0.001 s goes backwards"),
-    ("time,crank_angle\n0,0\n0.001,0.01\n0.001,0.01\n", ["--duplicates", "error"], "line 4: duplicate timestamp"),
-    ("time,crank_angle\n0,0\n0.001,0.01\n0.002,1.5\n", [], "line 4: the crank angle moves"),
-    ("t,angle\n0,0\n", [], "line 1: the header must name 'time'"),
-    ("time,crank_angle\n0,0\n0.001,0.01\n\n0.002,0.005\n", [], "line 5: the crank angle goes backwards"),
-    ("time,crank_angle,crank_speed\n0,0,1\n0.001,0.01,inf\n", [], "line 3: crank_speed = 'inf' is not a finite number"),
-])
+@pytest.mark.parametrize(
+    "text,args,message",
+    [
+        ("time,crank_angle\n0,0\n0.001,abc\n", [], "line 3: crank_angle = 'abc' is not a number"),
+        (
+            "time,crank_angle\n0,0\n0.002,0.01\n0.001,0.02\n",
+            [],
+            "line 4: time 0.001 s goes backwards",
+        ),
+        (
+            "time,crank_angle\n0,0\n0.001,0.01\n0.001,0.01\n",
+            ["--duplicates", "error"],
+            "line 4: duplicate timestamp",
+        ),
+        ("time,crank_angle\n0,0\n0.001,0.01\n0.002,1.5\n", [], "line 4: the crank angle moves"),
+        ("t,angle\n0,0\n", [], "line 1: the header must name 'time'"),
+        (
+            "time,crank_angle\n0,0\n0.001,0.01\n\n0.002,0.005\n",
+            [],
+            "line 5: the crank angle goes backwards",
+        ),
+        (
+            "time,crank_angle,crank_speed\n0,0,1\n0.001,0.01,inf\n",
+            [],
+            "line 3: crank_speed = 'inf' is not a finite number",
+        ),
+    ],
+)
 def test_bad_data_is_refused_with_its_line(fmu_path, tmp_path, text, args, message):
     src = tmp_path / "bad.csv"
     src.write_text(text)
@@ -107,17 +139,26 @@ def test_fmu_failure_keeps_the_samples_before_it(fmu_path, tmp_path):
     outs = {}
     for name, jump in (("calm", 0.0), ("buckled", 1e5)):
         src = tmp_path / f"{name}.csv"
-        src.write_text("time,crank_angle,process_force\n" + "".join(
-            f"{float(a)!r},{float(b)!r},{(jump if k >= 2000 else 0.0)!r}\n" for k, (a, b) in enumerate(zip(t, angle))))
-        outs[name] = run([src, *common, "--out", tmp_path / f"{name}-out.csv"], fmu_path, check=jump == 0.0)
+        src.write_text(
+            "time,crank_angle,process_force\n"
+            + "".join(
+                f"{float(a)!r},{float(b)!r},{(jump if k >= 2000 else 0.0)!r}\n"
+                for k, (a, b) in enumerate(zip(t, angle))
+            )
+        )
+        outs[name] = run(
+            [src, *common, "--out", tmp_path / f"{name}-out.csv"], fmu_path, check=jump == 0.0
+        )
     p = outs["buckled"]
-    assert p.returncode == 1 and "line 2002 (t = 2.0 s)" in p.stderr and "buckled" in p.stderr, p.stderr
+    assert p.returncode == 1 and "line 2002 (t = 2.0 s)" in p.stderr and "buckled" in p.stderr, (
+        p.stderr
+    )
     calm = (tmp_path / "calm-out.csv").read_text().splitlines()
     buckled = (tmp_path / "buckled-out.csv").read_text().splitlines()
-    assert len(buckled) == 1 + 2000 and buckled == calm[:len(buckled)]
+    assert len(buckled) == 1 + 2000 and buckled == calm[: len(buckled)]
     calm_s = (tmp_path / "calm-out-revolutions.csv").read_text().splitlines()
     buckled_s = (tmp_path / "buckled-out-revolutions.csv").read_text().splitlines()
-    assert len(buckled_s) > 40 and buckled_s == calm_s[:len(buckled_s)]
+    assert len(buckled_s) > 40 and buckled_s == calm_s[: len(buckled_s)]
 
 
 def test_duplicates_are_dropped_and_counted(fmu_path, tmp_path):
@@ -134,9 +175,15 @@ def test_duplicates_are_dropped_and_counted(fmu_path, tmp_path):
 
 def test_live_equals_replay(fmu_path, tmp_path):
     run([SAMPLE, *ENCODER, "--out", tmp_path / "replay.csv"], fmu_path)
-    run(["-", *ENCODER, "--live", "--out", tmp_path / "live.csv"], fmu_path, stdin=SAMPLE.read_text())
+    run(
+        ["-", *ENCODER, "--live", "--out", tmp_path / "live.csv"],
+        fmu_path,
+        stdin=SAMPLE.read_text(),
+    )
     assert (tmp_path / "replay.csv").read_bytes() == (tmp_path / "live.csv").read_bytes()
-    assert (tmp_path / "replay-revolutions.csv").read_bytes() == (tmp_path / "live-revolutions.csv").read_bytes()
+    assert (tmp_path / "replay-revolutions.csv").read_bytes() == (
+        tmp_path / "live-revolutions.csv"
+    ).read_bytes()
 
 
 def test_live_in_small_pieces_equals_replay(fmu_path, tmp_path):
@@ -149,13 +196,17 @@ def test_live_in_small_pieces_equals_replay(fmu_path, tmp_path):
     src = tmp_path / "part.csv"
     src.write_bytes(text)
     run([src, *ENCODER, "--out", tmp_path / "replay.csv"], fmu_path)
-    p = subprocess.Popen(TWIN + ["-", *ENCODER, "--live", "--out", str(tmp_path / "live.csv"), "--fmu", fmu_path],
-                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p = subprocess.Popen(
+        TWIN + ["-", *ENCODER, "--live", "--out", str(tmp_path / "live.csv"), "--fmu", fmu_path],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
     rng = random.Random(5)
     pos = 0
     while pos < len(text):
         n = rng.choice([1, 7, 30, 41, 200, 3000])
-        p.stdin.write(text[pos:pos + n])
+        p.stdin.write(text[pos : pos + n])
         p.stdin.flush()
         pos += n
         time.sleep(rng.choice([0, 0, 0.0005, 0.002]))
@@ -163,7 +214,9 @@ def test_live_in_small_pieces_equals_replay(fmu_path, tmp_path):
     err = p.stderr.read().decode()
     assert p.wait(timeout=300) == 0, err
     assert (tmp_path / "replay.csv").read_bytes() == (tmp_path / "live.csv").read_bytes()
-    assert (tmp_path / "replay-revolutions.csv").read_bytes() == (tmp_path / "live-revolutions.csv").read_bytes()
+    assert (tmp_path / "replay-revolutions.csv").read_bytes() == (
+        tmp_path / "live-revolutions.csv"
+    ).read_bytes()
 
 
 def test_checkpoint_and_resume_are_bit_identical(fmu_path, tmp_path):
@@ -173,7 +226,12 @@ def test_checkpoint_and_resume_are_bit_identical(fmu_path, tmp_path):
     cp = tmp_path / "twin.checkpoint"
     # Stop in the middle of a revolution, well before the gap; then after the gap.
     run([SAMPLE, *ENCODER, "--out", part, "--checkpoint", cp, "--stop-after", 3333], fmu_path)
-    run([SAMPLE, *ENCODER, "--out", part, "--checkpoint", cp, "--resume", cp, "--stop-after", 7777], fmu_path)
+    run(
+        [SAMPLE, *ENCODER, "--out", part, "--checkpoint", cp, "--resume", cp, "--stop-after", 7777],
+        fmu_path,
+    )
     run([SAMPLE, *ENCODER, "--out", part, "--resume", cp], fmu_path)
     assert part.read_bytes() == full.read_bytes()
-    assert (tmp_path / "part-revolutions.csv").read_bytes() == (tmp_path / "full-revolutions.csv").read_bytes()
+    assert (tmp_path / "part-revolutions.csv").read_bytes() == (
+        tmp_path / "full-revolutions.csv"
+    ).read_bytes()

@@ -20,14 +20,26 @@ import zipfile
 
 import numpy as np
 import pytest
-
 from conftest import ROOT
 from reciprocating_drive import preset_values
 
-SYSTEM_DLLS = {"kernel32.dll", "ntdll.dll", "msvcrt.dll", "bcryptprimitives.dll", "advapi32.dll",
-               "ws2_32.dll", "userenv.dll", "bcrypt.dll", "user32.dll", "shell32.dll", "ole32.dll"}
+SYSTEM_DLLS = {
+    "kernel32.dll",
+    "ntdll.dll",
+    "msvcrt.dll",
+    "bcryptprimitives.dll",
+    "advapi32.dll",
+    "ws2_32.dll",
+    "userenv.dll",
+    "bcrypt.dll",
+    "user32.dll",
+    "shell32.dll",
+    "ole32.dll",
+}
 
-pytestmark = pytest.mark.skipif(os.environ.get("RD_WIN64") == "0", reason="RD_WIN64=0: no win64 build")
+pytestmark = pytest.mark.skipif(
+    os.environ.get("RD_WIN64") == "0", reason="RD_WIN64=0: no win64 build"
+)
 
 
 @pytest.fixture(scope="module")
@@ -51,8 +63,12 @@ def test_every_fmu_has_a_win64_dll_with_system_imports_only(fmu_path, tmp_path, 
     d = unpack(fmu, tmp_path)
     dll = d / "binaries" / "win64" / f"{model}.dll"
     assert dll.is_file(), f"{fmu} has no binaries/win64/{model}.dll"
-    dump = subprocess.run(["x86_64-w64-mingw32-objdump", "-p", dll], capture_output=True, text=True, check=True).stdout
-    imports = {line.split(":", 1)[1].strip().lower() for line in dump.splitlines() if "DLL Name:" in line}
+    dump = subprocess.run(
+        ["x86_64-w64-mingw32-objdump", "-p", dll], capture_output=True, text=True, check=True
+    ).stdout
+    imports = {
+        line.split(":", 1)[1].strip().lower() for line in dump.splitlines() if "DLL Name:" in line
+    }
     foreign = {x for x in imports if x not in SYSTEM_DLLS and not x.startswith("api-ms-win-")}
     assert not foreign, f"{model}.dll imports non-system DLLs: {foreign}"
     exports = dump.count("fmi2")
@@ -65,8 +81,13 @@ def run_host(hosts, d, model_description, steps, h, params, wine):
     md = read_model_description(str(model_description))
     vr = {v.name: v for v in md.modelVariables}
     outs = [v for v in md.modelVariables if v.causality == "output"]
-    args = [md.guid, str(steps), repr(h), f"{vr['crank.angle'].valueReference},{vr['crank.speed'].valueReference}",
-            ",".join(str(v.valueReference) for v in outs)]
+    args = [
+        md.guid,
+        str(steps),
+        repr(h),
+        f"{vr['crank.angle'].valueReference},{vr['crank.speed'].valueReference}",
+        ",".join(str(v.valueReference) for v in outs),
+    ]
     for name, value in params.items():
         v = vr[name]
         kind = {"Integer": ":i", "Boolean": ":b"}.get(v.type, "")
@@ -74,18 +95,39 @@ def run_host(hosts, d, model_description, steps, h, params, wine):
     if wine:
         dll = d / "binaries" / "win64" / "ReciprocatingDrive.dll"
         shutil.copy(hosts / "host.exe", d / "host.exe")
-        cmd = ["wine", str(d / "host.exe"), "Z:" + str(dll).replace("/", "\\"), "ReciprocatingDrive", *args]
+        cmd = [
+            "wine",
+            str(d / "host.exe"),
+            "Z:" + str(dll).replace("/", "\\"),
+            "ReciprocatingDrive",
+            *args,
+        ]
     else:
-        cmd = [str(hosts / "host"), str(d / "binaries" / "linux64" / "ReciprocatingDrive.so"), "ReciprocatingDrive", *args]
-    p = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env={**os.environ, "WINEDEBUG": "-all"})
+        cmd = [
+            str(hosts / "host"),
+            str(d / "binaries" / "linux64" / "ReciprocatingDrive.so"),
+            "ReciprocatingDrive",
+            *args,
+        ]
+    p = subprocess.run(
+        cmd, capture_output=True, text=True, timeout=600, env={**os.environ, "WINEDEBUG": "-all"}
+    )
     assert p.returncode == 0, p.stderr[-2000:]
-    return np.array([[float(x) for x in line.split(",")] for line in p.stdout.split()]), [v.name for v in outs]
+    return np.array([[float(x) for x in line.split(",")] for line in p.stdout.split()]), [
+        v.name for v in outs
+    ]
 
 
-@pytest.mark.parametrize("machine,steps,h,tol", [("default", 2000, 1e-3, 1e-13), ("kvo630", 1000, 2e-4, 1e-9)])
+@pytest.mark.parametrize(
+    "machine,steps,h,tol", [("default", 2000, 1e-3, 1e-13), ("kvo630", 1000, 2e-4, 1e-9)]
+)
 def test_win64_under_wine_matches_linux64(fmu_path, hosts, tmp_path, machine, steps, h, tol):
     d = unpack(pathlib.Path(fmu_path), tmp_path)
-    params = {k: v for k, v in preset_values(machine).items() if k != "crank.angle"} if machine != "default" else {}
+    params = (
+        {k: v for k, v in preset_values(machine).items() if k != "crank.angle"}
+        if machine != "default"
+        else {}
+    )
     lin, names = run_host(hosts, d, d / "modelDescription.xml", steps, h, params, wine=False)
     win, _ = run_host(hosts, d, d / "modelDescription.xml", steps, h, params, wine=True)
     assert lin.shape == win.shape == (steps + 1, len(names))
@@ -93,5 +135,7 @@ def test_win64_under_wine_matches_linux64(fmu_path, hosts, tmp_path, machine, st
     rel = np.max(np.abs(win - lin), axis=0) / scale
     worst = int(np.argmax(rel))
     identical = bool(np.array_equal(lin, win))
-    print(f"{machine}: bit-identical {identical}; worst {names[worst]} {rel[worst]:.3g} of its scale")
+    print(
+        f"{machine}: bit-identical {identical}; worst {names[worst]} {rel[worst]:.3g} of its scale"
+    )
     assert rel[worst] <= tol, f"{names[worst]} differs by {rel[worst]:.3g} of its scale"

@@ -59,14 +59,24 @@ impl FmuModel for DriveTrainFmu {
         DriveTrain::new(params)
     }
 
-    fn initialize(d: &DriveTrain, values: &[f64], _state: &DriveState, out: &mut DriveOutputs) -> Result<DriveState, ModelError> {
+    fn initialize(
+        d: &DriveTrain,
+        values: &[f64],
+        _state: &DriveState,
+        out: &mut DriveOutputs,
+    ) -> Result<DriveState, ModelError> {
         let st = d.initial_state();
         *out = d.outputs(&st, load(values));
         Ok(st)
     }
 
     #[inline]
-    fn update_outputs(d: &DriveTrain, values: &[f64], state: &DriveState, cache: &mut DriveOutputs) -> Result<(), ModelError> {
+    fn update_outputs(
+        d: &DriveTrain,
+        values: &[f64],
+        state: &DriveState,
+        cache: &mut DriveOutputs,
+    ) -> Result<(), ModelError> {
         *cache = d.outputs(state, load(values));
         Ok(())
     }

@@ -73,6 +73,9 @@ mod tests {
     #[test]
     fn the_glue_accepts_the_table() {
         crate::fmi2::variables::check_table::<DriveTrainFmu>();
-        assert!(matches!(VARIABLES[LOAD_TORQUE_VR].binding, Binding::Input { slot: LoadTorque, .. }));
+        assert!(matches!(
+            VARIABLES[LOAD_TORQUE_VR].binding,
+            Binding::Input { slot: LoadTorque, .. }
+        ));
     }
 }

@@ -95,7 +95,12 @@ impl FmuModel for ReciprocatingDrive {
         Model::new(params)
     }
 
-    fn initialize(model: &Model, values: &[f64], state: &State, out: &mut Outputs) -> Result<State, ModelError> {
+    fn initialize(
+        model: &Model,
+        values: &[f64],
+        state: &State,
+        out: &mut Outputs,
+    ) -> Result<State, ModelError> {
         let rod = model.initial_rod_state(&state.crank, &inputs(values))?;
         model.evaluate_into(&state.crank, &inputs(values), &rod, out)?;
         Ok(State { crank: state.crank, rod })
@@ -103,7 +108,12 @@ impl FmuModel for ReciprocatingDrive {
 
     /// Lazy: only marks the cache stale; [`Self::prepare`] evaluates what is read.
     #[inline]
-    fn update_outputs(_: &Model, _: &[f64], _: &State, cache: &mut Outputs) -> Result<(), ModelError> {
+    fn update_outputs(
+        _: &Model,
+        _: &[f64],
+        _: &State,
+        cache: &mut Outputs,
+    ) -> Result<(), ModelError> {
         cache.ready = 0;
         Ok(())
     }
@@ -115,7 +125,13 @@ impl FmuModel for ReciprocatingDrive {
 
     /// The groups of every output of one fmi2GetReal, evaluated in one call.
     #[inline]
-    fn prepare(model: &Model, values: &[f64], state: &State, cache: &mut Outputs, need: u8) -> Result<(), ModelError> {
+    fn prepare(
+        model: &Model,
+        values: &[f64],
+        state: &State,
+        cache: &mut Outputs,
+        need: u8,
+    ) -> Result<(), ModelError> {
         model.evaluate_groups(&state.crank, &inputs(values), &state.rod, cache, need)
     }
 
@@ -175,7 +191,8 @@ impl FmuModel for ReciprocatingDrive {
     /// The elastic rod's cage angle left the range of the linear theory (§6 "Validity"): warned
     /// when it starts there and whenever a step crosses the limit.
     fn initial_warning(model: &Model, state: &State) -> Option<String> {
-        (model.has_state() && state.rod.cage.theta.abs() > ROD_ANGLE_VALIDITY).then(|| rod_angle_warning(state.rod.cage.theta))
+        (model.has_state() && state.rod.cage.theta.abs() > ROD_ANGLE_VALIDITY)
+            .then(|| rod_angle_warning(state.rod.cage.theta))
     }
 
     fn step_warning(model: &Model, before: &State, after: &State) -> Option<String> {
@@ -187,7 +204,10 @@ impl FmuModel for ReciprocatingDrive {
 
     fn check_state(state: &State) -> Result<(), &'static str> {
         let r = &state.rod;
-        if ![r.cage.theta, r.cage.rate, r.integrator.h_next, r.integrator.err_prev].iter().all(|v| v.is_finite()) {
+        if ![r.cage.theta, r.cage.rate, r.integrator.h_next, r.integrator.err_prev]
+            .iter()
+            .all(|v| v.is_finite())
+        {
             return Err("elastic-rod state");
         }
         Ok(())

@@ -5,7 +5,9 @@
 //!
 //! The value reference of a variable is its index in [`VARIABLES`].
 
-use crate::fmi2::variables::{input, output, param, param_at, param_bool, Binding, Range, Table, Var};
+use crate::fmi2::variables::{
+    input, output, param, param_at, param_bool, Binding, Range, Table, Var,
+};
 use crate::fmus::reciprocating_drive::ReciprocatingDrive;
 use crate::model::drive::groups::{FORCES, KINEMATICS, LOADS};
 use crate::model::params::DEFAULT_CRANK_SPEED;
@@ -270,13 +272,23 @@ mod tests {
         for v in VARIABLES {
             if let Binding::Param { get, set } = v.binding {
                 let mut p = Params::default();
-                let x = match v.ty { Real => 0.123, Integer => 2.0, Boolean => 1.0 };
+                let x = match v.ty {
+                    Real => 0.123,
+                    Integer => 2.0,
+                    Boolean => 1.0,
+                };
                 set(&mut p, x);
                 assert_eq!(get(&p), x, "{}", v.name);
                 for w in VARIABLES {
                     if let Binding::Param { get: g2, .. } = w.binding {
                         if w.name != v.name {
-                            assert_eq!(g2(&p), g2(&Params::default()), "{} changed {}", v.name, w.name);
+                            assert_eq!(
+                                g2(&p),
+                                g2(&Params::default()),
+                                "{} changed {}",
+                                v.name,
+                                w.name
+                            );
                         }
                     }
                 }

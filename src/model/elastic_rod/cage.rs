@@ -126,7 +126,11 @@ impl ElasticRod {
     ) -> Result<ElasticRod, ModelError> {
         let stiffness = RodStiffness::new(&spec)?;
         if !(cage_inertia > 0.0 && cage_inertia.is_finite()) {
-            return Err(ModelError::out_of_range("rod.cage_inertia", cage_inertia, "(0, inf) kg.m2"));
+            return Err(ModelError::out_of_range(
+                "rod.cage_inertia",
+                cage_inertia,
+                "(0, inf) kg.m2",
+            ));
         }
         let unloaded = BeamColumn::new(&stiffness, spec.flex_length, spec.rigid_length, 0.0)?;
         let omega0 = (unloaded.k_theta / cage_inertia).sqrt();
@@ -162,8 +166,16 @@ impl ElasticRod {
 
     /// [`ElasticRod::acceleration`] with K_ϑ(P), K_Δ(P) given (from the stiffness table).
     #[inline]
-    pub fn acceleration_with(&self, k_theta: f64, k_delta: f64, l: &CageLoads, x: &CageState) -> f64 {
-        (k_delta * l.delta + self.load_eccentricity * l.rod_force + self.rigid_moment * l.delta_ddot
+    pub fn acceleration_with(
+        &self,
+        k_theta: f64,
+        k_delta: f64,
+        l: &CageLoads,
+        x: &CageState,
+    ) -> f64 {
+        (k_delta * l.delta
+            + self.load_eccentricity * l.rod_force
+            + self.rigid_moment * l.delta_ddot
             - self.damping * x.rate
             - k_theta * x.theta)
             / self.cage_inertia
@@ -173,7 +185,9 @@ impl ElasticRod {
     /// K_ϑ ϑ = K_Δ Δ + e_P P + m_f f_m Δ̈, and ϑ̇ = K_Δ·Δ̇/K_ϑ with P held fixed.
     pub fn quasi_static(&self, bc: &BeamColumn, l: &CageLoads, delta_dot: f64) -> CageState {
         CageState {
-            theta: (bc.k_delta * l.delta + self.load_eccentricity * l.rod_force + self.rigid_moment * l.delta_ddot)
+            theta: (bc.k_delta * l.delta
+                + self.load_eccentricity * l.rod_force
+                + self.rigid_moment * l.delta_ddot)
                 / bc.k_theta,
             rate: bc.k_delta * delta_dot / bc.k_theta,
         }
@@ -195,7 +209,8 @@ mod tests {
     use super::*;
 
     fn kvo630() -> ElasticRod {
-        ElasticRod::new(crate::model::elastic_rod::tests::kvo630(), 5e-7, 0.05, 0.0, 0.0, 0.0, 0.0).unwrap()
+        ElasticRod::new(crate::model::elastic_rod::tests::kvo630(), 5e-7, 0.05, 0.0, 0.0, 0.0, 0.0)
+            .unwrap()
     }
 
     #[test]
@@ -225,8 +240,14 @@ mod tests {
         let law = PistonLaw { r: 0.001, e: 1e-4 };
         let (k, d, dd) = law.kinematics(0.7);
         assert!((k.s - 0.001 * (1.0 - 0.7f64.cos())).abs() < 1e-18);
-        assert!((k.tf - 0.001 * 0.7f64.sin()).abs() < 1e-18 && (k.tfp - 0.001 * 0.7f64.cos()).abs() < 1e-18);
-        assert!((d - (0.001 * 0.7f64.sin() - 1e-4)).abs() < 1e-18 && (dd - 0.001 * 0.7f64.cos()).abs() < 1e-18);
+        assert!(
+            (k.tf - 0.001 * 0.7f64.sin()).abs() < 1e-18
+                && (k.tfp - 0.001 * 0.7f64.cos()).abs() < 1e-18
+        );
+        assert!(
+            (d - (0.001 * 0.7f64.sin() - 1e-4)).abs() < 1e-18
+                && (dd - 0.001 * 0.7f64.cos()).abs() < 1e-18
+        );
         // Δ̈ against the second derivative of Δ(θ(t)) for θ = ωt + εt²/2 (closed form).
         let (w, eps) = (150.0, 20.0);
         let expect = 0.001 * (eps * 0.7f64.cos() - w * w * 0.7f64.sin());

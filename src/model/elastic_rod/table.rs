@@ -111,8 +111,14 @@ pub struct StiffnessTable {
 impl StiffnessTable {
     /// Builds the table for a rod; None when the rod does not allow one (then every stage uses
     /// the exact beam column).
-    pub fn build(stiff: &RodStiffness, flex_length: f64, rigid_length: f64) -> Option<StiffnessTable> {
-        let exact = |p: f64| BeamColumn::new(stiff, flex_length, rigid_length, p).ok().map(|bc| coefficients(&bc));
+    pub fn build(
+        stiff: &RodStiffness,
+        flex_length: f64,
+        rigid_length: f64,
+    ) -> Option<StiffnessTable> {
+        let exact = |p: f64| {
+            BeamColumn::new(stiff, flex_length, rigid_length, p).ok().map(|bc| coefficients(&bc))
+        };
         let k0 = exact(0.0)?[K_THETA];
         // Upper end: bisection for K_ϑ(P) = K_MIN_FRACTION·K_ϑ(0) (K_ϑ falls monotonically with
         // compression up to buckling; an Err counts as "beyond").
@@ -259,12 +265,26 @@ fn fit_cell(
     const N: usize = DEGREE;
     let mid = 0.5 * (a + b);
     let half = 0.5 * (b - a);
-    let at = |t: f64| if t <= -1.0 { a } else if t >= 1.0 { b } else { mid + half * t };
+    let at = |t: f64| {
+        if t <= -1.0 {
+            a
+        } else if t >= 1.0 {
+            b
+        } else {
+            mid + half * t
+        }
+    };
     // Values at t_j = cos(jπ/N), j = 0..N (t_0 = 1 ↔ b, t_N = −1 ↔ a).
     let mut vals = [[0.0; FUNCTIONS]; N + 1];
     let mut scale = *scale0;
     for (j, row) in vals.iter_mut().enumerate() {
-        let t = if j == 0 { 1.0 } else if j == N { -1.0 } else { (j as f64 * PI / N as f64).cos() };
+        let t = if j == 0 {
+            1.0
+        } else if j == N {
+            -1.0
+        } else {
+            (j as f64 * PI / N as f64).cos()
+        };
         *row = exact(at(t))?;
         for f in 0..FUNCTIONS {
             scale[f] = scale[f].max(row[f].abs());
@@ -353,7 +373,10 @@ mod tests {
                     let v_c = c[V_DELTA] * delta - c[K_DELTA] * theta;
                     let scale_m = (c[M_DELTA] * delta).abs() + (c[M_THETA] * theta).abs();
                     let scale_v = (c[V_DELTA] * delta).abs() + (c[K_DELTA] * theta).abs();
-                    assert!((m0 - m0_c).abs() <= 1e-14 * scale_m, "{p} {delta} {theta}: M0 {m0} {m0_c}");
+                    assert!(
+                        (m0 - m0_c).abs() <= 1e-14 * scale_m,
+                        "{p} {delta} {theta}: M0 {m0} {m0_c}"
+                    );
                     assert!((v - v_c).abs() <= 1e-14 * scale_v, "{p} {delta} {theta}: V {v} {v_c}");
                 }
             }
@@ -390,11 +413,20 @@ mod tests {
                     for f in 0..FUNCTIONS {
                         let fd = (ep[f] - em[f]) / (2.0 * h);
                         let scale = (s0[f].abs().max(e[f].abs())) / (b - a);
-                        assert!((g.slope[f] - fd).abs() <= 1e-6 * scale, "{:?} f{f} P {p}: {} vs {fd}", spec.kind, g.slope[f]);
+                        assert!(
+                            (g.slope[f] - fd).abs() <= 1e-6 * scale,
+                            "{:?} f{f} P {p}: {} vs {fd}",
+                            spec.kind,
+                            g.slope[f]
+                        );
                     }
                 }
             }
-            println!("{:?}: {} cells over [{a}, {b}] N, worst relative error {worst:?}", spec.kind, tab.len());
+            println!(
+                "{:?}: {} cells over [{a}, {b}] N, worst relative error {worst:?}",
+                spec.kind,
+                tab.len()
+            );
             for f in 0..FUNCTIONS {
                 assert!(worst[f] <= 2.0 * ACCURACY, "{:?} f{f}: {}", spec.kind, worst[f]);
             }
@@ -438,7 +470,12 @@ mod tests {
             let p = tab.cells[i].hi;
             let (l, r) = (tab.eval(i, p).value, tab.eval(i + 1, p).value);
             for f in 0..FUNCTIONS {
-                assert!((l[f] - r[f]).abs() <= 1e-14 * l[f].abs().max(1e-300), "cell {i} f{f}: {} {}", l[f], r[f]);
+                assert!(
+                    (l[f] - r[f]).abs() <= 1e-14 * l[f].abs().max(1e-300),
+                    "cell {i} f{f}: {} {}",
+                    l[f],
+                    r[f]
+                );
             }
         }
     }

@@ -25,7 +25,12 @@ pub(super) struct Singular {
 /// the solution overwrites `b`. The system is well scaled by construction (entries of order one,
 /// see `link_beam.rs`), so a pivot below `1e-13 · max|A|` means a constraint set that does not
 /// determine the reactions (a rigid-body mode remains).
-pub(super) fn solve_in_place(a: &mut Matrix, b: &mut Rhs, n: usize, nrhs: usize) -> Result<(), Singular> {
+pub(super) fn solve_in_place(
+    a: &mut Matrix,
+    b: &mut Rhs,
+    n: usize,
+    nrhs: usize,
+) -> Result<(), Singular> {
     let mut m = SMatrix::<f64, MAX_EQ, MAX_EQ>::identity();
     let mut scale = 0.0f64;
     for i in 0..n {

@@ -78,10 +78,7 @@ impl FrictionLaw {
         match spec.kind {
             SupportKind::Pin => FrictionLaw::Pin { f: spec.friction },
             // Validation guarantees length > 0 for a guide and for a clamp with friction.
-            _ => FrictionLaw::Edges {
-                f: spec.friction,
-                two_over_l: 2.0 / spec.length,
-            },
+            _ => FrictionLaw::Edges { f: spec.friction, two_over_l: 2.0 / spec.length },
         }
     }
 

@@ -168,11 +168,7 @@ impl LinkBeam {
     /// A station (generalised coordinate at scaled z) for repeated flexibility evaluations.
     #[inline]
     pub fn station(&self, dof: Dof, z: f64) -> Station {
-        Station {
-            dof,
-            z,
-            moments: self.moments(z),
-        }
+        Station { dof, z, moments: self.moments(z) }
     }
 
     /// Flexibility coefficient of the cantilever clamped at z = 0: the generalised displacement
@@ -230,10 +226,7 @@ mod tests {
             ] {
                 let fa = LinkBeam::flexibility(&a.station(di, zi), &a.station(dj, zj)) / a.ej_ref;
                 let fb = LinkBeam::flexibility(&b.station(di, zi), &b.station(dj, zj)) / b.ej_ref;
-                assert!(
-                    (fa - fb).abs() <= 1e-14 * fa.abs().max(1e-300),
-                    "{fa} vs {fb}"
-                );
+                assert!((fa - fb).abs() <= 1e-14 * fa.abs().max(1e-300), "{fa} vs {fb}");
             }
         }
     }

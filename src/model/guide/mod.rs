@@ -161,7 +161,9 @@ impl ClampFriction<'_> {
         let mut at_p = [ForceMoment::default(); 3];
         let mut fr = [0.0; 3];
         for x in 0..3 {
-            at_p[x] = self.infl.base[x].plus_scaled(m0, self.infl.per_m0[x]).plus_scaled(vc, self.infl.per_v[x]);
+            at_p[x] = self.infl.base[x]
+                .plus_scaled(m0, self.infl.per_m0[x])
+                .plus_scaled(vc, self.infl.per_v[x]);
             fr[x] = -self.sign * self.laws[x].magnitude(at_p[x]);
         }
         (at_p, fr)
@@ -182,7 +184,9 @@ impl ClampFriction<'_> {
         let mut fr = [0.0; 3];
         let mut rate = 0.0;
         for x in 0..3 {
-            let fm = self.infl.base[x].plus_scaled(m0, self.infl.per_m0[x]).plus_scaled(vc, self.infl.per_v[x]);
+            let fm = self.infl.base[x]
+                .plus_scaled(m0, self.infl.per_m0[x])
+                .plus_scaled(vc, self.infl.per_v[x]);
             fr[x] = -self.sign * self.laws[x].magnitude(fm);
             let dfm = ForceMoment {
                 r: dm0 * self.infl.per_m0[x].r + dvc * self.infl.per_v[x].r,
@@ -316,10 +320,7 @@ impl Guide {
         let dq_dp = if self.rod_side_force { -tan_beta } else { 0.0 };
         let affine: [AffineReaction; 3] = std::array::from_fn(|x| AffineReaction {
             base: infl.base[x],
-            slope: ForceMoment {
-                r: dq_dp * infl.per_q[x].r,
-                m: dq_dp * infl.per_q[x].m,
-            },
+            slope: ForceMoment { r: dq_dp * infl.per_q[x].r, m: dq_dp * infl.per_q[x].m },
         });
         let sign = friction::regularized_sign(v / self.velocity_scale);
         let k = friction::sensitivity(&self.laws, &affine);
@@ -348,7 +349,12 @@ impl Guide {
     /// (§5.3, §5.4): the reactions are affine in (M0, V) at fixed s, so this is everything the
     /// rod-force equation needs besides M0(P), V(P). Checks the inputs like the solvers.
     #[inline]
-    pub fn clamp_friction(&self, s: f64, v: f64, p_base: f64) -> Result<ClampFriction<'_>, ModelError> {
+    pub fn clamp_friction(
+        &self,
+        s: f64,
+        v: f64,
+        p_base: f64,
+    ) -> Result<ClampFriction<'_>, ModelError> {
         self.check_inputs(s, v, p_base)?;
         Ok(ClampFriction {
             infl: self.system.clamp_influence(s)?,
@@ -454,10 +460,7 @@ impl Guide {
                 edge_force_2: f64::NAN,
                 centre: f64::NAN,
             };
-            Reactions {
-                supports: [nan; 3],
-                load_point: f64::NAN,
-            }
+            Reactions { supports: [nan; 3], load_point: f64::NAN }
         })
     }
 
@@ -470,10 +473,7 @@ impl Guide {
         v_clamp: f64,
     ) -> Result<Reactions, ModelError> {
         let infl: Influence = self.system.influence(s, LoadSet::All)?;
-        let mut out = Reactions {
-            load_point: infl.load_point,
-            ..Reactions::default()
-        };
+        let mut out = Reactions { load_point: infl.load_point, ..Reactions::default() };
         for x in 0..3 {
             if self.kinds[x] == SupportKind::None {
                 continue;

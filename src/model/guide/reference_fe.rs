@@ -70,10 +70,7 @@ impl Add for Dd {
 impl Neg for Dd {
     type Output = Dd;
     fn neg(self) -> Dd {
-        Dd {
-            hi: -self.hi,
-            lo: -self.lo,
-        }
+        Dd { hi: -self.hi, lo: -self.lo }
     }
 }
 
@@ -123,11 +120,7 @@ impl DdLu {
         for k in 0..n {
             let p = (k..n)
                 .max_by(|&i, &j| {
-                    a[i][k]
-                        .abs()
-                        .to_f64()
-                        .partial_cmp(&a[j][k].abs().to_f64())
-                        .unwrap()
+                    a[i][k].abs().to_f64().partial_cmp(&a[j][k].abs().to_f64()).unwrap()
                 })
                 .unwrap();
             assert!(a[p][k].hi != 0.0, "reference FE model singular");
@@ -239,11 +232,7 @@ impl RefModel {
         for (x, sup) in spec.supports.iter().enumerate() {
             let centre = if sup.frame_fixed { sup.z - s } else { sup.z };
             centres[x] = centre;
-            let z_ref = if sup.frame_fixed {
-                sup.z
-            } else {
-                sup.z + stroke / 2.0
-            };
+            let z_ref = if sup.frame_fixed { sup.z } else { sup.z + stroke / 2.0 };
             let axis = |zl: f64| sup.offset + sup.tilt * (zl + s - z_ref);
             let lateral = |zl: f64, contacts: &mut Vec<RefContact>| {
                 contacts.push(RefContact {
@@ -273,11 +262,8 @@ impl RefModel {
                 }
             }
         }
-        let load_point = if spec.supports[1].kind == SupportKind::None {
-            length
-        } else {
-            centres[1]
-        };
+        let load_point =
+            if spec.supports[1].kind == SupportKind::None { length } else { centres[1] };
         for c in &contacts {
             nodes.push(c.z);
         }
@@ -308,11 +294,8 @@ impl RefModel {
         for e in 0..nn - 1 {
             let (a, b) = (nodes[e], nodes[e + 1]);
             let mid = 0.5 * (a + b);
-            let ej = sections
-                .iter()
-                .find(|&&(s0, s1, _)| mid >= s0 && mid <= s1)
-                .map(|t| t.2)
-                .unwrap();
+            let ej =
+                sections.iter().find(|&&(s0, s1, _)| mid >= s0 && mid <= s1).map(|t| t.2).unwrap();
             ej_max = ej_max.max(ej);
             // Element length and stiffness in double-double (h from the exact difference).
             let h = Dd::new(b) - Dd::new(a);

@@ -82,10 +82,7 @@ impl ForceMoment {
     /// `self + k·other`.
     #[inline]
     pub fn plus_scaled(self, k: f64, other: ForceMoment) -> ForceMoment {
-        ForceMoment {
-            r: self.r + k * other.r,
-            m: self.m + k * other.m,
-        }
+        ForceMoment { r: self.r + k * other.r, m: self.m + k * other.m }
     }
 }
 
@@ -144,13 +141,7 @@ impl Columns {
             (false, LoadSet::All) => (Some(1), Some(2), Some(3)),
         };
         let count = 1 + [q, m0, v].iter().filter(|c| c.is_some()).count();
-        Columns {
-            q,
-            m0,
-            v,
-            count,
-            rate_only,
-        }
+        Columns { q, m0, v, count, rate_only }
     }
 }
 
@@ -277,11 +268,8 @@ impl SupportSystem {
         let n = n_fixed + n_moving;
 
         let b = &spec.supports[1];
-        let (load_z0, load_moving) = if b.kind == SupportKind::None {
-            (1.0, false)
-        } else {
-            (b.z / length, b.frame_fixed)
-        };
+        let (load_z0, load_moving) =
+            if b.kind == SupportKind::None { (1.0, false) } else { (b.z / length, b.frame_fixed) };
 
         let mut fixed_block: Matrix = [[0.0; MAX_EQ]; MAX_EQ];
         for i in 0..n_fixed {
@@ -372,9 +360,7 @@ impl SupportSystem {
         // coincident link-fixed contacts would make the condensed path lose digits that the
         // full system, held also by the frame-fixed contacts, keeps.
         let norm = |m: &Matrix| {
-            (0..n1)
-                .map(|i| (0..n1).map(|j| m[i][j].abs()).sum::<f64>())
-                .fold(0.0, f64::max)
+            (0..n1).map(|i| (0..n1).map(|j| m[i][j].abs()).sum::<f64>()).fold(0.0, f64::max)
         };
         let condition = norm(&k11) * norm(&k11_inv);
         if !(condition < 1e10) {
@@ -596,7 +582,9 @@ impl SupportSystem {
             3 => self.condensed_tail::<3>(c, s_scaled, cols, &ycols, &pre, &load, load_z),
             4 => self.condensed_tail::<4>(c, s_scaled, cols, &ycols, &pre, &load, load_z),
             5 => self.condensed_tail::<5>(c, s_scaled, cols, &ycols, &pre, &load, load_z),
-            _ => self.condensed_tail::<MAX_CONTACTS>(c, s_scaled, cols, &ycols, &pre, &load, load_z),
+            _ => {
+                self.condensed_tail::<MAX_CONTACTS>(c, s_scaled, cols, &ycols, &pre, &load, load_z)
+            }
         }
     }
 
@@ -838,10 +826,7 @@ impl SupportSystem {
         let base_factor = if rate_only { fu / l } else { fu };
         for x in 0..3 {
             let b = per_col[0][x];
-            infl.base[x] = ForceMoment {
-                r: b.r * base_factor,
-                m: b.m * base_factor * l,
-            };
+            infl.base[x] = ForceMoment { r: b.r * base_factor, m: b.m * base_factor * l };
         }
         if let Some(k) = cols.q {
             for x in 0..3 {

@@ -28,29 +28,15 @@ fn uniform(l: f64, d: f64) -> GuideSpec {
 }
 
 fn clamp(z: f64, offset: f64, tilt: f64) -> SupportSpec {
-    SupportSpec {
-        kind: SupportKind::Clamp,
-        z,
-        offset,
-        tilt,
-        ..SupportSpec::NONE
-    }
+    SupportSpec { kind: SupportKind::Clamp, z, offset, tilt, ..SupportSpec::NONE }
 }
 
 fn pin(z: f64, offset: f64, stiffness: f64) -> SupportSpec {
-    SupportSpec {
-        kind: SupportKind::Pin,
-        z,
-        offset,
-        stiffness,
-        ..SupportSpec::NONE
-    }
+    SupportSpec { kind: SupportKind::Pin, z, offset, stiffness, ..SupportSpec::NONE }
 }
 
 fn guide(spec: &GuideSpec, stroke: f64) -> Guide {
-    Guide::new(spec, stroke)
-        .expect("valid spec")
-        .expect("friction model on")
+    Guide::new(spec, stroke).expect("valid spec").expect("friction model on")
 }
 
 fn rel_close(a: f64, b: f64, rel: f64, abs: f64) -> bool {
@@ -111,22 +97,10 @@ fn textbook_fixed_fixed_displacement() {
     for &s in &[0.0, 0.1, 0.3] {
         let r = g.reactions(s, 0.0, 0.0, 0.0);
         let (a, c) = (r.supports[0], r.supports[2]);
-        assert!(
-            rel_close(c.force, 12.0 * ej * delta / l.powi(3), 1e-12, 0.0),
-            "{c:?}"
-        );
-        assert!(
-            rel_close(c.moment, -6.0 * ej * delta / (l * l), 1e-12, 0.0),
-            "{c:?}"
-        );
-        assert!(
-            rel_close(a.moment, -6.0 * ej * delta / (l * l), 1e-12, 0.0),
-            "{a:?}"
-        );
-        assert!(
-            rel_close(a.force, -12.0 * ej * delta / l.powi(3), 1e-12, 0.0),
-            "{a:?}"
-        );
+        assert!(rel_close(c.force, 12.0 * ej * delta / l.powi(3), 1e-12, 0.0), "{c:?}");
+        assert!(rel_close(c.moment, -6.0 * ej * delta / (l * l), 1e-12, 0.0), "{c:?}");
+        assert!(rel_close(a.moment, -6.0 * ej * delta / (l * l), 1e-12, 0.0), "{a:?}");
+        assert!(rel_close(a.force, -12.0 * ej * delta / l.powi(3), 1e-12, 0.0), "{a:?}");
     }
 }
 
@@ -143,18 +117,9 @@ fn textbook_prescribed_slope() {
     let g = guide(&spec, stroke);
     let r = g.reactions(stroke / 2.0, 0.0, 0.0, 0.0);
     let (a, c) = (r.supports[0], r.supports[2]);
-    assert!(
-        rel_close(c.force, -6.0 * ej * alpha / (l * l), 1e-12, 0.0),
-        "{c:?}"
-    );
-    assert!(
-        rel_close(c.moment, 4.0 * ej * alpha / l, 1e-12, 0.0),
-        "{c:?}"
-    );
-    assert!(
-        rel_close(a.moment, 2.0 * ej * alpha / l, 1e-12, 0.0),
-        "{a:?}"
-    );
+    assert!(rel_close(c.force, -6.0 * ej * alpha / (l * l), 1e-12, 0.0), "{c:?}");
+    assert!(rel_close(c.moment, 4.0 * ej * alpha / l, 1e-12, 0.0), "{c:?}");
+    assert!(rel_close(a.moment, 2.0 * ej * alpha / l, 1e-12, 0.0), "{a:?}");
 }
 
 /// Propped cantilever: clamp at 0, pin at L displaced δ: R = 3EJδ/L³. Also with the pin
@@ -169,32 +134,18 @@ fn textbook_propped_cantilever_rigid_moving_and_elastic() {
     spec.supports[2] = pin(l, delta, 0.0);
     let g = guide(&spec, 0.5);
     let r = g.reactions(0.2, 0.0, 0.0, 0.0).supports[2];
-    assert!(
-        rel_close(r.force, 3.0 * ej * delta / l.powi(3), 1e-12, 0.0),
-        "{r:?}"
-    );
+    assert!(rel_close(r.force, 3.0 * ej * delta / l.powi(3), 1e-12, 0.0), "{r:?}");
 
     for &k in &[0.0, 2e6, 3e7] {
         let mut moving = spec;
-        moving.supports[2] = SupportSpec {
-            frame_fixed: true,
-            ..pin(l, delta, k)
-        };
+        moving.supports[2] = SupportSpec { frame_fixed: true, ..pin(l, delta, k) };
         let g = guide(&moving, 0.5);
         for &s in &[0.0, 0.17, 0.5] {
             let a = l - s;
             let beam = 3.0 * ej / a.powi(3);
-            let expect = if k > 0.0 {
-                delta / (1.0 / k + 1.0 / beam)
-            } else {
-                beam * delta
-            };
+            let expect = if k > 0.0 { delta / (1.0 / k + 1.0 / beam) } else { beam * delta };
             let r = g.reactions(s, 0.0, 0.0, 0.0).supports[2];
-            assert!(
-                rel_close(r.force, expect, 1e-12, 0.0),
-                "k {k} s {s}: {} vs {expect}",
-                r.force
-            );
+            assert!(rel_close(r.force, expect, 1e-12, 0.0), "k {k} s {s}: {} vs {expect}", r.force);
             assert!(rel_close(r.centre, a, 1e-15, 0.0));
         }
     }
@@ -211,18 +162,9 @@ fn textbook_mid_pin_in_fixed_fixed_beam() {
     spec.supports[2] = clamp(l, 0.0, 0.0);
     let r = guide(&spec, 0.2).reactions(0.1, 0.0, 0.0, 0.0);
     let beam = 192.0 * ej / l.powi(3);
-    assert!(
-        rel_close(r.supports[1].force, beam * delta, 1e-12, 0.0),
-        "{:?}",
-        r.supports[1]
-    );
+    assert!(rel_close(r.supports[1].force, beam * delta, 1e-12, 0.0), "{:?}", r.supports[1]);
     // Symmetry: each clamp takes half, opposite.
-    assert!(rel_close(
-        r.supports[0].force,
-        -beam * delta / 2.0,
-        1e-12,
-        0.0
-    ));
+    assert!(rel_close(r.supports[0].force, -beam * delta / 2.0, 1e-12, 0.0));
     let k = 5e6;
     spec.supports[1].stiffness = k;
     let r = guide(&spec, 0.2).reactions(0.1, 0.0, 0.0, 0.0);
@@ -260,18 +202,8 @@ fn inserted_nodes_do_not_change_results() {
         let ra = ga.reactions(s, 1234.0, 56.0, -78.0);
         let rb = gb.reactions(s, 1234.0, 56.0, -78.0);
         for x in 0..3 {
-            assert!(rel_close(
-                ra.supports[x].force,
-                rb.supports[x].force,
-                1e-11,
-                1e-9
-            ));
-            assert!(rel_close(
-                ra.supports[x].moment,
-                rb.supports[x].moment,
-                1e-11,
-                1e-9
-            ));
+            assert!(rel_close(ra.supports[x].force, rb.supports[x].force, 1e-11, 1e-9));
+            assert!(rel_close(ra.supports[x].moment, rb.supports[x].moment, 1e-11, 1e-9));
         }
     }
 }
@@ -290,11 +222,7 @@ fn equilibrium_of_the_link() {
     s2.supports[1].z = 1.95;
     specs.push(s2);
     let mut s3 = GuideSpec::default_machine();
-    s3.supports[2] = SupportSpec {
-        kind: SupportKind::TwoEdgeGuide,
-        length: 0.2,
-        ..s3.supports[2]
-    };
+    s3.supports[2] = SupportSpec { kind: SupportKind::TwoEdgeGuide, length: 0.2, ..s3.supports[2] };
     specs.push(s3);
     for spec in &specs {
         let g = guide(spec, STROKE);
@@ -312,14 +240,8 @@ fn equilibrium_of_the_link() {
             }
             let fscale: f64 = forces.iter().map(|f| f.abs()).sum();
             let mscale: f64 = moments.iter().map(|f| f.abs()).sum();
-            assert!(
-                forces.iter().sum::<f64>().abs() <= 1e-9 * fscale,
-                "{forces:?}"
-            );
-            assert!(
-                moments.iter().sum::<f64>().abs() <= 1e-9 * mscale,
-                "{moments:?}"
-            );
+            assert!(forces.iter().sum::<f64>().abs() <= 1e-9 * fscale, "{forces:?}");
+            assert!(moments.iter().sum::<f64>().abs() <= 1e-9 * mscale, "{moments:?}");
         }
     }
 }
@@ -337,10 +259,7 @@ fn precomputed_path_equals_generic_solve() {
     for i in 0..=8 {
         let s = STROKE * i as f64 / 8.0;
         let fast = g.system.influence(s, supports::LoadSet::All).unwrap();
-        let slow = g
-            .system
-            .solve(s / g.link_length(), supports::LoadSet::All, false)
-            .unwrap();
+        let slow = g.system.solve(s / g.link_length(), supports::LoadSet::All, false).unwrap();
         for x in 0..3 {
             for (p, q) in [
                 (fast.base[x], slow.base[x]),
@@ -385,10 +304,8 @@ fn condensed_path_equals_full_solve() {
         for i in 0..=8 {
             let s = STROKE * i as f64 / 8.0;
             let fast = g.system.influence(s, supports::LoadSet::All).unwrap();
-            let slow = g
-                .system
-                .solve_full(s / g.link_length(), supports::LoadSet::All, false)
-                .unwrap();
+            let slow =
+                g.system.solve_full(s / g.link_length(), supports::LoadSet::All, false).unwrap();
             for x in 0..3 {
                 for (p, q) in [
                     (fast.base[x], slow.base[x]),
@@ -413,10 +330,7 @@ fn condensed_path_equals_full_solve() {
 #[test]
 fn friction_identity_of_the_edges() {
     let l = 0.4;
-    let law = FrictionLaw::Edges {
-        f: 0.13,
-        two_over_l: 2.0 / l,
-    };
+    let law = FrictionLaw::Edges { f: 0.13, two_over_l: 2.0 / l };
     let mut x = 0.37f64;
     for _ in 0..1000 {
         // Deterministic pseudo-random R, M covering both regimes.
@@ -428,12 +342,7 @@ fn friction_identity_of_the_edges() {
         let (n1, n2) = friction::edge_forces(SupportKind::TwoEdgeGuide, l, fm);
         assert!(rel_close(n1 + n2, r, 1e-14, 1e-10));
         assert!(rel_close((n1 - n2) * l / 2.0, m, 1e-14, 1e-10));
-        assert!(rel_close(
-            0.13 * (n1.abs() + n2.abs()),
-            law.magnitude(fm),
-            1e-14,
-            1e-10
-        ));
+        assert!(rel_close(0.13 * (n1.abs() + n2.abs()), law.magnitude(fm), 1e-14, 1e-10));
     }
 }
 
@@ -465,11 +374,7 @@ fn brute_force_rigid(
 ) -> f64 {
     let t = (v / spec.velocity_scale).tanh();
     let friction = |p: f64| -> f64 {
-        let q = if spec.rod_side_force {
-            -p * tan_beta
-        } else {
-            0.0
-        };
+        let q = if spec.rod_side_force { -p * tan_beta } else { 0.0 };
         let r = g.reactions(s, q, 0.0, 0.0);
         let mut total = 0.0;
         for x in 0..3 {
@@ -522,13 +427,9 @@ fn solve_rigid_is_exact_and_matches_brute_force() {
         for i in 0..=72 {
             let th = 2.0 * PI * i as f64 / 72.0;
             let k = SLIDER.at(th);
-            for &(pb, v) in &[
-                (3e3, k.tf * OMEGA),
-                (-150e3, 0.01),
-                (150e3, -1.3),
-                (-2e5, 0.7),
-                (0.0, 0.3),
-            ] {
+            for &(pb, v) in
+                &[(3e3, k.tf * OMEGA), (-150e3, 0.01), (150e3, -1.3), (-2e5, 0.7), (0.0, 0.3)]
+            {
                 let out = g.solve_rigid(k.s, v, pb, k.tan_beta).unwrap();
                 let resid = out.rod_force - (pb + out.friction_total);
                 assert!(
@@ -602,18 +503,20 @@ fn clamp_solve_converges_in_few_evaluations_and_from_a_guess() {
         for &(pb, v) in &[(14.7, 0.1), (-20.0, -0.05), (5.0, 0.001)] {
             let cf = g.clamp_friction(s, v, pb).unwrap();
             let mut n = 0;
-            let out = g.solve_clamp_from(&cf, pb, pb, |p| {
-                n += 1;
-                loads(p)
-            })
-            .unwrap();
+            let out = g
+                .solve_clamp_from(&cf, pb, pb, |p| {
+                    n += 1;
+                    loads(p)
+                })
+                .unwrap();
             assert!(n <= 4, "s {s}, p_base {pb}: {n} evaluations");
             let mut n1 = 0;
-            let again = g.solve_clamp_from(&cf, pb, out.rod_force, |p| {
-                n1 += 1;
-                loads(p)
-            })
-            .unwrap();
+            let again = g
+                .solve_clamp_from(&cf, pb, out.rod_force, |p| {
+                    n1 += 1;
+                    loads(p)
+                })
+                .unwrap();
             assert_eq!(n1, 1);
             assert!((again.rod_force - out.rod_force).abs() <= 1e-14 * out.rod_force.abs());
         }
@@ -651,19 +554,29 @@ fn clamp_friction_rate_matches_finite_differences() {
                         };
                         brute += -t * spec.supports[x].friction * n;
                     }
-                    assert!((cf.total(m0, vc) - brute).abs() <= 1e-13 * brute.abs().max(1e-12), "{} {brute}", cf.total(m0, vc));
+                    assert!(
+                        (cf.total(m0, vc) - brute).abs() <= 1e-13 * brute.abs().max(1e-12),
+                        "{} {brute}",
+                        cf.total(m0, vc)
+                    );
                     let (dm0, dvc) = (3e-4, -0.02);
                     let (f, rate) = cf.total_and_rate(m0, vc, dm0, dvc);
                     assert_eq!(f, cf.total(m0, vc));
                     // Piecewise linear in (M0, V): the difference is exact within a piece, so a long
                     // step keeps rounding out of it.
                     let h = 1e-2 * scale;
-                    let (fp, fm) = (cf.total(m0 + h * dm0, vc + h * dvc), cf.total(m0 - h * dm0, vc - h * dvc));
+                    let (fp, fm) = (
+                        cf.total(m0 + h * dm0, vc + h * dvc),
+                        cf.total(m0 - h * dm0, vc - h * dvc),
+                    );
                     let fd = (fp - fm) / (2.0 * h);
                     // Skip a kink inside the difference interval (one-sided slopes differ there).
                     let one_sided = ((fp - f) / h - (f - fm) / h).abs();
                     if one_sided <= 1e-6 * fd.abs().max(1e-9) {
-                        assert!((rate - fd).abs() <= 1e-6 * fd.abs().max(1e-9), "s {s} v {v}: {rate} vs {fd}");
+                        assert!(
+                            (rate - fd).abs() <= 1e-6 * fd.abs().max(1e-9),
+                            "s {s} v {v}: {rate} vs {fd}"
+                        );
                         checked += 1;
                     }
                 }
@@ -723,11 +636,7 @@ fn reference_rigid(spec: &GuideSpec, s: f64, v: f64, p_base: f64, tan_beta: f64)
     }
     let p = 0.5 * (lo + hi);
     let (friction, reactions) = friction(p);
-    RefOutputs {
-        p,
-        reactions,
-        friction,
-    }
+    RefOutputs { p, reactions, friction }
 }
 
 fn compare_revolution(load: impl Fn(f64) -> f64, steps: usize) {
@@ -748,19 +657,10 @@ fn compare_revolution(load: impl Fn(f64) -> f64, steps: usize) {
             (out.reaction_b, r.reactions[1].r),
             (out.moment_b, r.reactions[1].m),
             (out.reaction_c, r.reactions[2].r),
-            (
-                out.edge_force_1,
-                r.reactions[1].r / 2.0 + r.reactions[1].m / l_b,
-            ),
-            (
-                out.edge_force_2,
-                r.reactions[1].r / 2.0 - r.reactions[1].m / l_b,
-            ),
+            (out.edge_force_1, r.reactions[1].r / 2.0 + r.reactions[1].m / l_b),
+            (out.edge_force_2, r.reactions[1].r / 2.0 - r.reactions[1].m / l_b),
             (out.friction_b, r.friction[1]),
-            (
-                out.friction_total,
-                r.friction[0] + r.friction[1] + r.friction[2],
-            ),
+            (out.friction_total, r.friction[0] + r.friction[1] + r.friction[2]),
         ];
         // Scale: the largest force in play at this angle (P or the reactions).
         let scale = pairs.iter().map(|p| p.1.abs()).fold(1.0, f64::max);
@@ -806,19 +706,10 @@ fn reactions_match_fe_reference_in_varied_configurations() {
     configs.push((a, STROKE));
     let mut b = GuideSpec::default_machine();
     b.supports[0].stiffness = 5e8;
-    b.supports[1] = SupportSpec {
-        frame_fixed: true,
-        z: 1.95,
-        length: 0.3,
-        stiffness: 2e8,
-        ..b.supports[1]
-    };
-    b.supports[2] = SupportSpec {
-        kind: SupportKind::TwoEdgeGuide,
-        length: 0.2,
-        tilt: -2e-4,
-        ..b.supports[2]
-    };
+    b.supports[1] =
+        SupportSpec { frame_fixed: true, z: 1.95, length: 0.3, stiffness: 2e8, ..b.supports[1] };
+    b.supports[2] =
+        SupportSpec { kind: SupportKind::TwoEdgeGuide, length: 0.2, tilt: -2e-4, ..b.supports[2] };
     b.lateral_load = 800.0;
     configs.push((b, STROKE));
     configs.push((kvo630(), 0.002));
@@ -844,25 +735,17 @@ fn reactions_match_fe_reference_in_varied_configurations() {
             let s = stroke * i as f64 / 10.0;
             let model = RefModel::new(spec, *stroke, s, 1);
             let model2 = RefModel::new(spec, *stroke, s, 2);
-            for &(q, m0, v) in &[
-                (0.0, 0.0, 0.0),
-                (-3000.0, 0.0, 0.0),
-                (500.0, 120.0, -900.0),
-                (0.0, -40.0, 0.0),
-            ] {
+            for &(q, m0, v) in
+                &[(0.0, 0.0, 0.0), (-3000.0, 0.0, 0.0), (500.0, 120.0, -900.0), (0.0, -40.0, 0.0)]
+            {
                 let p = g.reactions(s, q, m0, v);
                 let r = model.reactions(q, m0, v);
                 let r2 = model2.reactions(q, m0, v);
-                let scale = (0..3)
-                    .map(|x| r[x].r.abs().max(r[x].m.abs()))
-                    .fold(1.0, f64::max);
+                let scale = (0..3).map(|x| r[x].r.abs().max(r[x].m.abs())).fold(1.0, f64::max);
                 let spread = (0..3)
                     .map(|x| (r[x].r - r2[x].r).abs().max((r[x].m - r2[x].m).abs()))
                     .fold(0.0, f64::max);
-                assert!(
-                    spread <= 1e-14 * scale,
-                    "FE meshes disagree: {spread} (scale {scale})"
-                );
+                assert!(spread <= 1e-14 * scale, "FE meshes disagree: {spread} (scale {scale})");
                 let tol = 1e-10 * scale;
                 for x in 0..3 {
                     let (pr, pm) = (p.supports[x].force, p.supports[x].moment);
@@ -906,23 +789,11 @@ fn rejected_configurations_name_their_variables() {
     let base = GuideSpec::default_machine();
     type Case = (Box<dyn Fn(&mut GuideSpec)>, &'static [&'static str]);
     let cases: Vec<Case> = vec![
-        (
-            Box::new(|s| s.section_lengths[0] = -0.1),
-            &["link.l1", "-0.1"],
-        ),
-        (
-            Box::new(|s| s.section_diameters[1] = 0.0),
-            &["link.d2", "0"],
-        ),
+        (Box::new(|s| s.section_lengths[0] = -0.1), &["link.l1", "-0.1"]),
+        (Box::new(|s| s.section_diameters[1] = 0.0), &["link.d2", "0"]),
         (Box::new(|s| s.e_modulus = 0.0), &["link.E"]),
-        (
-            Box::new(|s| s.section_lengths = [0.0; 4]),
-            &["link.l1 + link.l2"],
-        ),
-        (
-            Box::new(|s| s.supports[1].length = 0.0),
-            &["support_B.length", "two-edge guide"],
-        ),
+        (Box::new(|s| s.section_lengths = [0.0; 4]), &["link.l1 + link.l2"]),
+        (Box::new(|s| s.supports[1].length = 0.0), &["support_B.length", "two-edge guide"]),
         (Box::new(|s| s.supports[0].friction = 0.1), &[]), // A has length 0.25: fine → skipped below
         (
             Box::new(|s| {
@@ -931,32 +802,14 @@ fn rejected_configurations_name_their_variables() {
             }),
             &["support_A.length", "support_A.friction"],
         ),
-        (
-            Box::new(|s| s.supports[1].friction = -0.1),
-            &["guide.friction_coefficient"],
-        ),
-        (
-            Box::new(|s| s.supports[2].stiffness = -1.0),
-            &["support_C.stiffness"],
-        ),
+        (Box::new(|s| s.supports[1].friction = -0.1), &["guide.friction_coefficient"]),
+        (Box::new(|s| s.supports[2].stiffness = -1.0), &["support_C.stiffness"]),
         (Box::new(|s| s.supports[2].z = f64::NAN), &["support_C.z"]),
-        (
-            Box::new(|s| s.supports[1].tilt = f64::INFINITY),
-            &["support_B.tilt"],
-        ),
-        (
-            Box::new(|s| s.velocity_scale = 0.0),
-            &["guide.velocity_scale"],
-        ),
-        (
-            Box::new(|s| s.lateral_load = f64::NAN),
-            &["link.lateral_load"],
-        ),
+        (Box::new(|s| s.supports[1].tilt = f64::INFINITY), &["support_B.tilt"]),
+        (Box::new(|s| s.velocity_scale = 0.0), &["guide.velocity_scale"]),
+        (Box::new(|s| s.lateral_load = f64::NAN), &["link.lateral_load"]),
         // Frame-fixed C at 0.3 m leaves the link (at s = 0.4 it would sit at −0.1 m).
-        (
-            Box::new(|s| s.supports[2].z = 0.3),
-            &["support_C.z", "[S, L]", "0.4", "2.1"],
-        ),
+        (Box::new(|s| s.supports[2].z = 0.3), &["support_C.z", "[S, L]", "0.4", "2.1"]),
         // Guide edge beyond L.
         (
             Box::new(|s| s.supports[1].z = 2.0),
@@ -993,12 +846,7 @@ fn rejected_configurations_name_their_variables() {
                 s.supports[2].z = 1.9;
                 s.supports[2].stiffness = 0.0
             }),
-            &[
-                "support_B and support_C",
-                "rigidly",
-                "indeterminate",
-                "support_C.stiffness",
-            ],
+            &["support_B and support_C", "rigidly", "indeterminate", "support_C.stiffness"],
         ),
     ];
     for (i, (modify, needles)) in cases.iter().enumerate() {
@@ -1026,10 +874,7 @@ fn self_locking_guide_is_reported() {
     let e = g.solve_rigid(0.2, 1.0, 1e5, 0.5).unwrap_err();
     let msg = e.to_string();
     assert!(matches!(e, ModelError::Evaluation { .. }));
-    assert!(
-        msg.contains("self-locking") && msg.contains("tanβ = 0.5"),
-        "{msg}"
-    );
+    assert!(msg.contains("self-locking") && msg.contains("tanβ = 0.5"), "{msg}");
     // Far from the condition it solves.
     assert!(g.solve_rigid(0.2, 1.0, 1e5, 0.01).is_ok());
 }
@@ -1037,13 +882,9 @@ fn self_locking_guide_is_reported() {
 #[test]
 fn diverging_fixed_point_is_reported() {
     let g = guide(&kvo630(), 0.002);
-    let e = g
-        .solve_with_clamp_loads(0.001, 1.0, 10.0, |p| (0.0, 50.0 * p))
-        .unwrap_err();
+    let e = g.solve_with_clamp_loads(0.001, 1.0, 10.0, |p| (0.0, 50.0 * p)).unwrap_err();
     assert!(e.to_string().contains("did not converge"), "{e}");
-    let e = g
-        .solve_with_clamp_loads(0.001, 1.0, 10.0, |_| (f64::NAN, 0.0))
-        .unwrap_err();
+    let e = g.solve_with_clamp_loads(0.001, 1.0, 10.0, |_| (f64::NAN, 0.0)).unwrap_err();
     assert!(e.to_string().contains("not finite"), "{e}");
     let e = g.solve_rigid(0.5, 1.0, 10.0, 0.0).unwrap_err();
     assert!(e.to_string().contains("outside the stroke"), "{e}");
@@ -1059,10 +900,8 @@ fn diverging_fixed_point_is_reported() {
 fn report_revolution() {
     let spec = GuideSpec::default_machine();
     let g = guide(&spec, STROKE);
-    for (name, load) in [
-        ("default", (|_v: f64| 0.0) as fn(f64) -> f64),
-        ("unb600a", unb600a_load),
-    ] {
+    for (name, load) in [("default", (|_v: f64| 0.0) as fn(f64) -> f64), ("unb600a", unb600a_load)]
+    {
         let eval = |th: f64| {
             let k = SLIDER.at(th);
             let v = k.tf * OMEGA;
@@ -1125,12 +964,7 @@ fn bench_solve_rigid_default_machine() {
             let th = 2.0 * PI * i as f64 / 1000.0;
             let k = SLIDER.at(th);
             let v = k.tf * OMEGA;
-            (
-                k.s,
-                v,
-                unb600a_load(v) - MASS * k.tfp * OMEGA * OMEGA,
-                k.tan_beta,
-            )
+            (k.s, v, unb600a_load(v) - MASS * k.tfp * OMEGA * OMEGA, k.tan_beta)
         })
         .collect();
     let mut runs = Vec::new();
@@ -1147,10 +981,7 @@ fn bench_solve_rigid_default_machine() {
         runs.push(t0.elapsed().as_secs_f64() / n as f64 * 1e9);
     }
     runs.sort_by(|a, b| a.partial_cmp(b).unwrap());
-    println!(
-        "solve_rigid: median {:.1} ns/call (runs {runs:?}), sink {sink}",
-        runs[3]
-    );
+    println!("solve_rigid: median {:.1} ns/call (runs {runs:?}), sink {sink}", runs[3]);
 }
 
 /// The kvo630 preset's link (docs/model.md §8): the piston alone (l1 = 10 mm, d1 = 8 mm) in a

@@ -64,36 +64,18 @@ pub(super) struct Contact {
 
 /// The contacts of a support (at most two), docs/model.md §5.2.
 pub(super) fn contacts(spec: &SupportSpec) -> ([Contact; 2], usize) {
-    let none = Contact {
-        dof: Dof::Deflection,
-        offset: 0.0,
-    };
+    let none = Contact { dof: Dof::Deflection, offset: 0.0 };
     match spec.kind {
         SupportKind::None => ([none, none], 0),
         SupportKind::Pin => ([none, none], 1),
-        SupportKind::Clamp => (
-            [
-                none,
-                Contact {
-                    dof: Dof::Slope,
-                    offset: 0.0,
-                },
-            ],
-            2,
-        ),
+        SupportKind::Clamp => ([none, Contact { dof: Dof::Slope, offset: 0.0 }], 2),
         SupportKind::TwoEdgeGuide => {
             // Edge 1 is the crank-side edge (z_centre + l_n/2), §5.3.
             let h = spec.length / 2.0;
             (
                 [
-                    Contact {
-                        dof: Dof::Deflection,
-                        offset: h,
-                    },
-                    Contact {
-                        dof: Dof::Deflection,
-                        offset: -h,
-                    },
+                    Contact { dof: Dof::Deflection, offset: h },
+                    Contact { dof: Dof::Deflection, offset: -h },
                 ],
                 2,
             )
@@ -111,11 +93,8 @@ pub(super) fn is_rigid(spec: &SupportSpec, contact: &Contact) -> bool {
 /// message, without the noise digits of its rounding: `0.19999999999999996` → `0.2`.
 pub(super) fn short(x: f64) -> String {
     let t = format!("{x:.9}");
-    let t = if t.contains('.') {
-        t.trim_end_matches('0').trim_end_matches('.').to_string()
-    } else {
-        t
-    };
+    let t =
+        if t.contains('.') { t.trim_end_matches('0').trim_end_matches('.').to_string() } else { t };
     if t == "-0" {
         "0".to_string()
     } else {
@@ -135,11 +114,7 @@ fn non_negative(name: &'static str, value: f64, unit: &str) -> Result<(), ModelE
     if value.is_finite() && value >= 0.0 {
         Ok(())
     } else {
-        Err(ModelError::out_of_range(
-            name,
-            value,
-            format!("[0, inf) {unit}"),
-        ))
+        Err(ModelError::out_of_range(name, value, format!("[0, inf) {unit}")))
     }
 }
 
@@ -220,11 +195,7 @@ pub(super) fn check_positions(
         for c in cs.iter().take(count) {
             let z = s.z + c.offset;
             // Range of the contact's link coordinate over the stroke.
-            let (lo, hi) = if s.frame_fixed {
-                (z - stroke, z)
-            } else {
-                (z, z)
-            };
+            let (lo, hi) = if s.frame_fixed { (z - stroke, z) } else { (z, z) };
             if lo >= -tol && hi <= length + tol {
                 continue;
             }
@@ -307,11 +278,7 @@ fn coincide(a: &Point, b: &Point, stroke: f64, tol: f64) -> Option<f64> {
 /// indeterminate: the beam problem would be singular there).
 pub(super) fn check_held(spec: &GuideSpec, length: f64, stroke: f64) -> Result<(), ModelError> {
     let tol = 1e-9 * length;
-    let mut lateral = [Point {
-        support: 0,
-        z: 0.0,
-        moving: false,
-    }; 6];
+    let mut lateral = [Point { support: 0, z: 0.0, moving: false }; 6];
     let mut n_lat = 0usize;
     let mut has_slope = false;
     for (x, s) in spec.supports.iter().enumerate() {
@@ -320,11 +287,7 @@ pub(super) fn check_held(spec: &GuideSpec, length: f64, stroke: f64) -> Result<(
             match c.dof {
                 Dof::Slope => has_slope = true,
                 Dof::Deflection => {
-                    lateral[n_lat] = Point {
-                        support: x,
-                        z: s.z + c.offset,
-                        moving: s.frame_fixed,
-                    };
+                    lateral[n_lat] = Point { support: x, z: s.z + c.offset, moving: s.frame_fixed };
                     n_lat += 1;
                 }
             }
@@ -383,27 +346,14 @@ pub(super) fn check_held(spec: &GuideSpec, length: f64, stroke: f64) -> Result<(
         }
     }
     // Coincident rigid contacts of the same kind, from different supports.
-    let mut rigid = [(
-        Point {
-            support: 0,
-            z: 0.0,
-            moving: false,
-        },
-        Dof::Deflection,
-    ); 6];
+    let mut rigid = [(Point { support: 0, z: 0.0, moving: false }, Dof::Deflection); 6];
     let mut n_rigid = 0usize;
     for (x, s) in spec.supports.iter().enumerate() {
         let (cs, count) = contacts(s);
         for c in cs.iter().take(count) {
             if is_rigid(s, c) {
-                rigid[n_rigid] = (
-                    Point {
-                        support: x,
-                        z: s.z + c.offset,
-                        moving: s.frame_fixed,
-                    },
-                    c.dof,
-                );
+                rigid[n_rigid] =
+                    (Point { support: x, z: s.z + c.offset, moving: s.frame_fixed }, c.dof);
                 n_rigid += 1;
             }
         }

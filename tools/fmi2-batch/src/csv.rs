@@ -33,7 +33,13 @@ pub fn format_number(x: f64, out: &mut [u8]) -> usize {
 /// Python's layout of `x` from Ryū's digits, for any x.
 fn layout(x: f64, out: &mut [u8]) -> usize {
     if !x.is_finite() {
-        let s: &[u8] = if x.is_nan() { b"nan" } else if x > 0.0 { b"inf" } else { b"-inf" };
+        let s: &[u8] = if x.is_nan() {
+            b"nan"
+        } else if x > 0.0 {
+            b"inf"
+        } else {
+            b"-inf"
+        };
         out[..s.len()].copy_from_slice(s);
         return s.len();
     }
@@ -135,7 +141,13 @@ fn layout(x: f64, out: &mut [u8]) -> usize {
 }
 
 /// Rows of numbers as CSV lines into `out` (sized by the caller: rows·cols·(MAX_NUMBER_LEN + 1)).
-pub fn format_rows(values: &[f64], rows: usize, cols: usize, row_stride: usize, out: &mut [u8]) -> usize {
+pub fn format_rows(
+    values: &[f64],
+    rows: usize,
+    cols: usize,
+    row_stride: usize,
+    out: &mut [u8],
+) -> usize {
     let mut w = 0;
     for r in 0..rows {
         for (c, &x) in values[r * row_stride..][..cols].iter().enumerate() {
@@ -164,12 +176,28 @@ mod tests {
     #[test]
     fn layout_of_pythons_repr() {
         // Each pair is what CPython's repr() prints.
-        for (x, s) in [(0.0, "0.0"), (-0.0, "-0.0"), (1.0, "1.0"), (0.1, "0.1"), (100.0, "100.0"),
-                       (0.0001, "0.0001"), (1e-5, "1e-05"), (1.5e-7, "1.5e-07"), (1e15, "1000000000000000.0"),
-                       (1e16, "1e+16"), (1.2345e16, "1.2345e+16"), (9999999999999998.0, "9999999999999998.0"),
-                       (123.456, "123.456"), (-2.5e-300, "-2.5e-300"), (1.7976931348623157e308, "1.7976931348623157e+308"),
-                       (5e-324, "5e-324"), (f64::NAN, "nan"), (f64::NEG_INFINITY, "-inf"), (0.30000000000000004, "0.30000000000000004"),
-                       (-1.2345678901234567e-308, "-1.2345678901234567e-308")] {
+        for (x, s) in [
+            (0.0, "0.0"),
+            (-0.0, "-0.0"),
+            (1.0, "1.0"),
+            (0.1, "0.1"),
+            (100.0, "100.0"),
+            (0.0001, "0.0001"),
+            (1e-5, "1e-05"),
+            (1.5e-7, "1.5e-07"),
+            (1e15, "1000000000000000.0"),
+            (1e16, "1e+16"),
+            (1.2345e16, "1.2345e+16"),
+            (9999999999999998.0, "9999999999999998.0"),
+            (123.456, "123.456"),
+            (-2.5e-300, "-2.5e-300"),
+            (1.7976931348623157e308, "1.7976931348623157e+308"),
+            (5e-324, "5e-324"),
+            (f64::NAN, "nan"),
+            (f64::NEG_INFINITY, "-inf"),
+            (0.30000000000000004, "0.30000000000000004"),
+            (-1.2345678901234567e-308, "-1.2345678901234567e-308"),
+        ] {
             assert_eq!(repr(x), s, "{x:e}");
         }
     }

@@ -80,8 +80,10 @@ mod tests {
     #[test]
     fn a_cubic_is_differentiated_exactly() {
         // θ = 1 + 2τ + 3τ² + 4τ³ on jittered times: ω = 2 + 6τ + 12τ², ε = 6 + 24τ.
-        let t: Vec<f64> = (0..40).map(|k| k as f64 * 1e-3 + if k % 3 == 0 { 2e-5 } else { -1e-5 }).collect();
-        let th: Vec<f64> = t.iter().map(|&x| 1.0 + 2.0 * x + 3.0 * x * x + 4.0 * x * x * x).collect();
+        let t: Vec<f64> =
+            (0..40).map(|k| k as f64 * 1e-3 + if k % 3 == 0 { 2e-5 } else { -1e-5 }).collect();
+        let th: Vec<f64> =
+            t.iter().map(|&x| 1.0 + 2.0 * x + 3.0 * x * x + 4.0 * x * x * x).collect();
         for c in [0, 5, 20, 39] {
             let (w, e) = at(&t, &th, 6, c).unwrap();
             let x = t[c];

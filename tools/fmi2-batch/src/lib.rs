@@ -70,9 +70,19 @@ pub struct Fmu {
 /// The function pointers and component must be a live FMU instance; the slices must hold the
 /// rows described.
 #[allow(clippy::too_many_arguments)]
-pub unsafe fn run(fmu: &Fmu, vr_in: &[c_uint], vr_out: &[c_uint], t_start: f64, t: &[f64], inputs: &[f64],
-                  in_stride: usize, outputs: &mut [f64], out_stride: usize, order: c_int, worst_ok: c_int)
-                  -> (usize, Failure) {
+pub unsafe fn run(
+    fmu: &Fmu,
+    vr_in: &[c_uint],
+    vr_out: &[c_uint],
+    t_start: f64,
+    t: &[f64],
+    inputs: &[f64],
+    in_stride: usize,
+    outputs: &mut [f64],
+    out_stride: usize,
+    order: c_int,
+    worst_ok: c_int,
+) -> (usize, Failure) {
     let mut now = t_start;
     for (k, &tk) in t.iter().enumerate() {
         let x = inputs[k * in_stride..][..vr_in.len()].as_ptr();
@@ -132,28 +142,52 @@ unsafe fn slice_mut<'a, T>(p: *mut T, len: usize) -> Option<&'a mut [T]> {
 /// As [`run`]; `failure` must be writable.
 #[no_mangle]
 pub unsafe extern "C" fn fmi2_batch_run(
-    set_real: Option<SetReal>, do_step: Option<DoStep>, get_real: Option<GetReal>, component: *mut c_void,
-    vr_in: *const c_uint, n_in: usize, vr_out: *const c_uint, n_out: usize, t_start: f64, n: usize,
-    t: *const f64, inputs: *const f64, in_stride: usize, outputs: *mut f64, out_stride: usize, order: c_int,
-    worst_ok: c_int, failure: *mut Failure,
+    set_real: Option<SetReal>,
+    do_step: Option<DoStep>,
+    get_real: Option<GetReal>,
+    component: *mut c_void,
+    vr_in: *const c_uint,
+    n_in: usize,
+    vr_out: *const c_uint,
+    n_out: usize,
+    t_start: f64,
+    n: usize,
+    t: *const f64,
+    inputs: *const f64,
+    in_stride: usize,
+    outputs: *mut f64,
+    out_stride: usize,
+    order: c_int,
+    worst_ok: c_int,
+    failure: *mut Failure,
 ) -> isize {
     let result = catch_unwind(AssertUnwindSafe(|| {
         let (Some(set_real), Some(do_step), Some(get_real)) = (set_real, do_step, get_real) else {
             return BAD_ARGUMENTS;
         };
-        if failure.is_null() || component.is_null() || !(order == ORDER_STEP_SET_GET || order == ORDER_SET_STEP_GET) {
+        if failure.is_null()
+            || component.is_null()
+            || !(order == ORDER_STEP_SET_GET || order == ORDER_SET_STEP_GET)
+        {
             return BAD_ARGUMENTS;
         }
-        let (Some(ni), Some(no)) = (strided_len(n, in_stride, n_in), strided_len(n, out_stride, n_out)) else {
+        let (Some(ni), Some(no)) =
+            (strided_len(n, in_stride, n_in), strided_len(n, out_stride, n_out))
+        else {
             return BAD_ARGUMENTS;
         };
         let (Some(vr_in), Some(vr_out), Some(t), Some(x), Some(y)) = (
-            slice(vr_in, n_in), slice(vr_out, n_out), slice(t, n), slice(inputs, ni), slice_mut(outputs, no),
+            slice(vr_in, n_in),
+            slice(vr_out, n_out),
+            slice(t, n),
+            slice(inputs, ni),
+            slice_mut(outputs, no),
         ) else {
             return BAD_ARGUMENTS;
         };
         let fmu = Fmu { set_real, do_step, get_real, component };
-        let (done, f) = run(&fmu, vr_in, vr_out, t_start, t, x, in_stride, y, out_stride, order, worst_ok);
+        let (done, f) =
+            run(&fmu, vr_in, vr_out, t_start, t, x, in_stride, y, out_stride, order, worst_ok);
         *failure = f;
         done as isize
     }));
@@ -168,8 +202,14 @@ pub unsafe extern "C" fn fmi2_batch_run(
 /// # Safety
 /// `values` must hold the rows described and `out` `capacity` writable bytes.
 #[no_mangle]
-pub unsafe extern "C" fn fmi2_batch_format_csv(values: *const f64, rows: usize, cols: usize, row_stride: usize,
-                                               out: *mut u8, capacity: usize) -> isize {
+pub unsafe extern "C" fn fmi2_batch_format_csv(
+    values: *const f64,
+    rows: usize,
+    cols: usize,
+    row_stride: usize,
+    out: *mut u8,
+    capacity: usize,
+) -> isize {
     let result = catch_unwind(AssertUnwindSafe(|| {
         let need = cols.checked_mul(MAX_NUMBER_LEN + 1).and_then(|r| r.checked_mul(rows));
         let (Some(len), Some(need)) = (strided_len(rows, row_stride, cols), need) else {
@@ -201,8 +241,16 @@ pub extern "C" fn fmi2_batch_max_number_len() -> usize {
 /// # Safety
 /// `t` and `theta` must hold `n` values, `out_w` and `out_e` `count` writable values.
 #[no_mangle]
-pub unsafe extern "C" fn fmi2_batch_local_cubic(t: *const f64, theta: *const f64, n: usize, half: usize, first: usize,
-                                                count: usize, out_w: *mut f64, out_e: *mut f64) -> isize {
+pub unsafe extern "C" fn fmi2_batch_local_cubic(
+    t: *const f64,
+    theta: *const f64,
+    n: usize,
+    half: usize,
+    first: usize,
+    count: usize,
+    out_w: *mut f64,
+    out_e: *mut f64,
+) -> isize {
     let result = catch_unwind(AssertUnwindSafe(|| {
         if n < 4 || half < 2 || first.checked_add(count).is_none_or(|end| end > n) {
             return BAD_ARGUMENTS;
@@ -232,12 +280,24 @@ pub unsafe extern "C" fn fmi2_batch_local_cubic(t: *const f64, theta: *const f64
 /// # Safety
 /// The pointers must hold the values described; `out` `n_cols` pointers to `max_lines` values.
 #[no_mangle]
-pub unsafe extern "C" fn fmi2_batch_parse_csv(text: *const u8, len: usize, n_fields: usize, n_cols: usize,
-                                              cols: *const usize, required: *const c_int, defaults: *const f64,
-                                              out: *const *mut f64, max_lines: usize) -> isize {
+pub unsafe extern "C" fn fmi2_batch_parse_csv(
+    text: *const u8,
+    len: usize,
+    n_fields: usize,
+    n_cols: usize,
+    cols: *const usize,
+    required: *const c_int,
+    defaults: *const f64,
+    out: *const *mut f64,
+    max_lines: usize,
+) -> isize {
     let result = catch_unwind(AssertUnwindSafe(|| {
         let (Some(text), Some(cols), Some(required), Some(defaults), Some(out)) = (
-            slice(text, len), slice(cols, n_cols), slice(required, n_cols), slice(defaults, n_cols), slice(out, n_cols),
+            slice(text, len),
+            slice(cols, n_cols),
+            slice(required, n_cols),
+            slice(defaults, n_cols),
+            slice(out, n_cols),
         ) else {
             return BAD_ARGUMENTS;
         };
@@ -251,7 +311,8 @@ pub unsafe extern "C" fn fmi2_batch_parse_csv(text: *const u8, len: usize, n_fie
             };
             columns.push(col);
         }
-        let defaults: Vec<Option<f64>> = required.iter().zip(defaults).map(|(&r, &d)| (r == 0).then_some(d)).collect();
+        let defaults: Vec<Option<f64>> =
+            required.iter().zip(defaults).map(|(&r, &d)| (r == 0).then_some(d)).collect();
         parse::clean_prefix(text, n_fields, cols, &defaults, &mut columns) as isize
     }));
     result.unwrap_or(PANICKED)

@@ -8,7 +8,13 @@
 /// Parses lines of `text` (separated by '\n') while they are clean; `cols` are the field indices
 /// of the values wanted, `defaults[j]` the value of an empty field j (None: the field is required).
 /// Values go to `out[j][line]`. Returns the number of clean lines parsed.
-pub fn clean_prefix(text: &[u8], n_fields: usize, cols: &[usize], defaults: &[Option<f64>], out: &mut [&mut [f64]]) -> usize {
+pub fn clean_prefix(
+    text: &[u8],
+    n_fields: usize,
+    cols: &[usize],
+    defaults: &[Option<f64>],
+    out: &mut [&mut [f64]],
+) -> usize {
     let mut parsed = 0;
     for line in text.split(|&c| c == b'\n') {
         if parsed >= out.first().map_or(0, |o| o.len()) {
@@ -42,9 +48,17 @@ mod tests {
     fn stops_at_the_first_line_python_must_read() {
         let text = b"0.5, 1e-3 ,x,\n2,3,4,5\r\n7,8,,\n9,nan,1,1\n10,11,12,13";
         let (mut a, mut b, mut c) = ([0.0; 5], [0.0; 5], [0.0; 5]);
-        let n = clean_prefix(text, 4, &[0, 1, 3], &[None, None, Some(-1.0)], &mut [&mut a, &mut b, &mut c]);
+        let n = clean_prefix(
+            text,
+            4,
+            &[0, 1, 3],
+            &[None, None, Some(-1.0)],
+            &mut [&mut a, &mut b, &mut c],
+        );
         assert_eq!(n, 3);
-        assert_eq!((a[..3].to_vec(), b[..3].to_vec(), c[..3].to_vec()),
-                   (vec![0.5, 2.0, 7.0], vec![1e-3, 3.0, 8.0], vec![-1.0, 5.0, -1.0]));
+        assert_eq!(
+            (a[..3].to_vec(), b[..3].to_vec(), c[..3].to_vec()),
+            (vec![0.5, 2.0, 7.0], vec![1e-3, 3.0, 8.0], vec![-1.0, 5.0, -1.0])
+        );
     }
 }
