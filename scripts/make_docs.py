@@ -1,10 +1,12 @@
 """Generates what docs/ shows that comes from the code: the figures (sketches of each mechanism with
-its coordinates and supports, plots of typical results computed by the FMU) and the variable table
-of docs/fmi-interface.md (from the FMU's model description).
+its coordinates and supports, plots of typical results computed by the FMU), the variable table
+of docs/fmi-interface.md (from the FMU's model description) and the presets' expected summaries in
+docs/results.md (from a run of the main job).
 
-    .venv/bin/python scripts/make_docs.py                 # docs/figures/*.png + the table
+    .venv/bin/python scripts/make_docs.py                 # docs/figures/*.png, the table, results
     .venv/bin/python scripts/make_docs.py --out DIR       # figures into DIR, docs/ untouched
     .venv/bin/python scripts/make_docs.py --table-only    # only the variable table
+    .venv/bin/python scripts/make_docs.py --results-only  # only the summaries in docs/results.md
 
 The FMU is target/fmu/ReciprocatingDrive.fmu (RD_FMU overrides it); scripts/build-fmu.sh builds it.
 """
@@ -30,10 +32,13 @@ sys.path.insert(0, str(ROOT / "python"))
 FMU = pathlib.Path(os.environ.get("RD_FMU", ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
 FIGURES = ROOT / "docs" / "figures"
 INTERFACE = ROOT / "docs" / "fmi-interface.md"
+RESULTS_PAGE = ROOT / "docs" / "results.md"
 
 # Every figure this script writes; docs/*.md refer to them as figures/<name>.png.
 SKETCHES = ("crank_slider", "beam_units", "supports", "elastic_rod")
-RESULTS = ("results_default", "results_sk8-3.5-4000", "results_kvo630")
+# The main job's presets: the FMU's start values and every preset of resources/presets.
+PRESETS = ("default", "unb600a", "sk8-3.5-4000", "kvo630")
+RESULTS = tuple(f"results_{p}" for p in PRESETS)
 # Drawn by scripts/closed_loop.py (docs/closed-loop.md).
 CLOSED_LOOP = "closed_loop"
 
@@ -191,16 +196,39 @@ def sketch_elastic_rod(path):
     plt.close(fig)
 
 
-def result_figures(out: pathlib.Path) -> None:
-    """Typical results of the default machine, the beam unit and kvo630, drawn by the main job's
-    plotting code (python/reciprocating_drive/plots.py) from a run of the FMU."""
+def missions() -> dict:
+    """The main job's run of every preset (python/reciprocating_drive/mission.py)."""
     from reciprocating_drive.mission import run_mission
+
+    return {p: run_mission(str(FMU), p) for p in PRESETS}
+
+
+def result_figures(out: pathlib.Path, runs: dict) -> None:
+    """Typical results of every preset, drawn by the main job's plotting code
+    (python/reciprocating_drive/plots.py) from a run of the FMU."""
     from reciprocating_drive.plots import plot_mission
 
-    for name in RESULTS:
-        preset = name.removeprefix("results_")
-        mission = run_mission(str(FMU), preset)
-        plot_mission(mission, out / f"{name}.png", dpi=70)
+    for p, mission in runs.items():
+        plot_mission(mission, out / f"results_{p}.png", dpi=100)
+
+
+def results_summaries(runs: dict) -> str:
+    """The summary the main job prints for every preset, as docs/results.md shows it."""
+    from reciprocating_drive.mission import format_summary
+
+    blocks = [
+        f"`scripts/run.sh {p}`:\n\n```text\n{format_summary(m.summary)}\n```"
+        for p, m in runs.items()
+    ]
+    return "\n\n".join(blocks)
+
+
+def write_results(runs: dict, doc: pathlib.Path = RESULTS_PAGE) -> None:
+    text = doc.read_text()
+    begin, end = "<!-- results:begin -->", "<!-- results:end -->"
+    head, rest = text.split(begin)
+    _, tail = rest.split(end)
+    doc.write_text(f"{head}{begin}\n{results_summaries(runs)}\n{end}{tail}")
 
 
 def closed_loop_figure(out: pathlib.Path) -> None:
@@ -213,6 +241,9 @@ def closed_loop_figure(out: pathlib.Path) -> None:
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     mod.main(["--out-dir", str(out), "--fmu-dir", str(FMU.parent)])
+    # The script packs the system next to its figure when the FMUs are not the repository's
+    # target/fmu; the docs show only the figure.
+    (out / "ClosedLoop.ssp").unlink(missing_ok=True)
 
 
 def variable_table(fmu: pathlib.Path) -> str:
@@ -250,18 +281,26 @@ def main(argv=None) -> None:
         help="figure folder (default docs/figures; docs untouched when given)",
     )
     ap.add_argument("--table-only", action="store_true")
+    ap.add_argument("--results-only", action="store_true")
     ap.add_argument("--sketches-only", action="store_true")
     a = ap.parse_args(argv)
     if a.out is None:
-        write_table(FMU)
+        if not a.results_only:
+            write_table(FMU)
         if a.table_only:
+            return
+    runs = None
+    if a.out is None and not a.sketches_only:
+        runs = missions()
+        write_results(runs)
+        if a.results_only:
             return
     out = a.out or FIGURES
     out.mkdir(parents=True, exist_ok=True)
     for name in SKETCHES:
         globals()[f"sketch_{name}"](out / f"{name}.png")
     if not a.sketches_only:
-        result_figures(out)
+        result_figures(out, runs or missions())
         closed_loop_figure(out)
     print(f"wrote {out}")
 
