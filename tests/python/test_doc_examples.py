@@ -139,11 +139,13 @@ def collect() -> list[Example]:
 EXAMPLES = collect()
 
 
-@pytest.fixture(scope="module")
-def sandbox(tmp_path_factory, fmu_path):
-    """A scratch copy of the repository's layout. scripts/ is copied (the scripts resolve the
+@pytest.fixture
+def sandbox(tmp_path, fmu_path):
+    """A scratch copy of the repository's layout, fresh for every example (no example sees the
+    results of another, as on a user's fresh clone). scripts/ is copied (the scripts resolve the
     repository from their own path, so their default outputs land here); the rest is linked."""
-    root = tmp_path_factory.mktemp("repo")
+    root = tmp_path / "repo"
+    root.mkdir()
     shutil.copytree(ROOT / "scripts", root / "scripts")
     for d in ("python", "data", "studies", "resources", "ssp", "docs"):
         (root / d).symlink_to(ROOT / d)
