@@ -255,7 +255,8 @@ def _angle(deg: float) -> str:
     return f"{round(deg, 2) % 360.0:.2f}°"
 
 
-def _plural(n: int, word: str) -> str:
+def plural(n: int, word: str) -> str:
+    """ "1 revolution", "2 revolutions" (the summary and the plots' labels)."""
     return f"{n} {word}" if n == 1 else f"{n} {word}s"
 
 
@@ -278,7 +279,7 @@ def format_summary(s: dict) -> str:
     if "rod_angle_amplitude" in s:
         lines.append(
             f"  rod angle ϑ amplitude       {s['rod_angle_amplitude']:.6g} rad "
-            f"(steady after {_plural(s['transient_revolutions'], 'revolution')})"
+            f"(steady after {plural(s['transient_revolutions'], 'revolution')})"
         )
         lines.append(f"  largest rod stress          {s['stress_max'] / 1e6:.6g} MPa")
     return "\n".join(lines)
