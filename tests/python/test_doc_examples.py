@@ -23,6 +23,7 @@ import re
 import shutil
 import subprocess
 import sys
+import warnings
 import xml.etree.ElementTree as ET
 
 import pytest
@@ -221,6 +222,16 @@ def test_every_page_is_collected_and_no_pending_marker_is_stale():
     that no longer matches would let its command run unannounced, or hide a rewrite)."""
     assert {e.page for e in EXAMPLES} >= {"README.md", "docs/user-guide.md", "docs/twin.md"}
     assert sum(not e.skip for e in EXAMPLES) >= 10
+    # The list of what does not run, in the warnings summary of every run (pytest -q too).
+    skipped = [e for e in EXAMPLES if e.skip]
+    if skipped:
+        warnings.warn(
+            f"{len(skipped)} of {len(EXAMPLES)} code examples of the docs are not run here:\n"
+            + "\n".join(
+                f"  {e.id} `{e.code.splitlines()[0][:50].strip()}`: {e.skip}" for e in skipped
+            ),
+            stacklevel=1,
+        )
     stale = [
         (p, c) for p, c in PENDING_MARKERS if not any(e.page == p and c in e.code for e in EXAMPLES)
     ]
