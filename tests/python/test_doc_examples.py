@@ -110,7 +110,7 @@ def collect() -> list[Example]:
         lines = page.read_text().splitlines()
         i = 0
         while i < len(lines):
-            m = re.match(r"^```(\w+)\s*$", lines[i])
+            m = re.match(r"^```(\w*)\s*$", lines[i])
             if not m:
                 i += 1
                 continue
@@ -123,6 +123,7 @@ def collect() -> list[Example]:
             mark = MARKER.search(prev)
             i = j + 1
             if lang not in LANGUAGES:
+                OTHER_BLOCKS.append(f"{rel}:{start + 1} ({lang or 'no language'})")
                 continue
             pieces = _commands(code) if lang == "sh" else [code]
             for n, piece in enumerate(pieces, 1):
@@ -137,6 +138,8 @@ def collect() -> list[Example]:
     return out
 
 
+# Blocks in other languages (program output as `text`, C, XML): shown, not run; listed below.
+OTHER_BLOCKS: list[str] = []
 EXAMPLES = collect()
 
 
@@ -229,7 +232,8 @@ def test_every_page_is_collected_and_no_pending_marker_is_stale():
             f"{len(skipped)} of {len(EXAMPLES)} code examples of the docs are not run here:\n"
             + "\n".join(
                 f"  {e.id} `{e.code.splitlines()[0][:50].strip()}`: {e.skip}" for e in skipped
-            ),
+            )
+            + f"\nand {len(OTHER_BLOCKS)} blocks in other languages: {', '.join(OTHER_BLOCKS)}",
             stacklevel=1,
         )
     stale = [
