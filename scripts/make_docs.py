@@ -1,10 +1,12 @@
 """Generates what docs/ shows that comes from the code: the figures (sketches of each mechanism with
-its coordinates and supports, plots of typical results computed by the FMU) and the variable table
-of docs/fmi-interface.md (from the FMU's model description).
+its coordinates and supports, plots of typical results computed by the FMU), the variable table
+of docs/fmi-interface.md (from the FMU's model description) and the presets' expected summaries in
+docs/results.md (from a run of the main job).
 
-    .venv/bin/python scripts/make_docs.py                 # docs/figures/*.png + the table
+    .venv/bin/python scripts/make_docs.py                 # docs/figures/*.png, the table, results
     .venv/bin/python scripts/make_docs.py --out DIR       # figures into DIR, docs/ untouched
     .venv/bin/python scripts/make_docs.py --table-only    # only the variable table
+    .venv/bin/python scripts/make_docs.py --results-only  # only the summaries in docs/results.md
 
 The FMU is target/fmu/ReciprocatingDrive.fmu (RD_FMU overrides it); scripts/build-fmu.sh builds it.
 """
@@ -22,7 +24,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.patches import Circle, FancyArrowPatch, Rectangle  # noqa: E402
+from matplotlib.patches import Arc, Circle, FancyArrowPatch, Rectangle  # noqa: E402
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
@@ -30,20 +32,45 @@ sys.path.insert(0, str(ROOT / "python"))
 FMU = pathlib.Path(os.environ.get("RD_FMU", ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
 FIGURES = ROOT / "docs" / "figures"
 INTERFACE = ROOT / "docs" / "fmi-interface.md"
+RESULTS_PAGE = ROOT / "docs" / "results.md"
 
 # Every figure this script writes; docs/*.md refer to them as figures/<name>.png.
 SKETCHES = ("crank_slider", "beam_units", "supports", "elastic_rod")
-RESULTS = ("results_default", "results_sk8-3.5-4000", "results_kvo630")
+# The main job's presets: the FMU's start values and every preset of resources/presets.
+PRESETS = ("default", "unb600a", "sk8-3.5-4000", "kvo630")
+RESULTS = tuple(f"results_{p}" for p in PRESETS)
 # Drawn by scripts/closed_loop.py (docs/closed-loop.md).
 CLOSED_LOOP = "closed_loop"
 
 
+# Sketches are drawn for a screen: 11 inches wide at 200 dpi, about 2 000 pixels after cropping.
+SKETCH_WIDTH, SKETCH_DPI = 11.0, 200
+
+
 def _arrow(ax, p, q, text=None, color="k", **kw):
     ax.add_patch(
-        FancyArrowPatch(p, q, arrowstyle="-|>", mutation_scale=12, color=color, lw=1.2, **kw)
+        FancyArrowPatch(p, q, arrowstyle="-|>", mutation_scale=14, color=color, lw=1.2, **kw)
     )
     if text:
         ax.annotate(text, q, textcoords="offset points", xytext=(4, 4), color=color)
+
+
+def _dimension(ax, z0, z1, y, text, color="0.3"):
+    """A dimension line from z0 to z1 at height y, its text centred below it."""
+    ax.add_patch(
+        FancyArrowPatch((z0, y), (z1, y), arrowstyle="<|-|>", mutation_scale=9, color=color, lw=0.8)
+    )
+    for z in (z0, z1):
+        ax.plot([z, z], [y - 0.02, y + 0.02], "-", color=color, lw=0.8)
+    ax.annotate(
+        text,
+        ((z0 + z1) / 2, y),
+        textcoords="offset points",
+        xytext=(0, -11),
+        ha="center",
+        fontsize=9,
+        color=color,
+    )
 
 
 def _finish(ax, title):
@@ -52,13 +79,35 @@ def _finish(ax, title):
     ax.set_title(title, fontsize=11)
 
 
-def sketch_crank_slider(path):
+def _save(fig, path) -> None:
+    fig.savefig(path, dpi=SKETCH_DPI, bbox_inches="tight", pad_inches=0.1)
+    plt.close(fig)
+
+
+def text_overlaps(fig) -> list[tuple[str, str]]:
+    """Pairs of texts of the figure whose boxes overlap on the canvas (tests/python/test_sketches.py
+    requires none)."""
+    from matplotlib.text import Text
+
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    boxes = [
+        (t.get_text(), t.get_window_extent(renderer))
+        for t in fig.findobj(Text)
+        if t.get_visible() and t.get_text().strip()
+    ]
+    return [
+        (ta, tb) for i, (ta, a) in enumerate(boxes) for tb, b in boxes[i + 1 :] if a.overlaps(b)
+    ]
+
+
+def draw_crank_slider():
     """Crank-slider at θ = 50° (docs/model.md §3.1): crank, rod, crosshead, s from the ODC."""
     r, l, th = 0.2, 0.75, math.radians(50)
     pin = np.array([r * math.cos(th), r * math.sin(th)])
     beta = math.asin(r * math.sin(th) / l)
     x = r * math.cos(th) + l * math.cos(beta)
-    fig, ax = plt.subplots(figsize=(7, 3))
+    fig, ax = plt.subplots(figsize=(SKETCH_WIDTH, 3.6))
     ax.plot([-0.3, 1.25], [0, 0], "k-.", lw=0.6)
     ax.add_patch(Circle((0, 0), r, fill=False, ls=":", lw=0.8))
     ax.plot([0, pin[0]], [0, pin[1]], "C0-", lw=3)
@@ -66,27 +115,44 @@ def sketch_crank_slider(path):
     ax.add_patch(Rectangle((x - 0.05, -0.04), 0.1, 0.08, fc="0.85", ec="k"))
     ax.plot([x + 0.05, 1.2], [0, 0], "k-", lw=4)  # piston rod
     ax.plot([0], [0], "ko")
-    ax.annotate("θ", (0.07, 0.03))
-    ax.annotate("β", (x - 0.2, 0.015), color="C1")
-    ax.annotate("crank r", (pin[0] / 2 - 0.1, pin[1] / 2 + 0.03), color="C0")
-    ax.annotate("rod l", ((pin[0] + x) / 2, pin[1] / 2 + 0.03), color="C1")
+    ax.add_patch(Arc((0, 0), 0.16, 0.16, theta1=0, theta2=50, lw=0.8))
+    ax.annotate("θ", (0.09, 0.035))
+    ax.add_patch(
+        Arc((x, 0), 0.3, 0.3, theta1=180 - math.degrees(beta), theta2=180, lw=0.8, color="C1")
+    )
+    ax.annotate("β", (x - 0.2, 0.012), color="C1")
+    ax.annotate("crank r", (-0.02, 0.1), ha="right", color="C0")
+    ax.annotate("rod l", ((pin[0] + x) / 2, pin[1] / 2 + 0.04), color="C1")
+    ax.annotate("crosshead", (x - 0.06, 0.06), fontsize=9)
     xodc = r + l
     ax.plot([xodc, xodc], [-0.12, 0.12], "k:", lw=0.8)
-    ax.annotate("ODC (s = 0)", (xodc - 0.05, -0.17))
-    _arrow(ax, (xodc, -0.09), (x, -0.09), "s", color="C3")
+    ax.annotate("ODC (s = 0)", (xodc + 0.01, -0.17), fontsize=9)
+    _arrow(ax, (xodc, -0.09), (x, -0.09), None, color="C3")
+    ax.annotate(
+        "s",
+        ((xodc + x) / 2, -0.085),
+        textcoords="offset points",
+        xytext=(0, 3),
+        ha="center",
+        color="C3",
+    )
     _arrow(ax, (0, 0), (0.3, 0), None)
     ax.annotate("x", (0.3, -0.05))
-    _arrow(ax, (0, 0), (0, 0.28), "y")
+    _arrow(ax, (0, 0), (0, 0.26), "y")
+    ax.set_ylim(-0.22, 0.36)
     _finish(
         ax, "Crank-slider: θ from the stroke axis, s from the outer dead centre toward the crank"
     )
-    fig.savefig(path, dpi=90, bbox_inches="tight")
-    plt.close(fig)
+    return fig
 
 
-def sketch_beam_units(path):
-    """API class I and class III geometry (docs/model.md §3.2), well on the right."""
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
+def sketch_crank_slider(path):
+    _save(draw_crank_slider(), path)
+
+
+def draw_beam_units():
+    """API class I and class III geometry (docs/model.md §3.2), well on the right, θ = 30°."""
+    fig, axes = plt.subplots(1, 2, figsize=(SKETCH_WIDTH, 4.4))
     for ax, cls in zip(axes, ("I", "III")):
         R, C, A, I, HG = (0.5, 1.2, 1.8, 1.2, 1.6) if cls == "I" else (0.5, 1.0, 2.6, 0.9, 1.6)
         bx = I if cls == "I" else -I
@@ -94,72 +160,160 @@ def sketch_beam_units(path):
         u = np.array([math.cos(b), math.sin(b)])
         B = np.array([bx, HG])
         E = B - C * u if cls == "I" else B + C * u
-        head = B + A * u if cls == "I" else B + A * u
+        head = B + A * u
         q = math.radians(30)
         pin = np.array([R * math.sin(q), R * math.cos(q)])
+        ax.plot([-2.4, 3.2], [-0.55, -0.55], "k-", lw=0.8)  # ground
+        ax.plot([B[0], B[0]], [B[1], -0.55], "0.6", lw=2)  # samson post
         ax.add_patch(Circle((0, 0), R, fill=False, ls=":", lw=0.8))
+        ax.plot([0, 0], [0, R + 0.15], "k:", lw=0.8)  # 12 o'clock
+        ax.add_patch(Arc((0, 0), 0.5, 0.5, theta1=60, theta2=90, lw=0.8))
         ax.plot([0, pin[0]], [0, pin[1]], "C0-", lw=3)
         ax.plot([pin[0], E[0]], [pin[1], E[1]], "C1-", lw=3)
         ax.plot([E[0], head[0]], [E[1], head[1]], "C2-", lw=4)
-        ax.plot([head[0], head[0]], [head[1], 0.0], "k-", lw=1.5)
+        ax.plot([head[0], head[0]], [head[1], -0.55], "k-", lw=1.5)  # polished rod
         ax.plot(*B, "k^", ms=10)
+        ax.plot(*E, "ko", ms=4)
         ax.plot(0, 0, "ko")
-        ax.annotate("centre bearing", B + (0.05, 0.12), fontsize=8)
-        ax.annotate("equalizer", E + (-0.3, -0.25), fontsize=8)
-        ax.annotate("horsehead", head + (-0.2, 0.12), fontsize=8)
-        ax.annotate("R", pin / 2 + (0.05, 0), color="C0")
-        ax.annotate("P", (pin + E) / 2 + (0.05, 0), color="C1")
-        ax.annotate("θ (from 12 o'clock)", (0.05, R + 0.08), fontsize=8)
-        _arrow(ax, (head[0] + 0.15, 0.3), (head[0] + 0.15, 0.9), "s", color="C3")
-        ax.annotate("well →", (head[0] + 0.1, -0.25), fontsize=8)
-        ax.set_xlim(-2.3, 3.6)
-        ax.set_ylim(-0.8, 2.4)
+        if cls == "I":
+            ax.annotate(
+                "centre bearing",
+                B,
+                textcoords="offset points",
+                xytext=(0, 12),
+                ha="center",
+                fontsize=9,
+            )
+            ax.annotate(
+                "equalizer", E, textcoords="offset points", xytext=(-8, 8), ha="right", fontsize=9
+            )
+        else:
+            ax.annotate(
+                "centre bearing",
+                B,
+                textcoords="offset points",
+                xytext=(0, 12),
+                ha="center",
+                fontsize=9,
+            )
+            ax.annotate(
+                "equalizer", E, textcoords="offset points", xytext=(10, -14), ha="left", fontsize=9
+            )
+        ax.annotate(
+            "horsehead", head, textcoords="offset points", xytext=(0, 12), ha="center", fontsize=9
+        )
+        ax.annotate("R", pin / 2, textcoords="offset points", xytext=(6, -6), color="C0")
+        ax.annotate("P", (pin + E) / 2, textcoords="offset points", xytext=(6, 0), color="C1")
+        ax.annotate("θ", (0.05, R + 0.12), fontsize=10)
+        ax.annotate("θ = 0 at 12 o'clock", (-2.3, 2.45), fontsize=9)
+        _arrow(ax, (head[0] + 0.2, 0.1), (head[0] + 0.2, 0.8), None, color="C3")
+        ax.annotate("s", (head[0] + 0.28, 0.4), color="C3")
+        ax.annotate(
+            "well", (head[0], -0.55), textcoords="offset points", xytext=(4, -12), fontsize=9
+        )
+        ax.set_xlim(-2.4, 3.3)
+        ax.set_ylim(-0.9, 2.7)
         _finish(
             ax,
             f"Class {cls}: "
             + (
-                "bearing between\nequalizer and horsehead"
+                "the centre bearing between\nequalizer and horsehead"
                 if cls == "I"
-                else "equalizer between\nbearing and horsehead"
+                else "the equalizer between\ncentre bearing and horsehead"
             ),
         )
-    fig.savefig(path, dpi=90, bbox_inches="tight")
-    plt.close(fig)
+    return fig
 
 
-def sketch_supports(path):
-    """The default pump's link as a stepped beam with supports A, B, C (docs/model.md §5)."""
-    fig, ax = plt.subplots(figsize=(9, 2.6))
-    sections = [(0.55, 0.070), (0.15, 0.130), (1.00, 0.100), (0.40, 0.300)]
+def sketch_beam_units(path):
+    _save(draw_beam_units(), path)
+
+
+#: The default pump's link (docs/model.md §8): (l_i, d_i) of sections 1..4 [m].
+LINK_SECTIONS = [(0.55, 0.070), (0.15, 0.130), (1.00, 0.100), (0.40, 0.300)]
+
+
+def draw_supports():
+    """The default pump's link as a stepped beam with sections l1..l4 and supports A, B, C
+    (docs/model.md §5, §8), at s = 0."""
+    fig, ax = plt.subplots(figsize=(SKETCH_WIDTH, 4.0))
     z = 0.0
-    for length, d in sections:
+    bounds = [0.0]
+    for length, d in LINK_SECTIONS:
         ax.add_patch(Rectangle((z, -d / 2), length, d, fc="0.9", ec="k"))
         z += length
+        bounds.append(z)
     L = z
-    ax.annotate("A: clamp (piston in liner)\nmoves with the link", (0.0, 0.19), fontsize=8)
+    for i in range(4):
+        _dimension(ax, bounds[i], bounds[i + 1], -0.24, f"l{i + 1}")
+    ax.plot([L, L], [-0.27, -0.15], "-", color="0.3", lw=0.8)
+    sizes = ", ".join(f"{length:.2f}" for length, _ in LINK_SECTIONS)
+    diams = ", ".join(f"{d * 1e3:.0f}" for _, d in LINK_SECTIONS)
+    ax.annotate(
+        f"l1..l4 = {sizes} m;  diameters d1..d4 = {diams} mm", (0.0, -0.37), fontsize=9, color="0.3"
+    )
+    # A: clamp over [0, 0.25], moves with the link.
     ax.add_patch(Rectangle((0.0, -0.06), 0.25, 0.12, fc="none", ec="C0", lw=2))
+    ax.annotate(
+        "A: clamp (piston in its liner),\nmoves with the link",
+        (0.0, 0.1),
+        textcoords="offset points",
+        xytext=(0, 8),
+        fontsize=9,
+        color="C0",
+    )
+    # C: pin fixed in the frame at z = 1.60 m (s = 0).
+    ax.plot([1.60, 1.60], [-0.17, 0.17], "C2-", lw=2)
+    ax.annotate(
+        "C: pin fixed in the frame\n(gland, spring)",
+        (1.60, 0.17),
+        textcoords="offset points",
+        xytext=(-6, 4),
+        ha="right",
+        fontsize=9,
+        color="C2",
+    )
+    # B: two-edge guide, centre 1.90 m, length 0.40 m, moves with the link.
     ax.add_patch(Rectangle((1.70, -0.17), 0.40, 0.34, fc="none", ec="C1", lw=2))
     ax.annotate(
-        "B: two-edge guide (crosshead)\noffset δ, tilt α", (1.55, 0.21), fontsize=8, color="C1"
+        "B: two-edge guide (crosshead),\noffset δ, tilt α",
+        (1.70, 0.17),
+        textcoords="offset points",
+        xytext=(0, 4),
+        fontsize=9,
+        color="C1",
     )
-    ax.plot([1.60, 1.60], [-0.2, 0.2], "C2-", lw=2)
-    ax.annotate("C: pin fixed in the frame\n(gland, spring)", (1.05, -0.33), fontsize=8, color="C2")
-    _arrow(ax, (0, -0.22), (0.4, -0.22), "z", color="k")
-    ax.annotate("z = 0 (piston end)", (0, -0.3), fontsize=8)
-    ax.annotate(f"z = L = {L:.2f} m (crank side)", (L - 0.5, -0.3), fontsize=8)
-    _arrow(ax, (L + 0.05, 0), (L + 0.05, 0.2), "y", color="k")
-    ax.set_xlim(-0.1, L + 0.3)
-    ax.set_ylim(-0.4, 0.4)
+    # The axes: z along the link from the piston end, y lateral (docs/model.md §5.1).
+    _arrow(ax, (0, -0.56), (0.4, -0.56), None, color="k")
+    _arrow(ax, (0, -0.56), (0, -0.46), None, color="k")
+    ax.annotate("z", (0.42, -0.58), fontsize=10)
+    ax.annotate("y", (0.02, -0.47), fontsize=10)
+    ax.annotate(
+        "z = 0: piston end", (0.0, -0.56), textcoords="offset points", xytext=(0, -13), fontsize=9
+    )
+    ax.annotate(
+        f"z = L = {L:.2f} m: crank side",
+        (L, -0.56),
+        textcoords="offset points",
+        xytext=(0, -13),
+        ha="right",
+        fontsize=9,
+    )
+    ax.set_xlim(-0.05, L + 0.25)
+    ax.set_ylim(-0.68, 0.42)
     ax.set_aspect("auto")
     ax.axis("off")
     ax.set_title("The link of the default pump: sections l1..l4, supports A, B, C", fontsize=11)
-    fig.savefig(path, dpi=90, bbox_inches="tight")
-    plt.close(fig)
+    return fig
 
 
-def sketch_elastic_rod(path):
+def sketch_supports(path):
+    _save(draw_supports(), path)
+
+
+def draw_elastic_rod():
     """Elastic rod clamped in the piston, rigid end, cage on the pin, ϑ (docs/model.md §6)."""
-    fig, ax = plt.subplots(figsize=(7, 3))
+    fig, ax = plt.subplots(figsize=(SKETCH_WIDTH, 3.8))
     lf, f, delta, th = 2.3, 1.5, 0.45, 0.18
     zz = np.linspace(0, lf, 60)
     # a clamped bent shape ending at slope th
@@ -168,39 +322,82 @@ def sketch_elastic_rod(path):
         + th * lf * ((zz / lf) ** 3 - (zz / lf) ** 2) * 0.5
     )
     ax.add_patch(Rectangle((-0.8, -0.35), 0.8, 0.7, fc="0.85", ec="k"))
-    ax.annotate("piston\n(clamp)", (-0.75, -0.15), fontsize=8)
+    ax.annotate("piston\n(clamp)", (-0.4, 0.0), ha="center", va="center", fontsize=9)
     ax.plot(zz, v, "C1-", lw=2.5)
     end = np.array([lf, v[-1]])
     tip = end + f * np.array([math.cos(th), math.sin(th)])
     ax.plot([end[0], tip[0]], [end[1], tip[1]], "C0-", lw=4)
     ax.add_patch(Circle(tip, 0.18, fill=False, ec="C0", lw=2))
-    ax.annotate("cage on the crank pin (J_m)", tip + (-0.6, 0.3), fontsize=8, color="C0")
+    ax.annotate(
+        "cage on the crank pin (J_m)",
+        tip,
+        textcoords="offset points",
+        xytext=(-20, 18),
+        ha="center",
+        fontsize=9,
+        color="C0",
+    )
     ax.plot([end[0], end[0] + 1.2], [end[1], end[1]], "k:", lw=0.8)
-    ax.annotate("ϑ", end + (0.6, 0.05), fontsize=12, color="C3")
-    ax.annotate("elastic part l_f", (0.6, -0.35), fontsize=8, color="C1")
-    ax.annotate("rigid part f", ((end + tip) / 2 + (0, -0.35)), fontsize=8, color="C0")
-    ax.plot([-0.8, lf + f + 0.5], [0, 0], "k-.", lw=0.6)
+    ax.add_patch(Arc(end, 1.6, 1.6, theta1=0, theta2=math.degrees(th), color="C3", lw=1))
+    ax.annotate("ϑ", end + (0.85, 0.03), fontsize=12, color="C3")
+    ax.annotate("elastic part l_f", (lf / 2, -0.2), ha="center", fontsize=9, color="C1")
+    ax.annotate(
+        "rigid part f",
+        (end + tip) / 2,
+        textcoords="offset points",
+        xytext=(0, -26),
+        ha="center",
+        fontsize=9,
+        color="C0",
+    )
+    ax.plot([0, lf + f + 0.5], [0, 0], "k-.", lw=0.6)  # the stroke axis
     _arrow(ax, (tip[0] + 0.5, 0), (tip[0] + 0.5, tip[1]), None, color="C3")
     ax.annotate(
-        "Δ = r sinθ − e\n(pin's lateral offset)", (tip[0] + 0.6, 0.2), fontsize=8, color="C3"
+        "Δ = r sinθ − e\n(pin's lateral offset)", (tip[0] + 0.6, 0.2), fontsize=9, color="C3"
     )
     ax.set_xlim(-1, lf + f + 2.6)
-    ax.set_ylim(-0.6, 1.0)
+    ax.set_ylim(-0.6, 1.1)
     _finish(ax, "Elastic connecting rod clamped in the piston: cage rotation ϑ")
-    fig.savefig(path, dpi=90, bbox_inches="tight")
-    plt.close(fig)
+    return fig
 
 
-def result_figures(out: pathlib.Path) -> None:
-    """Typical results of the default machine, the beam unit and kvo630, drawn by the main job's
-    plotting code (python/reciprocating_drive/plots.py) from a run of the FMU."""
+def sketch_elastic_rod(path):
+    _save(draw_elastic_rod(), path)
+
+
+def missions() -> dict:
+    """The main job's run of every preset (python/reciprocating_drive/mission.py)."""
     from reciprocating_drive.mission import run_mission
+
+    return {p: run_mission(str(FMU), p) for p in PRESETS}
+
+
+def result_figures(out: pathlib.Path, runs: dict) -> None:
+    """Typical results of every preset, drawn by the main job's plotting code
+    (python/reciprocating_drive/plots.py) from a run of the FMU."""
     from reciprocating_drive.plots import plot_mission
 
-    for name in RESULTS:
-        preset = name.removeprefix("results_")
-        mission = run_mission(str(FMU), preset)
-        plot_mission(mission, out / f"{name}.png", dpi=70)
+    for p, mission in runs.items():
+        plot_mission(mission, out / f"results_{p}.png", dpi=100)
+
+
+def results_summaries(runs: dict) -> str:
+    """The summary the main job prints for every preset, as docs/results.md shows it."""
+    from reciprocating_drive.mission import format_summary
+
+    blocks = [
+        f"`scripts/run.sh {p}`:\n\n```text\n{format_summary(m.summary)}\n```"
+        for p, m in runs.items()
+    ]
+    return "\n\n".join(blocks)
+
+
+def write_results(runs: dict, doc: pathlib.Path = RESULTS_PAGE) -> None:
+    text = doc.read_text()
+    begin, end = "<!-- results:begin -->", "<!-- results:end -->"
+    head, rest = text.split(begin)
+    _, tail = rest.split(end)
+    doc.write_text(f"{head}{begin}\n{results_summaries(runs)}\n{end}{tail}")
 
 
 def closed_loop_figure(out: pathlib.Path) -> None:
@@ -213,6 +410,9 @@ def closed_loop_figure(out: pathlib.Path) -> None:
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     mod.main(["--out-dir", str(out), "--fmu-dir", str(FMU.parent)])
+    # The script packs the system next to its figure when the FMUs are not the repository's
+    # target/fmu; the docs show only the figure.
+    (out / "ClosedLoop.ssp").unlink(missing_ok=True)
 
 
 def variable_table(fmu: pathlib.Path) -> str:
@@ -250,18 +450,26 @@ def main(argv=None) -> None:
         help="figure folder (default docs/figures; docs untouched when given)",
     )
     ap.add_argument("--table-only", action="store_true")
+    ap.add_argument("--results-only", action="store_true")
     ap.add_argument("--sketches-only", action="store_true")
     a = ap.parse_args(argv)
     if a.out is None:
-        write_table(FMU)
+        if not a.results_only:
+            write_table(FMU)
         if a.table_only:
+            return
+    runs = None
+    if a.out is None and not a.sketches_only:
+        runs = missions()
+        write_results(runs)
+        if a.results_only:
             return
     out = a.out or FIGURES
     out.mkdir(parents=True, exist_ok=True)
     for name in SKETCHES:
         globals()[f"sketch_{name}"](out / f"{name}.png")
     if not a.sketches_only:
-        result_figures(out)
+        result_figures(out, runs or missions())
         closed_loop_figure(out)
     print(f"wrote {out}")
 

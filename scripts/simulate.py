@@ -71,7 +71,7 @@ def main(argv=None) -> int:
         "--revolutions",
         type=int,
         default=None,
-        help="revolutions to simulate (default 2, 60 for an elastic rod)",
+        help="revolutions to simulate (default 2, 30 for an elastic rod)",
     )
     ap.add_argument(
         "--step", type=float, default=None, help="communication step [s] (default 1/900 revolution)"

@@ -204,6 +204,19 @@ def run_mission(
     return m
 
 
+def _extreme(e, unit: str) -> dict:
+    # An output zero over the whole revolution (a single clamp's guide friction) has no angle of
+    # its extremes: null rather than the angle of the first sample.
+    zero = e.max == 0.0 and e.min == 0.0
+    return {
+        "unit": unit,
+        "max": e.max,
+        "max_angle_deg": None if zero else e.max_angle_deg,
+        "min": e.min,
+        "min_angle_deg": None if zero else e.min_angle_deg,
+    }
+
+
 def summarize(m: Mission) -> dict:
     """The summary written to results/<preset>.json (keys documented in docs/results.md)."""
     last = m.revolutions[-1]
@@ -220,13 +233,7 @@ def summarize(m: Mission) -> dict:
         "summarized_revolution": last.index,
         "stroke": pos.max - pos.min,
         "extremes": {
-            q: {
-                "unit": unit,
-                "max": e.max,
-                "max_angle_deg": e.max_angle_deg,
-                "min": e.min,
-                "min_angle_deg": e.min_angle_deg,
-            }
+            q: _extreme(e, unit)
             for q, unit in EXTREMES.items()
             if (e := last.extremes.get(q)) is not None
         },
@@ -242,21 +249,37 @@ def write_summary(m: Mission, path: pathlib.Path) -> None:
     path.write_text(json.dumps(m.summary, indent=2) + "\n")
 
 
+def _angle(deg: float) -> str:
+    """A crank angle as the summary prints it: modulo 360° after rounding to 0.01°, so that an
+    extreme at 359.998° reads 0.00° (docs/results.md: angles are the model angle modulo 360°)."""
+    return f"{round(deg, 2) % 360.0:.2f}°"
+
+
+def plural(n: int, word: str) -> str:
+    """ "1 revolution", "2 revolutions" (the summary and the plots' labels)."""
+    return f"{n} {word}" if n == 1 else f"{n} {word}s"
+
+
 def format_summary(s: dict) -> str:
+    """The summary as scripts/simulate.py prints it (docs/results.md shows it for every preset)."""
     lines = [
         f"{s['preset']}: {s['mechanism']}, {s['rod']}, {s['strokes_per_minute']:.4g} strokes/min",
         f"  stroke                      {s['stroke']:.6g} m",
     ]
     for q, e in s["extremes"].items():
+        if e["max"] == 0.0 and e["min"] == 0.0:
+            # A signal that is zero over the whole revolution has no angle of its extremes.
+            lines.append(f"  {q:<26}  zero throughout")
+            continue
         lines.append(
-            f"  {q:<26}  max {e['max']:.6g} {e['unit']} at {e['max_angle_deg']:.2f}°, "
-            f"min {e['min']:.6g} {e['unit']} at {e['min_angle_deg']:.2f}°"
+            f"  {q:<26}  max {e['max']:.6g} {e['unit']} at {_angle(e['max_angle_deg'])}, "
+            f"min {e['min']:.6g} {e['unit']} at {_angle(e['min_angle_deg'])}"
         )
     lines.append(f"  friction work / revolution  {s['friction_work_per_revolution']:.6g} J")
     if "rod_angle_amplitude" in s:
         lines.append(
             f"  rod angle ϑ amplitude       {s['rod_angle_amplitude']:.6g} rad "
-            f"(steady after {s['transient_revolutions']} revolutions)"
+            f"(steady after {plural(s['transient_revolutions'], 'revolution')})"
         )
         lines.append(f"  largest rod stress          {s['stress_max'] / 1e6:.6g} MPa")
     return "\n".join(lines)

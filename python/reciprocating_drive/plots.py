@@ -13,7 +13,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .mission import Mission  # noqa: E402
+from .mission import Mission, plural  # noqa: E402
 
 # (output, axis label, SI unit); forces and torques switch to kN, kN·m from 1 kN, 1 kN·m.
 PANELS = [
@@ -60,7 +60,7 @@ def plot_mission(m: Mission, path: str | pathlib.Path, dpi: int = 100) -> None:
         ax.axvspan(d["time"][0], t_steady, color="0.9")
         ax.set_xlabel(
             "time [s]  (shaded: start transient, "
-            f"{m.transient_revolutions} revolutions until the ϑ amplitude settles)"
+            f"{plural(m.transient_revolutions, 'revolution')} until the ϑ amplitude settles)"
         )
         ax.set_ylabel("ϑ, whole run\n[rad]")
         ax.grid(True, alpha=0.4)
@@ -83,7 +83,7 @@ def plot_mission(m: Mission, path: str | pathlib.Path, dpi: int = 100) -> None:
     axes[-1].set_xticklabels([f"{x:.0f}" for x in ticks], rotation=0, fontsize=8)
     zero = "outer dead centre" if m.mechanism == 1 else "crank at 12 o'clock"
     axes[-1].set_xlabel(
-        f"crank angle θ [deg] over {len(revs)} steady revolution(s), "
+        f"crank angle θ [deg] over {plural(len(revs), 'steady revolution')}, "
         f"revolutions {revs[0].index}–{revs[-1].index} of the run (0 = {zero})"
     )
     if card:

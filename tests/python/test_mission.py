@@ -15,6 +15,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import math
+import re
 
 import mpmath as mp
 import pytest
@@ -114,3 +115,92 @@ def test_elastic_rod_summary(summaries):
     assert 0 < s["rod_angle_amplitude"] < 0.2
     assert s["stress_max"] > 0
     assert s["transient_revolutions"] < s["summarized_revolution"]
+
+
+def test_results_page_shows_what_a_fresh_run_prints(summaries):
+    """docs/results.md gives the summary of every preset as the main job prints it; a fresh run
+    prints the same, to the last printed digit (regenerate: scripts/make_docs.py --results-only)."""
+    from reciprocating_drive.mission import format_summary
+    from reciprocating_drive.presets import available_presets
+
+    page = (ROOT / "docs" / "results.md").read_text()
+    section = page.split("<!-- results:begin -->")[1].split("<!-- results:end -->")[0]
+    shown = dict(re.findall(r"`scripts/run\.sh (\S+)`:\s*```text\n(.*?)\n```", section, re.S))
+    assert set(shown) == set(available_presets()) == set(summaries)
+    for preset, s in summaries.items():
+        assert shown[preset] == format_summary(s), (
+            f"docs/results.md: the summary of {preset} differs from a fresh run; "
+            "regenerate it with scripts/make_docs.py --results-only"
+        )
+
+
+def _summary(max_deg=10.0, min_deg=190.0, vmax=1.0, vmin=-1.0, transient=None):
+    s = {
+        "preset": "p",
+        "mechanism": "crank-slider",
+        "rod": "rigid rod",
+        "strokes_per_minute": 65.0,
+        "stroke": 0.4,
+        "extremes": {
+            "guide.friction": {
+                "unit": "N",
+                "max": vmax,
+                "max_angle_deg": max_deg,
+                "min": vmin,
+                "min_angle_deg": min_deg,
+            }
+        },
+        "friction_work_per_revolution": -1.0,
+    }
+    if transient is not None:
+        s.update(rod_angle_amplitude=0.04, stress_max=2.7e8, transient_revolutions=transient)
+    return s
+
+
+@pytest.mark.parametrize(
+    "deg, shown",
+    [
+        (359.996, "0.00°"),
+        (359.994, "359.99°"),
+        (360.0, "0.00°"),
+        (-0.001, "0.00°"),
+        (0.004, "0.00°"),
+    ],
+)
+def test_printed_angles_are_modulo_360(deg, shown):
+    """An extreme at the end of a revolution prints as 0.00°, never 360.00° (or -0.00°)."""
+    from reciprocating_drive.mission import format_summary
+
+    line = format_summary(_summary(max_deg=deg)).splitlines()[2]
+    assert f"max 1 N at {shown}," in line, line
+
+
+def test_printed_angles_of_every_preset_are_below_360(summaries):
+    from reciprocating_drive.mission import format_summary
+
+    for s in summaries.values():
+        angles = [float(a) for a in re.findall(r"at (-?[\d.]+)°", format_summary(s))]
+        assert angles and all(0.0 <= a < 360.0 for a in angles), format_summary(s)
+
+
+def test_a_zero_signal_reads_zero_throughout(summaries):
+    """sk8-3.5-4000 is held by a single clamp: its guide friction is zero over the revolution, which
+    the summary says in words (no "max 0 N at 0.22°"), and the JSON gives no angle for it."""
+    from reciprocating_drive.mission import format_summary
+
+    s = summaries["sk8-3.5-4000"]
+    e = s["extremes"]["guide.friction"]
+    assert e["max"] == e["min"] == 0.0 and e["max_angle_deg"] is None is e["min_angle_deg"]
+    assert re.search(r"guide\.friction +zero throughout$", format_summary(s), re.M)
+    # A signal that is not zero keeps its extremes and their angles.
+    assert "zero throughout" not in format_summary(_summary(vmax=0.0, vmin=-1.0))
+    assert "zero throughout" not in format_summary(summaries["default"])
+
+
+@pytest.mark.parametrize(
+    "n, words", [(0, "0 revolutions"), (1, "1 revolution)"), (2, "2 revolutions")]
+)
+def test_revolutions_singular_and_plural(n, words):
+    from reciprocating_drive.mission import format_summary
+
+    assert f"steady after {words}" in format_summary(_summary(transient=n))
