@@ -27,6 +27,9 @@ if win64_enabled; then
     ensure_wine  # tests/python/test_win64.py runs the win64 DLL under wine
 fi
 
+echo "== scripts/build-wheel.sh (the installable package, tests/python/test_wheel.py)"
+bash scripts/build-wheel.sh --no-build
+
 echo "== scripts/lint.sh (rustfmt, clippy -D warnings, ruff)"
 bash scripts/lint.sh
 
