@@ -7,32 +7,13 @@ tag (read here with the standard library, not with the build hook's logic)."""
 
 from __future__ import annotations
 
-import os
 import pathlib
 import re
-import shutil
 import subprocess
-import tempfile
 import zipfile
 
 import pytest
-from wheel_env import ROOT, clean_env, make_wheel_venv, wheel_path
-
-
-@pytest.fixture(scope="session")
-def wheel_venv():
-    wheel = wheel_path()
-    if wheel is None:
-        msg = "target/wheel/*.whl not found: build it with scripts/build-wheel.sh (scripts/test.sh does)"
-        if os.environ.get("CI") or os.environ.get("RD_REQUIRE_FMU"):
-            pytest.fail(msg)
-        pytest.skip(msg)
-    where = pathlib.Path(tempfile.mkdtemp(prefix="rdrive-wheel-"))
-    os.chmod(where, 0o755)
-    try:
-        yield make_wheel_venv(where / "venv", wheel), wheel, where
-    finally:
-        shutil.rmtree(where, ignore_errors=True)
+from wheel_env import ROOT, clean_env
 
 
 def rdrive(bin_dir, *args, cwd, timeout=120):

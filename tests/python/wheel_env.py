@@ -25,10 +25,17 @@ def clean_env(**extra: str) -> dict:
     return env
 
 
+def system_python() -> str:
+    """Debian's own python3 (scripts/test.sh installs python3-venv for it): another interpreter than
+    the project's venv, and one that another user can run (the venv's base interpreter may live in
+    root's home)."""
+    return "/usr/bin/python3" if os.path.exists("/usr/bin/python3") else sys._base_executable
+
+
 def make_wheel_venv(where: pathlib.Path, wheel: pathlib.Path) -> pathlib.Path:
     """Creates a venv at `where` (world-readable, so another user can run it) with the wheel
     installed; returns its bin/ folder. Bounded: 10 minutes for the install."""
-    base = getattr(sys, "_base_executable", sys.executable)
+    base = system_python()
     subprocess.run([base, "-m", "venv", str(where)], check=True, timeout=120)
     pip = [str(where / "bin" / "python"), "-m", "pip", "--disable-pip-version-check", "-q"]
     subprocess.run(
