@@ -27,6 +27,14 @@ if win64_enabled; then
     ensure_wine  # tests/python/test_win64.py runs the win64 DLL under wine
 fi
 
+echo "== scripts/build-wheel.sh (the installable package, tests/python/test_wheel.py)"
+bash scripts/build-wheel.sh --no-build
+# The wheel's tests install it into a venv of Debian's python3, which another user can run.
+if ! /usr/bin/python3 -c 'import ensurepip, venv' 2>/dev/null; then
+    source scripts/lib/apt.sh
+    apt_install python3 python3-venv
+fi
+
 echo "== scripts/lint.sh (rustfmt, clippy -D warnings, ruff)"
 bash scripts/lint.sh
 

@@ -8,11 +8,13 @@ The package lives in python/ of the repository; scripts/lib/venv.sh makes it imp
 project's .venv (a .pth file), and the project's scripts put python/ first on sys.path.
 """
 
+from ._version import __version__
 from .fmu import DEFAULT_FMU, Fmu, FmuError
 from .presets import available_presets, preset_values, preset_values_from_fmu, read_ssv
 from .revolution import RevolutionSummary, summarize_revolutions
 
 __all__ = [
+    "__version__",
     "DEFAULT_FMU",
     "Fmu",
     "FmuError",

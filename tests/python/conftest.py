@@ -55,3 +55,26 @@ def unzipdir(fmu_path, tmp_path_factory) -> str:
     from fmpy import extract
 
     return extract(fmu_path, unzipdir=str(tmp_path_factory.mktemp("fmu")))
+
+
+@pytest.fixture(scope="session")
+def wheel_venv():
+    """(bin folder, wheel, folder) of a fresh venv outside the repository with only the project's
+    wheel installed (tests/python/wheel_env.py); removed at the end of the session."""
+    import shutil
+    import tempfile
+
+    from wheel_env import make_wheel_venv, wheel_path
+
+    wheel = wheel_path()
+    if wheel is None:
+        msg = "target/wheel/*.whl not found: build it with scripts/build-wheel.sh (scripts/test.sh does)"
+        if os.environ.get("CI") or os.environ.get("RD_REQUIRE_FMU"):
+            pytest.fail(msg)
+        pytest.skip(msg)
+    where = pathlib.Path(tempfile.mkdtemp(prefix="rdrive-wheel-"))
+    os.chmod(where, 0o755)
+    try:
+        yield make_wheel_venv(where / "venv", wheel), wheel, where
+    finally:
+        shutil.rmtree(where, ignore_errors=True)

@@ -1,0 +1,81 @@
+"""`rdrive`: the one command of the package; its subcommands are the workflows.
+
+    rdrive run [PRESET]          the main job: simulate a machine over whole revolutions
+    rdrive twin ...              the digital twin (measured crank data in, loads out)
+    rdrive sweep STUDY ...       a design sweep on Dask
+    rdrive closed-loop ...       the pump and its drive train in one system
+    rdrive fmu-path [MODEL]      the path of an FMU, for other importers
+
+`rdrive --version`, and `--help` on each. Exit codes (docs/install.md): 0 success, 1 a run that
+failed (the FMU refused, a case failed, the data stopped the run), 2 a usage or input error (a bad
+option, file or value: one line saying which), 130 stopped by Ctrl-C (a resumable run says how to
+resume).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from . import __version__, artifacts
+
+#: subcommand -> (module under reciprocating_drive.commands, one-line help)
+COMMANDS = {
+    "run": ("simulate", "the main job: simulate a machine over whole crank revolutions"),
+    "twin": ("twin", "the digital twin: measured crank data in, the FMU's loads out"),
+    "sweep": ("sweep", "a design sweep on Dask (a local cluster, or --scheduler)"),
+    "closed-loop": ("closed_loop", "the pump and its drive train in one SSP system"),
+}
+
+
+def _fmu_path(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(
+        prog="rdrive fmu-path",
+        description="Print the path of an FMU shipped with this package, for other importers "
+        "(fmpy, libcosim, OMSimulator, a system simulator).",
+    )
+    ap.add_argument("model", nargs="?", default="ReciprocatingDrive", choices=artifacts.MODELS)
+    a = ap.parse_args(argv)
+    path = artifacts.fmu(a.model)
+    if not path.is_file():
+        print(
+            f"rdrive fmu-path: {path} not found: build it with scripts/build-fmu.sh",
+            file=sys.stderr,
+        )
+        return 1
+    print(path)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    ap = argparse.ArgumentParser(
+        prog="rdrive",
+        description="ReciprocatingDrive: FMUs of crank-driven reciprocating mechanisms and their "
+        "workflows. `rdrive COMMAND --help` describes each command.",
+    )
+    ap.add_argument("--version", action="version", version=f"rdrive {__version__}")
+    sub = ap.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (_, text) in COMMANDS.items():
+        sub.add_parser(name, help=text, add_help=False)
+    sub.add_parser("fmu-path", help="print the path of an FMU, for other importers", add_help=False)
+    if not argv or argv[0] in ("-h", "--help", "--version"):
+        ap.parse_args(argv or ["--help"])
+        return 0
+    command, rest = argv[0], argv[1:]
+    if command == "fmu-path":
+        return _fmu_path(rest)
+    if command not in COMMANDS:
+        ap.print_usage(sys.stderr)
+        print(
+            f"rdrive: unknown command {command!r}; one of: {', '.join([*COMMANDS, 'fmu-path'])}",
+            file=sys.stderr,
+        )
+        return 2
+    module = importlib.import_module(f"reciprocating_drive.commands.{COMMANDS[command][0]}")
+    return int(module.main(rest, prog=f"rdrive {command}") or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,74 @@
+"""Dask workers that share no disk with the client (docs/sweeps.md, "On a cluster").
+
+A worker needs the `reciprocating_drive` package (the functions it runs are pickled by reference),
+so it runs in an environment where the wheel is installed (scripts/build-wheel.sh). Nothing else is
+shared: the client scatters the FMU's bytes, and each worker process keeps them in a private
+temporary folder, keyed by their SHA-256, so a case never names a path of the client's machine.
+
+Before any case runs, `prepare_workers` checks that every worker runs the client's package version
+and names each worker that does not, with both versions: a worker with other code would compute
+other numbers.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import pathlib
+import tempfile
+
+from ._version import __version__
+
+
+class WorkerMismatch(RuntimeError):
+    """Workers whose package differs from the client's (the message names each)."""
+
+
+#: FMUs received by this worker process: SHA-256 -> local path.
+_RECEIVED: dict[str, str] = {}
+
+
+def fmu_key(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _identity() -> dict:
+    """Runs on a worker: what the client compares."""
+    return {"version": __version__, "pid": os.getpid()}
+
+
+def _receive_fmu(data: bytes, key: str) -> str:
+    """Runs on a worker: stores the FMU sent by the client once per worker process."""
+    path = _RECEIVED.get(key)
+    if path is None or not os.path.isfile(path):
+        if fmu_key(data) != key:
+            raise ValueError("the FMU arrived damaged (SHA-256 mismatch)")
+        folder = tempfile.mkdtemp(prefix="rdrive-fmu-")
+        path = os.path.join(folder, f"{key[:16]}.fmu")
+        with open(path, "wb") as f:
+            f.write(data)
+        _RECEIVED[key] = path
+    return path
+
+
+def local_fmu(key: str, data: bytes) -> str:
+    """On a worker: the local path of the FMU the client shipped (`prepare_workers`). `data` is the
+    scattered future's value, which Dask fetches to each worker once, also to a worker that joins
+    during the sweep."""
+    return _receive_fmu(data, key)
+
+
+def prepare_workers(client, fmu_path: str | os.PathLike):
+    """Checks every worker's package version against the client's, then scatters the FMU's bytes.
+    Returns (key, future of the bytes) for the cases to pass to `local_fmu`. Raises WorkerMismatch
+    naming each worker whose version differs, before anything runs."""
+    ids = client.run(_identity)
+    wrong = {w: i["version"] for w, i in ids.items() if i["version"] != __version__}
+    if wrong:
+        names = "; ".join(f"{w} has {v}" for w, v in sorted(wrong.items()))
+        raise WorkerMismatch(
+            f"{len(wrong)} of {len(ids)} workers run another reciprocating_drive than the client's "
+            f"{__version__}: {names}; install the same wheel on every worker"
+        )
+    data = pathlib.Path(fmu_path).read_bytes()
+    return fmu_key(data), client.scatter(data, broadcast=True)
