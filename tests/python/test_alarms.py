@@ -6,7 +6,6 @@ time, the windows' contents), not by running the engine's own logic a second way
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +19,6 @@ from reciprocating_drive.alarms import (
 )
 
 ROOT = Path(__file__).resolve().parents[2]
-FMU = os.environ.get("RD_FMU", str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
 
 
 def run(engine, values, key="crank_torque_max", dt=1.0):
@@ -208,11 +206,10 @@ def sample_lines(t0, t1, force, rate=1000.0):
     ]
 
 
-@pytest.mark.skipif(not Path(FMU).exists(), reason="the FMU is not built")
-def test_process_force_step_raises_high_torque_and_stepping_back_clears_it():
+def test_process_force_step_raises_high_torque_and_stepping_back_clears_it(fmu_path):
     from reciprocating_drive.twin import Twin
 
-    tw = Twin(FMU)
+    tw = Twin(fmu_path)
     eng = AlarmEngine(
         parse_limits(
             {"limit": [{"name": "T", "value": "crank_torque_peak", "high": 8000.0,
@@ -235,8 +232,7 @@ def test_process_force_step_raises_high_torque_and_stepping_back_clears_it():
     assert changes == [("raised", first_loaded + 1), ("cleared", first_unloaded + 1)]
 
 
-@pytest.mark.skipif(not Path(FMU).exists(), reason="the FMU is not built")
-def test_friction_ramp_raises_the_trend_alarm():
+def test_friction_ramp_raises_the_trend_alarm(fmu_path):
     """A guide wearing: the friction coefficient of the guide (support B) ramped up from run to
     run (it is fixed within one FMU instance, so each step is a new twin over the same crank
     data); the trend alarm on friction work is raised once the recent mean exceeds the reference
@@ -255,7 +251,7 @@ def test_friction_ramp_raises_the_trend_alarm():
     rev = 0
     for step in range(40):
         mu = 0.1 if step < 20 else 0.1 * (1 + 0.04 * (step - 19))  # +4 % a step after 20
-        tw = Twin(FMU, extra_values={"guide.friction_coefficient": mu})
+        tw = Twin(fmu_path, extra_values={"guide.friction_coefficient": mu})
         _, sums = tw.feed(lines, 1)
         s = dict(sums[1])  # a whole revolution of this run, placed at our own time axis
         s["revolution"], s["start_time"] = rev, rev * period
