@@ -98,6 +98,7 @@ class _State:
             "fmu_errors": 0,
             "last_sample_time": None,
             "last_event": None,
+            "run_status": None,
         }
         self.time_origin = None
         self.revolutions = 0
@@ -237,6 +238,14 @@ class PageServer:
         if rows is not None and len(rows) and self._cols is not None:
             items += self._cards(np.asarray(rows))
             items.append(("sample_time", float(rows[-1, 0]), time.time()))
+        elif summaries:
+            # No rows (a page following a database without per-sample rows): the last
+            # revolution's end, start + 2π/mean speed (revolution.py: mean_speed = 2π/duration).
+            s = summaries[-1]
+            end = _clean(s.get("start_time"))
+            w = _clean(s.get("mean_speed"))
+            if end is not None and w:
+                items.append(("sample_time", end + 2 * math.pi / w, time.time()))
         for s in summaries:
             items.append(("rev", dict(s)))
             if self.engine is not None:

@@ -108,6 +108,7 @@ function showHealth(h) {
     ["dropped samples", String(h.dropped), "dropped"],
     ["FMU errors", String(h.fmu_errors), "fmu_errors"],
     ["last sample", h.last_sample_time === null ? "—" : when(h.last_sample_time), "last_sample"],
+    ["run", h.run_status === null ? "—" : h.run_status, "run_status"],
     ["last event", h.last_event ? h.last_event.kind + ": " + h.last_event.message : "—", "last_event"],
   ];
   for (const [name, val, key] of rows) {
