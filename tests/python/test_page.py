@@ -412,3 +412,46 @@ def test_port_in_use_is_one_clear_line():
 def test_short_token_refused():
     with pytest.raises(PageError, match="at least 16 characters"):
         PageServer(host="127.0.0.2", port=0, token="short")
+
+
+CONFIG_BAD = [
+    ({"token": TOKEN}, "page.token: not allowed; put the token in a file"),
+    ({"colour": 1}, "page.colour: unknown key"),
+    ({"port": 70000}, "page.port = 70000: must be a whole number 0 to 65535"),
+    ({"port": "8050"}, "page.port = '8050': must be a whole number"),
+    ({"host": "127.0.0.2"}, "twin.toml: page: bound to 127.0.0.2, which is not 127.0.0.1"),
+    ({"token_file": "missing.token"}, "page.token_file = 'missing.token': cannot read it"),
+    ({"token_env": "RD_PAGE_TOKEN_NOT_SET_X"}, "page.token_env = 'RD_PAGE_TOKEN_NOT_SET_X': the"),
+    ({"limits": "missing.toml"}, "missing.toml: cannot read the limits file"),
+]
+
+
+@pytest.mark.parametrize("table,msg", CONFIG_BAD)
+def test_page_table_errors_name_file_and_key(tmp_path, table, msg):
+    from reciprocating_drive.page.config import page_from_table
+
+    with pytest.raises(PageError) as e:
+        page_from_table(table, "twin.toml", tmp_path)
+    assert msg in str(e.value) and "\n" not in str(e.value), str(e.value)
+    assert TOKEN not in str(e.value)
+
+
+def test_page_table_reads_token_file_and_limits(tmp_path):
+    from reciprocating_drive.page.config import page_from_table
+
+    (tmp_path / "page.token").write_text(TOKEN + "\n")
+    (tmp_path / "limits.toml").write_text((ROOT / "examples" / "twin" / "limits.toml").read_text())
+    p = page_from_table(
+        {"host": "127.0.0.2", "port": 0, "token_file": "page.token", "limits": "limits.toml"},
+        "twin.toml",
+        tmp_path,
+    )
+    assert p.token == TOKEN and p.limits.limits[0].name == "crank torque high"
+    p.start()
+    try:
+        status, _, _ = get(p.url + "api/state")
+        assert status == 401
+        status, _, _ = get(p.url + "api/state", {"Authorization": f"Bearer {TOKEN}"})
+        assert status == 200
+    finally:
+        p.close()
