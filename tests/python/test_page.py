@@ -455,3 +455,59 @@ def test_page_table_reads_token_file_and_limits(tmp_path):
         assert status == 200
     finally:
         p.close()
+
+
+def test_trend_window_from_the_database_and_zoom(tmp_path, server, page_of):
+    """Three hours of revolutions (one every 2 s, written straight into the database) with one
+    torque spike: the window picked on the page selects the database's rows of that span; a
+    window of more rows than the page draws is bucketed by SQL and keeps the spike; dragging over
+    a chart zooms into the span dragged over."""
+    db = Database(tmp_path / "twin.sqlite", time_origin=1.7e9)
+    n = 3 * 3600 // 2
+    sums = []
+    for i in range(n):
+        s = dict.fromkeys(SUMMARY_FIELDS, 0.0)
+        s.update(revolution=i, start_time=2.0 * i, mean_speed=6.8, friction_work=-180.0)
+        s.update(crank_torque_max=9e3 if i == 2500 else 400.0 + (i % 7), crank_torque_min=-50.0)
+        sums.append(s)
+    db.revolutions(sums)
+    page = server(database=db.path)
+    page.open(["crank.model_angle", "suspension.position", "rod.force"], time_origin=1.7e9)
+    time.sleep(0.2)
+    tab = page_of(page.url)
+    wait_ready(tab)
+    (in_hour,) = db.db.execute(
+        "SELECT COUNT(*) FROM revolutions WHERE start_time >= ?", (2.0 * (n - 1) - 3600,)
+    ).fetchone()
+    assert in_hour == 1801
+    assert tab.get_attribute("#trends", "data-points") == str(in_hour)  # the default: last hour
+    tab.select_option("#window", "600")
+    tab.wait_for_function("() => document.getElementById('trends').dataset.points === '301'")
+    tab.select_option("#window", "21600")
+    tab.wait_for_function("() => S.trend.window === 21600")
+    got = tab.evaluate("() => S.trend.crank_torque_peak")
+    # All 5 400 rows are in the window: more than 2 000, so buckets of 21600/1999 s (about 5
+    # rows each), each keeping its largest torque.
+    t = 2.0 * np.arange(n)
+    torque = np.array([s["crank_torque_max"] for s in sums])
+    bucket = np.floor((t - (t[-1] - 21600)) / (21600 / 1999)).astype(int)
+    want = [torque[bucket == b].max() for b in np.unique(bucket)]
+    assert len(got) <= 2000 and got == want and max(got) == 9e3
+    # Zoom: drag over the middle half of the torque chart.
+    over = tab.query_selector("#t-crank_torque_peak .u-over").bounding_box()
+    y = over["y"] + over["height"] / 2
+    x0 = tab.evaluate(
+        "() => [S.charts.crank_torque_peak.scales.x.min, S.charts.crank_torque_peak.scales.x.max]"
+    )
+    tab.mouse.move(over["x"] + over["width"] * 0.25, y)
+    tab.mouse.down()
+    tab.mouse.move(over["x"] + over["width"] * 0.75, y, steps=5)
+    tab.mouse.up()
+    x1 = tab.evaluate(
+        "() => [S.charts.crank_torque_peak.scales.x.min, S.charts.crank_torque_peak.scales.x.max]"
+    )
+    assert x0[0] < x1[0] < x1[1] < x0[1]
+    assert 0.4 < (x1[1] - x1[0]) / (x0[1] - x0[0]) < 0.6
+    # Clock times: the x values are time_origin + start_time.
+    assert x0[1] == pytest.approx(1.7e9 + 2.0 * (n - 1), abs=240)
+    assert tab.errors == []

@@ -108,7 +108,9 @@ def test_follows_the_database_while_the_twin_commits(fmu_path, tmp_path, page_of
         url = url_of(proc)
         tab = page_of(url)
         wait_ready(tab)
-        tab.wait_for_function("document.getElementById('rev-label').dataset.revolution === '3'")
+        tab.wait_for_function(
+            "() => document.getElementById('rev-label').dataset.revolution === '3'"
+        )
         tab.evaluate(
             """() => { window.seen = {};
             new MutationObserver(() => {

@@ -38,6 +38,7 @@ class Follower:
         self.next_seq = None
         self.cards = False
         self.origin = None
+        self.status = None
 
     def _find_run(self) -> bool:
         q = self.db.execute
@@ -117,7 +118,9 @@ class Follower:
         if rows is not None or sums or events:
             self.page.add(rows, 0, sums, 0, events)
         (status,) = q("SELECT status FROM runs WHERE run = ?", (self.run,)).fetchone()
-        self.page.health(run_status=status)
+        if status != self.status:
+            self.status = status
+            self.page.health(run_status=status)
         return len(sums)
 
     def run_forever(self, interval: float, stop, log=None) -> None:

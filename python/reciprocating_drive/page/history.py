@@ -91,7 +91,7 @@ class History:
                 (key, t0),
             ).fetchall()
         else:
-            width = window / MAX_POINTS
+            width = window / (MAX_POINTS - 1)  # bucket indices 0 .. MAX_POINTS - 1
             cols = ", ".join(f"{TREND_SQL[k][1]}({TREND_SQL[k][0]})" for k in names)
             rows = q(
                 f"SELECT MIN(start_time), {cols} FROM revolutions WHERE run = ? AND start_time >= ? "

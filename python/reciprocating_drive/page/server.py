@@ -27,11 +27,13 @@ login form, no data. The page is read-only: no request changes the twin.
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 import errno
 import hmac
 import json
 import math
 import secrets
+import sqlite3
 import threading
 import time
 from collections import OrderedDict, deque
@@ -52,6 +54,7 @@ STATIC = Path(__file__).parent / "static"
 FLUSH = 0.1  # s between two pushes to the pages (bounds both the latency and the server's work)
 LOOPBACK = "127.0.0.1"
 COOKIE = "rd_page_session"
+SESSION_LIFE = 86400.0  # s: a login lasts a day (sessions live in memory: a restart ends them)
 #: The values of the last revolution the page shows, in its order (units: alarms.UNITS).
 SHOWN = tuple(TREND_SQL)
 LABELS = {
@@ -60,8 +63,8 @@ LABELS = {
     "crank_torque_peak": "peak crank torque",
     "rod_force_largest": "largest rod force",
     "friction_work": "friction work",
-    "rod_angle_amplitude": "ϑ amplitude (elastic rod)",
-    "stress_max": "largest stress (elastic rod)",
+    "rod_angle_amplitude": "rod angle amplitude (ϑ of an elastic rod)",
+    "stress_max": "largest rod stress (elastic rod)",
 }
 CARDS = 6  # revolutions kept for the card: the last over the previous ones
 CARD_POINTS = 720  # points of one card at most (decimated)
@@ -164,6 +167,10 @@ class PageServer:
         self._clients: set = set()
         self.sessions: OrderedDict = OrderedDict()
         self.native_thread_id = None
+        # Database reads on a thread of their own (SQLite connections stay on the thread that
+        # made them), so a long window's query never holds up the pushes to the pages.
+        self._reader = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="twin-page-db")
+        self._history = None
 
     # ---- life -----------------------------------------------------------------------------------
     def start(self) -> PageServer:
@@ -217,6 +224,7 @@ class PageServer:
         self._loop.add_callback(stop)
         self._thread.join(timeout)
         self._loop = None
+        self._reader.shutdown(wait=False, cancel_futures=True)
 
     # ---- the sink side (any thread) -------------------------------------------------------------
     def open(self, outputs, time_origin: float | None = None) -> None:
@@ -385,7 +393,14 @@ class PageServer:
         ):
             return True
         sid = handler.get_cookie(COOKIE)
-        return sid is not None and sid in self.sessions
+        opened = self.sessions.get(sid) if sid is not None else None
+        return opened is not None and time.time() - opened < SESSION_LIFE
+
+    def trend_from_database(self, window: float) -> dict:
+        """On the reader thread."""
+        if self._history is None:
+            self._history = History(self.database, self.run)
+        return self._history.trend(window)
 
     def new_session(self) -> str:
         sid = secrets.token_urlsafe(32)
@@ -481,7 +496,7 @@ class _StateApi(_Base):
 
 
 class _TrendApi(_Base):
-    def get(self):
+    async def get(self):
         try:
             window = float(self.get_query_argument("window", "3600"))
             if not (math.isfinite(window) and 0 < window <= 366 * 86400):
@@ -494,13 +509,14 @@ class _TrendApi(_Base):
         source = "memory"
         if page.database:
             try:
-                if not hasattr(self.application, "history"):
-                    self.application.history = History(page.database, page.run)
-                data = self.application.history.trend(window)
+                data = await asyncio.wrap_future(
+                    page._reader.submit(page.trend_from_database, window)
+                )
                 source = "database"
-            except HistoryError as e:
+            except (HistoryError, sqlite3.Error) as e:
+                why = str(e) if isinstance(e, HistoryError) else f"{page.database}: {e}"
                 self.set_status(503)
-                self.finish(f"503: {e}\n")
+                self.finish(f"503: {why}\n")
                 return
         else:
             rev = list(page.state.trend)
