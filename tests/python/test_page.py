@@ -511,3 +511,52 @@ def test_trend_window_from_the_database_and_zoom(tmp_path, server, page_of):
     # Clock times: the x values are time_origin + start_time.
     assert x0[1] == pytest.approx(1.7e9 + 2.0 * (n - 1), abs=240)
     assert tab.errors == []
+
+
+class Ev:
+    """A data-health event as the plant sources and the pipeline make them (kind, message, t,
+    count)."""
+
+    def __init__(self, kind, message, count=1, t=None):
+        self.kind, self.message, self.count, self.t = kind, message, count, t
+
+
+def test_data_health_shows_connection_lag_gaps_drops_and_fmu_errors(server, page_of):
+    page = server()
+    outputs = ["crank.model_angle", "suspension.position", "rod.force"]
+    origin = time.time() - 10.0
+    page.open(outputs, time_origin=origin)
+    tab = page_of(page.url)
+    wait_ready(tab)
+    rows = np.array([[9.0, 1.0, 0.1, 5.0], [9.5, 1.1, 0.11, 6.0]])
+    events = [
+        (0, time.time(), Ev("gap", "gap of 0.2 s at t = 3", t=3.0)),
+        (1, time.time(), Ev("dropped", "5 sample(s) dropped: status BadSensorFailure", count=5)),
+        (2, time.time(), Ev("dropped", "2 sample(s) dropped: not finite", count=2)),
+        (3, time.time(), Ev("fmu_error", "FMU: fmi2DoStep failed at t = 9.2")),
+    ]
+    before = time.time()
+    page.add(rows, 0, [], 0, events)
+    after = time.time()
+    page.health(connected=False)
+    page.add(rows[:0], 0, [], 0, [Ev("reconnect", "reconnected after 5 s; no history")])
+
+    def cell(key):
+        return tab.inner_text(f"#health tr[data-key={key}] td:nth-child(2)")
+
+    tab.wait_for_function(
+        "() => document.querySelector('#health tr[data-key=connected] td:nth-child(2)')"
+        ".textContent === 'connected'"
+    )
+    assert cell("gaps") == "1" and cell("dropped") == "7" and cell("fmu_errors") == "1"
+    assert cell("last_event") == "reconnect: reconnected after 5 s; no history"
+    # The lag: the wall clock when the rows arrived minus the last sample's, origin + 9.5 (shown
+    # with 3 digits).
+    lag = float(cell("lag").split()[0])
+    assert before - origin - 9.5 - 0.01 < lag < after - origin - 9.5 + 0.01, lag
+    page.health(connected=False)
+    tab.wait_for_function(
+        "() => document.querySelector('#health tr[data-key=connected] td:nth-child(2)')"
+        ".textContent === 'NOT connected'"
+    )
+    assert tab.errors == []
