@@ -336,6 +336,41 @@ class AlarmEngine:
             self._recent[tr.name] = _Window()
             self._reference[tr.name] = _Window()
 
+    def checkpoint(self) -> dict:
+        """The engine's whole state as JSON-able data (floats round-trip exactly through json),
+        to be committed with the twin's checkpoint: restored with `restore`, the engine goes on
+        exactly as if never stopped, so an alarm active before a restart is not raised again."""
+        return {
+            "active": {k: ch.to_dict() for k, ch in self.active.items()},
+            "raise": {k: c.n for k, c in self._raise.items()},
+            "clear": {k: c.n for k, c in self._clear.items()},
+            "windows": {
+                name: [[w.sum, w.popped, [list(i) for i in w.items]] for w in (rec, ref)]
+                for name, rec, ref in (
+                    (n, self._recent[n], self._reference[n]) for n in self._recent
+                )
+            },
+        }
+
+    def restore(self, cp: dict) -> AlarmEngine:
+        """Takes the state of `checkpoint()` (of an engine with the same limits; an alarm or a
+        trend the limits no longer have is dropped, a new one starts afresh)."""
+        self.active = {
+            k: AlarmChange(**v) for k, v in cp.get("active", {}).items() if k in self._raise
+        }
+        for key, counters in (("raise", self._raise), ("clear", self._clear)):
+            for k, n in cp.get(key, {}).items():
+                if k in counters:
+                    counters[k].n = int(n)
+        for name, pair in cp.get("windows", {}).items():
+            if name in self._recent:
+                for w, (total, popped, items) in zip(
+                    (self._recent[name], self._reference[name]), pair
+                ):
+                    w.items = deque((float(t), float(v)) for t, v in items)
+                    w.sum, w.popped = float(total), int(popped)
+        return self
+
     def update(self, summary: dict) -> list[AlarmChange]:
         """One completed revolution: the alarms it raises or clears (usually none)."""
         vals = derived_values(summary)
