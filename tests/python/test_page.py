@@ -82,7 +82,7 @@ class Database:
         cols = ", ".join(f"{f} REAL" for f in SUMMARY_FIELDS[1:])
         db.execute(
             "CREATE TABLE runs (run INTEGER PRIMARY KEY AUTOINCREMENT, name TEXT NOT NULL UNIQUE, "
-            "time_origin REAL)"
+            "time_origin REAL, status TEXT NOT NULL DEFAULT 'running')"
         )
         db.execute(
             f"CREATE TABLE revolutions (run INTEGER NOT NULL, revolution INTEGER NOT NULL, {cols}, "

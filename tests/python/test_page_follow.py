@@ -131,6 +131,7 @@ def test_follows_the_database_while_the_twin_commits(fmu_path, tmp_path, page_of
         assert set(committed) <= set(seen), (committed, seen)
         late = [seen[k] - committed[k] for k in committed]
         assert len(late) >= 3 and max(late) < 1.0, late
+        assert tab.inner_text("#health tr[data-key=run_status] td:nth-child(2)") == "running"
         # The card comes from the samples table.
         assert int(tab.get_attribute("#card", "data-cards")) >= 4
         row = db.db.execute(
@@ -207,3 +208,35 @@ def test_token_from_the_environment_never_on_the_command_line(tmp_path):
         assert token not in cmdline
     finally:
         stop(proc)
+
+
+def test_alarms_of_a_followed_run_are_logged_one_line_each(fmu_path, tmp_path):
+    """The command-line page evaluates the limits on the revolutions it reads while the twin
+    writes them, and writes each alarm raised or cleared to its standard error, one line each."""
+    import select
+
+    db = Samples(tmp_path / "twin.sqlite")
+    feed = Feed(fmu_path, SinkLike(db), _NoDb())
+    feed.feed(sample_lines(0, 4, 0.0))
+    limits = tmp_path / "limits.toml"
+    limits.write_text(
+        '[[limit]]\nname = "torque"\nvalue = "crank_torque_peak"\nhigh = 8000.0\n'
+        "hysteresis = 500.0\ndelay = 2\n"
+    )
+    proc = start(["--database", db.path, "--port", "0", "--limits", str(limits), "--poll", "0.1"])
+    lines = []
+    try:
+        url_of(proc)
+        time.sleep(0.5)
+        feed.feed(sample_lines(4, 9, 50e3))
+        time.sleep(0.5)
+        feed.feed(sample_lines(9, 15, 0.0))
+        t0 = time.monotonic()
+        while len(lines) < 2 and time.monotonic() - t0 < 20:
+            if select.select([proc.stderr], [], [], 0.5)[0]:
+                lines.append(proc.stderr.readline())
+    finally:
+        stop(proc)
+    assert len(lines) == 2, lines
+    assert lines[0].startswith("page: alarm torque (warning) raised: crank_torque_peak = ")
+    assert lines[1].startswith("page: alarm torque (warning) cleared: crank_torque_peak = ")

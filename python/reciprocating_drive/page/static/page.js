@@ -144,7 +144,8 @@ function buildTrends() {
     const div = el("div", { class: "trend", id: "t-" + v.key });
     box.append(div);
     const lim = S.limits[v.key] || {};
-    const series = [{}, { label: v.label + " [" + v.unit + "]", stroke: "#1f3a5f", width: 1.5 }];
+    const series = [{ label: S.origin !== null ? "time" : "t [s]" },
+                    { label: v.label + " [" + v.unit + "]", stroke: "#1f3a5f", width: 1.5 }];
     const data = [x, S.trend[v.key]];
     for (const side of ["high", "low"]) {
       if (lim[side] !== null && lim[side] !== undefined) {
