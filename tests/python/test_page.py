@@ -214,8 +214,13 @@ def test_page_loads_without_console_errors_and_shows_the_database_values(
     feed = Feed(fmu_path, page, db)
     feed.feed(sample_lines(0, 6, 20e3))
     time.sleep(0.3)
-    tab = page_of(page.url)
+    tab = page_of()
+    requests = []
+    tab.on("request", lambda r: requests.append(r.url))
+    tab.goto(page.url)
     wait_ready(tab)
+    # Every asset from the twin itself (a plant network has no internet).
+    assert requests and all(u.startswith(page.url) for u in requests), requests
     row = db.db.execute(
         "SELECT revolution, mean_speed, speed_fluctuation, crank_torque_max, crank_torque_min, "
         "rod_force_max, rod_force_min, friction_work, rod_angle_amplitude, stress_max "
@@ -560,3 +565,24 @@ def test_data_health_shows_connection_lag_gaps_drops_and_fmu_errors(server, page
         ".textContent === 'NOT connected'"
     )
     assert tab.errors == []
+
+
+def test_hostile_requests_get_a_status_and_one_line(server):
+    page = server()
+    for path, code in [
+        ("api/trend?window=nan", 400),
+        ("api/trend?window=-1", 400),
+        ("api/trend?window=1e99", 400),
+        ("api/trend?window=abc", 400),
+        ("api/nothing", 404),
+        ("static/../server.py", 403),
+        ("static/nothing.js", 404),
+    ]:
+        status, body, headers = get(page.url + path)
+        assert status == code, (path, status, body)
+        assert body.count("\n") <= 1 and "Traceback" not in body, body
+        assert "default-src 'self'" in headers.get("Content-Security-Policy", "") or code != 400
+    req = urllib.request.Request(page.url + "api/state", data=b"x=1", method="POST")
+    with pytest.raises(urllib.error.HTTPError) as e:
+        urllib.request.urlopen(req, timeout=5)
+    assert e.value.code == 405  # read-only: nothing but GET (and the login form's POST)
