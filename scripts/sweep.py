@@ -36,7 +36,7 @@ def _count(name: str, minimum: int):
     def parse(text: str) -> int:
         try:
             n = int(text)
-        except ValueError:
+        except (ValueError, TypeError):  # TypeError: argparse gives a list for "--opt=--"
             raise UserError(f"{name} {text!r}: not an integer; allowed: >= {minimum}") from None
         if n < minimum:
             raise UserError(f"{name} {n}; allowed: an integer >= {minimum}")

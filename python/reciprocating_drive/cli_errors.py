@@ -48,7 +48,7 @@ class Interrupted(Exception):
     exit_code = EXIT_INTERRUPTED
 
 
-def one_line(text: object, limit: int = 400) -> str:
+def one_line(text: object, limit: int = 4000) -> str:
     """`text` on a single line (newlines folded), cut to `limit` characters."""
     s = " ".join(str(text).split())
     return s if len(s) <= limit else s[: limit - 1] + "…"
@@ -62,6 +62,18 @@ def show(value: object, limit: int = 60) -> str:
 class ArgumentParser(argparse.ArgumentParser):
     """argparse with a one-line error (argparse's own prints the usage first)."""
 
+    def parse_args(self, args=None, namespace=None):
+        ns = super().parse_args(args, namespace)
+        # argparse takes "--opt=--" for an empty list of values: the option has no value.
+        for action in self._actions:
+            if not action.option_strings or action.nargs is not None:
+                continue
+            v = getattr(ns, action.dest, None)
+            items = (v or []) if isinstance(action, argparse._AppendAction) else [v]
+            if any(isinstance(x, list) for x in items):
+                self.error(f"argument {'/'.join(action.option_strings)}: expected one argument")
+        return ns
+
     def error(self, message: str):  # noqa: D401 - argparse's interface
         print(one_line(f"{self.prog}: {message} (see {self.prog} --help)"), file=sys.stderr)
         raise SystemExit(EXIT_USAGE)
@@ -69,6 +81,8 @@ class ArgumentParser(argparse.ArgumentParser):
 
 def positive_float(name: str, value: str, *, allow_zero: bool = False) -> float:
     """Parses an option's value as a finite number > 0 (>= 0 with allow_zero)."""
+    if not isinstance(value, str):  # argparse gives a list for "--opt=--"
+        raise UserError(f"{name}: a value is needed; allowed: a finite number")
     try:
         x = float(value)
     except ValueError:

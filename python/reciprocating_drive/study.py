@@ -235,9 +235,11 @@ class Variable:
 
 
 @cache
-def model_parameters(model: str = str(MODEL_DESCRIPTION)) -> tuple[dict, str, str]:
+def model_parameters(
+    model: str = str(MODEL_DESCRIPTION), require_pump: bool = True
+) -> tuple[dict, str, str]:
     """The parameters of a model description (an FMU or its modelDescription.xml): name ->
-    Variable, and the model's GUID and version."""
+    Variable, and the model's GUID and version. `require_pump`: refuse another FMU."""
     from fmpy import read_model_description
 
     md = read_model_description(model, validate=False)
@@ -258,7 +260,7 @@ def model_parameters(model: str = str(MODEL_DESCRIPTION)) -> tuple[dict, str, st
             units[v.name],
         )
     names = {v.name for v in md.modelVariables}
-    if not {"crank.angle", "crank.speed", "crank.model_angle", "crank.torque"} <= names:
+    if require_pump and not {"crank.angle", "crank.model_angle", "crank.torque"} <= names:
         raise UserError(
             f"{model}: not a ReciprocatingDrive FMU ({md.modelName}: it has no crank.model_angle "
             "and crank.torque); allowed: target/fmu/ReciprocatingDrive.fmu"

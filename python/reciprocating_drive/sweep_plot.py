@@ -67,3 +67,22 @@ def plot_sweep(study: Study, rows: list[dict], path: str | pathlib.Path) -> None
 
 def finite(x) -> bool:
     return isinstance(x, float) and math.isfinite(x)
+
+
+def plain_axis(ax, values, axis: str = "y", rel: float = 1e-9) -> None:
+    """No offset notation ("1e−5+3.203" for a constant 3.2037): tick labels are the values
+    themselves. A series whose spread is rounding noise (below `rel` of its size) is drawn as the
+    constant it is, in the middle of a range of ±5 % of its value."""
+    fmt = (ax.yaxis if axis == "y" else ax.xaxis).get_major_formatter()
+    if hasattr(fmt, "set_useOffset"):
+        fmt.set_useOffset(False)
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return
+    lo, hi = float(v.min()), float(v.max())
+    size = max(abs(lo), abs(hi))
+    if hi - lo <= rel * size or hi == lo:
+        mid = 0.5 * (lo + hi)
+        half = 0.05 * abs(mid) if mid != 0 else 1.0
+        (ax.set_ylim if axis == "y" else ax.set_xlim)(mid - half, mid + half)
