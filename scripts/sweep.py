@@ -116,8 +116,11 @@ def main(argv=None) -> int:
 
         scheduler_address(a.scheduler)
 
-    from reciprocating_drive.sweep import Progress, load_rows, run_sweep
+    from reciprocating_drive.sweep import Progress, load_rows, run_sweep, warnings
     from reciprocating_drive.sweep_plot import plot_sweep
+
+    for w in warnings(study):
+        print(f"warning: {w}", flush=True)
 
     STATE["progress"] = Progress()
     r = run_sweep(

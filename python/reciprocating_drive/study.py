@@ -38,6 +38,7 @@ study file, which is what lets a sweep resume.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import math
 import pathlib
@@ -232,6 +233,7 @@ class Variable:
     min: float | None
     max: float | None
     unit: str
+    start: object = None
 
 
 @cache
@@ -252,12 +254,21 @@ def model_parameters(
         lo = v.min if v.min is not None else (dt.min if dt is not None else None)
         hi = v.max if v.max is not None else (dt.max if dt is not None else None)
         units[v.name] = v.unit or (dt.unit if dt is not None else None) or ""
+        start = v.start
+        if start is not None:
+            if v.type == "Boolean":
+                start = str(start).lower() in ("true", "1")
+            elif v.type in ("Integer", "Enumeration"):
+                start = int(start)
+            else:
+                start = float(start)
         out[v.name] = Variable(
             v.name,
             v.type,
             None if lo is None else float(lo),
             None if hi is None else float(hi),
             units[v.name],
+            start,
         )
     names = {v.name for v in md.modelVariables}
     if require_pump and not {"crank.angle", "crank.model_angle", "crank.torque"} <= names:
@@ -351,6 +362,8 @@ class Study:
     bounds: np.ndarray | None = None  # random, lhs: (min, max) per varied parameter
     lhs: np.ndarray | None = None  # lhs: the unit samples
     content_hash: str = ""  # of everything that determines the results (not the name)
+    inert: dict = field(default_factory=dict)  # varied parameters that cannot act -> why
+    variables: dict = field(default_factory=dict, repr=False)  # the FMU's parameters
 
     @property
     def varied(self) -> list[str]:
@@ -528,6 +541,8 @@ def study_from_dict(
         )
     _plan(st, where, variables, max_cases)
     st.content_hash = _content_hash(st)
+    st.variables = variables
+    st.inert = inert_parameters(st, variables)
     return st
 
 
@@ -635,3 +650,123 @@ def _content_hash(st: Study) -> str:
     }
     text = json.dumps(content, sort_keys=True, separators=(",", ":"), default=repr)
     return hashlib.sha256(text.encode()).hexdigest()
+
+
+# ---- parameters that cannot act (docs/sweeps.md "Parameters that cannot act") ----------------
+
+_SUPPORT_KEYS = ("attached", "z", "offset", "tilt", "length", "stiffness")
+_LINK_KEYS = (
+    *(f"link.l{i}" for i in range(1, 5)),
+    *(f"link.d{i}" for i in range(1, 5)),
+    "link.E",
+    "link.lateral_load",
+    "guide.velocity_scale",
+    "guide.rod_side_force",
+)
+_ELASTIC_ROD = (
+    "rod.flex_length",
+    "rod.rigid_length",
+    "rod.wire_diameter",
+    "rod.coil_diameter",
+    "rod.coils",
+    "rod.E",
+    "rod.poisson",
+    "rod.cage_inertia",
+    "rod.damping_ratio",
+    "rod.damping",
+    "rod.initial_state",
+)
+_BEAM_UNIT = (
+    "geometry.beam_front_arm",
+    "geometry.beam_rear_arm",
+    "geometry.pivot_dx",
+    "geometry.pivot_dy",
+)
+#: The switches the rules below depend on.
+CONDITIONS = (
+    "mechanism",
+    "rod.kind",
+    "balancer.enabled",
+    "balancer.tuning",
+    *(f"support_{x}.{k}" for x in "ABC" for k in ("kind", "attached")),
+)
+
+
+def _friction_key(x: str) -> str:
+    return "guide.friction_coefficient" if x == "B" else f"support_{x}.friction"
+
+
+def inert_in(values: dict) -> dict[str, str]:
+    """Parameters that cannot change any output for these parameter values (all of them given),
+    with the reason (docs/model.md §3, §5.2, §6, §7):
+
+    * a support of kind 0 is absent: its other parameters do nothing;
+    * every support absent: the friction model is off, no beam problem is solved (the link's
+      sections, E, lateral load, the friction's velocity scale and the rod's side force);
+    * a pin (kind 1) has no length; a frame-fixed pin (attached = 1) touches the link at the
+      same frame point Z = Z_ref all the time, so its tilt α·(Z − Z_ref) is 0;
+    * a rigid rod (rod.kind 0) has none of the elastic rod's parameters; a thin rod (1) no coils;
+      an elastic rod does not use geometry.rod_length;
+    * a crank-slider (mechanism 1) has no beam;
+    * the balancer's parameters without the balancer; tuning 1 and 2 set the stiffness and s_0
+      themselves, tuning 0 does not use the design speed."""
+    out = {}
+    kinds = {x: values[f"support_{x}.kind"] for x in "ABC"}
+    for x, kind in kinds.items():
+        if kind == 0:
+            for k in (*(f"support_{x}.{k}" for k in _SUPPORT_KEYS), _friction_key(x)):
+                out[k] = f"support {x} is absent (support_{x}.kind = 0)"
+        elif kind == 1:
+            out[f"support_{x}.length"] = f"support {x} is a pin (support_{x}.kind = 1): no length"
+            if values[f"support_{x}.attached"] == 1:
+                out[f"support_{x}.tilt"] = (
+                    f"support {x} is a frame-fixed pin (support_{x}.kind = 1, attached = 1): it "
+                    "touches the link at one frame point, where the tilt's term is 0"
+                )
+    if all(k == 0 for k in kinds.values()):
+        for k in _LINK_KEYS:
+            out[k] = "no support: the friction model is off (support_A/B/C.kind = 0)"
+    rod = values["rod.kind"]
+    if rod == 0:
+        for k in _ELASTIC_ROD:
+            out[k] = "the connecting rod is rigid (rod.kind = 0)"
+    else:
+        out["geometry.rod_length"] = f"an elastic rod (rod.kind = {rod}) does not use it"
+        if rod == 1:
+            for k in ("rod.coil_diameter", "rod.coils"):
+                out[k] = "a thin straight rod (rod.kind = 1) has no coils"
+    if values["mechanism"] == 1:
+        for k in _BEAM_UNIT:
+            out[k] = "a crank-slider (mechanism = 1) has no beam"
+    if not values["balancer.enabled"]:
+        for k in ("balancer.tuning", "balancer.stiffness", "balancer.design_speed",
+                  "balancer.neutral_position"):  # fmt: skip
+            out[k] = "the balancer is off (balancer.enabled = false)"
+    elif values["balancer.tuning"] == 0:
+        out["balancer.design_speed"] = "balancer.tuning = 0 uses balancer.stiffness as given"
+        if values["balancer.stiffness"] == 0:
+            out["balancer.neutral_position"] = "balancer.stiffness = 0: the bar exerts no force"
+    else:
+        for k in ("balancer.stiffness", "balancer.neutral_position"):
+            out[k] = f"balancer.tuning = {values['balancer.tuning']} sets it itself"
+    return out
+
+
+def inert_parameters(study: Study, variables: dict | None = None) -> dict[str, str]:
+    """The varied parameters of `study` that cannot act in any of its cases, with the reason
+    (inert_in over every combination of the varied switches)."""
+    variables = variables if variables is not None else model_parameters()[0]
+    base = {k: v.start for k, v in variables.items()}
+    base.update(study.base_values)
+    switches = [k for k in study.varied if k in CONDITIONS]
+    if study.design == "grid" and switches:
+        axes = [study.axes[study.varied.index(k)] for k in switches]
+        combos = itertools.product(*([a[i] for i in range(len(a))] for a in axes))
+    else:
+        combos = [()]
+    common = None
+    for combo in combos:
+        found = inert_in({**base, **dict(zip(switches, combo))})
+        found = {k: r for k, r in found.items() if k in study.parameters}
+        common = found if common is None else {k: r for k, r in common.items() if k in found}
+    return common or {}

@@ -549,6 +549,14 @@ def run_sweep(
     )
 
 
+def warnings(study: Study) -> list[str]:
+    """One line per varied parameter that cannot act in any case of the study."""
+    return [
+        f'{k} cannot act in this study: {why} (docs/sweeps.md "Parameters that cannot act")'
+        for k, why in study.inert.items()
+    ]
+
+
 def _arrow_table(csv_path: pathlib.Path, study: Study):
     """The result file as an Arrow table: complete rows only, one per case, sorted by case;
     parameters, metrics and timings as float64 (NaN for a rejected case's metrics)."""
@@ -615,7 +623,12 @@ def write_tables(csv_path: pathlib.Path, pq_path: pathlib.Path, study: Study) ->
                 w.writerow([repr(v) if isinstance(v, float) else v for v in r])
     tmp.replace(csv_path)
     fps = sorted(set(t["fingerprint"].to_pylist())) if t.num_rows else []
-    meta = {b"fingerprint": ",".join(fps).encode(), b"study": study.name.encode()}
+    meta = {
+        b"fingerprint": ",".join(fps).encode(),
+        b"study": study.name.encode(),
+        # Varied parameters that cannot act (docs/sweeps.md "Parameters that cannot act").
+        b"warnings": "\n".join(warnings(study)).encode(),
+    }
     pq.write_table(t.replace_schema_metadata(meta), pq_path)
     n_err = int(np.sum(np.asarray(t["status"].to_pylist(), dtype=object) == "error"))
     return t.num_rows, n_err
