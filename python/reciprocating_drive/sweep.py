@@ -227,9 +227,33 @@ def read_done(csv_path: pathlib.Path, fp: str | None = None, cols: list | None =
                 f"{csv_path}: its columns ({', '.join(header[1:-6])}) are not this study's "
                 f"({', '.join(cols[1:-6])}): it holds another study's results; {fresh}"
             )
-        for line, r in enumerate(reader, start=2):
-            # A line cut short when the sweep was killed lacks its last fields: not done.
+        rows = iter(reader)
+        line = 1
+        while True:
+            try:
+                r = next(rows)
+            except StopIteration:
+                break
+            except csv.Error as e:
+                raise SweepError(
+                    f"{csv_path} line {reader.line_num}: not a CSV row ({e}); the file is damaged: "
+                    f"{fresh}"
+                ) from None
+            line = reader.line_num
+            if fp is not None and (None in r or None in r.values()):
+                # Only the last line can be cut by a kill, and that one is dropped before.
+                n = sum(v is not None for k, v in r.items() if k is not None)
+                n += len(r.get(None) or [])
+                raise SweepError(
+                    f"{csv_path} line {line}: {n} fields, the header has {len(header)}; the file "
+                    f"is damaged: {fresh}"
+                )
             if r.get("status") not in ("ok", "error") or not r.get("fingerprint"):
+                if fp is not None:
+                    raise SweepError(
+                        f"{csv_path} line {line}: status = {show(r.get('status'))}; allowed: ok, "
+                        f"error; the file is damaged: {fresh}"
+                    )
                 continue
             if fp is not None and r["fingerprint"] != fp:
                 theirs, ours = r["fingerprint"], fp
@@ -244,9 +268,15 @@ def read_done(csv_path: pathlib.Path, fp: str | None = None, cols: list | None =
                     f"{what} changed since; {fresh}"
                 )
             try:
-                done.add(int(r["case"]))
+                case = int(r["case"])
             except (KeyError, ValueError):
+                if fp is not None:
+                    raise SweepError(
+                        f"{csv_path} line {line}: case = {show(r.get('case'))}; allowed: an "
+                        f"integer; the file is damaged: {fresh}"
+                    ) from None
                 continue
+            done.add(case)
     return done
 
 

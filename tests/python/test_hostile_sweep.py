@@ -657,3 +657,35 @@ def test_message_lines_have_no_newline_from_values(tmp_path, fmu_path):
     p = run([f, "--fmu", fmu_path, "--out-dir", tmp_path / "o"])
     assert_user_error(p, "machine = 'a\\nb'")
     assert io.StringIO(p.stderr).read().count("\n") == 1
+
+
+@pytest.mark.parametrize(
+    "damage,words",
+    [
+        ("1,200.0,1,2\n", "line 3: 4 fields, the header has 10"),
+        ("x" * 10 + "\n", "line 3: 1 fields"),
+        ("1,2,3,4,5,6,7,8,9,10,11,12\n", "line 3: 12 fields"),
+        ("1,200.0,1,2,maybe,,0,0,pid 1,{fp}\n", "line 3: status = 'maybe'"),
+        ("one,200.0,1,2,ok,,0,0,pid 1,{fp}\n", "line 3: case = 'one'"),
+    ],
+)
+def test_damaged_result_file_is_refused(tmp_path, fmu_path, damage, words):
+    """A result file with a damaged line in it (not the last line a kill may cut) is refused with
+    the line named, before any cluster starts; the file is left as it was."""
+    from reciprocating_drive.study import load_study
+    from reciprocating_drive.sweep import columns, fingerprint
+
+    f, out = tmp_path / "s.toml", tmp_path / "out"
+    f.write_text(to_toml(valid_study()))
+    study = load_study(f, fmu=fmu_path)
+    fp = fingerprint(study, fmu_path)
+    out.mkdir()
+    csv_path = out / "hostile.csv"
+    text = (
+        ",".join(columns(study)) + "\n" + f"0,100.0,1.0,2.0,ok,,0.1,0.1,pid 1,{fp}\n"
+        + damage.format(fp=fp) + f"2,500.0,1.0,2.0,ok,,0.1,0.1,pid 1,{fp}\n"
+    )  # fmt: skip
+    csv_path.write_text(text)
+    p = run([f, "--fmu", fmu_path, "--out-dir", out, "--no-progress"], timeout=60)
+    assert_user_error(p, str(csv_path), words, "--fresh")
+    assert csv_path.read_text() == text
