@@ -30,7 +30,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     study = load_study(a.study)
     print(
-        f"study {study.name}: {len(study.case_values)} cases, "
+        f"study {study.name}: {study.n_cases} cases, "
         f"{study.skip_revolutions + study.revolutions} revolutions × {study.steps_per_revolution} steps each"
     )
     rate = {}

@@ -508,6 +508,16 @@ def run_sweep(
     if fresh:
         for p in (csv_path, pq_path):
             p.unlink(missing_ok=True)
+    try:  # writable, before a cluster starts (and no empty file left behind)
+        existed = csv_path.exists()
+        with open(csv_path, "a", encoding="utf-8"):
+            pass
+        if not existed:
+            csv_path.unlink()
+    except OSError as e:
+        raise SweepError(
+            f"--out-dir {out}: {csv_path.name} cannot be written ({e.strerror})"
+        ) from None
     _drop_cut_line(csv_path)
     done = read_done(csv_path, fp, cols)
     state.found, state.csv = len(done), csv_path

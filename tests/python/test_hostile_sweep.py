@@ -474,6 +474,7 @@ def test_scheduler_that_is_not_dask_is_a_bounded_error(tmp_path, fmu_path, kind)
         )
         assert time.monotonic() - t0 < 30
         assert_user_error(p, f"--scheduler tcp://127.0.0.1:{port}", "not a Dask scheduler")
+        no_results(tmp_path / "o")
     finally:
         close()
 
@@ -515,6 +516,7 @@ def test_scheduler_address_errors_are_one_line(tmp_path, fmu_path, addr, words):
         timeout=60,
     )
     assert_user_error(p, "--scheduler", words)
+    no_results(tmp_path / "o")
 
 
 BIG = """name = "big"
