@@ -167,7 +167,26 @@ def run_fmpy(ssp: pathlib.Path, h: float, t_end: float) -> dict:
                 params.append(p)
     ps = ParameterSet(parameters=params)
     n = int(round(t_end / h))
-    res = simulate_ssp(str(ssp), stop_time=n * h - 0.5 * h, step_size=h, parameter_set=ps)
+    # fmpy instantiates the components with its default callbacks, whose logger prints every FMU
+    # message: keep them instead, and put the last error into LoopFailed's one line.
+    # The logger of fmu.py's _Log takes this project's FMUs' "%s" messages (its docstring).
+    import fmpy.fmi2 as fmi2
+
+    from .fmu import _Log
+
+    log = _Log(echo=False)
+    saved = fmi2.defaultCallbacks.logger
+    fmi2.defaultCallbacks.logger = log.callbacks.logger
+    try:
+        res = simulate_ssp(str(ssp), stop_time=n * h - 0.5 * h, step_size=h, parameter_set=ps)
+    except Exception as e:
+        text = f"fmpy: {str(e).rstrip('.')}"
+        errors = [m for (status, _, m) in log.lines if status >= 3 and m]  # fmi2Error, Fatal
+        if errors:
+            text += f"; the FMU: {' '.join(errors[-1].split())[:300]}"
+        raise LoopFailed(text) from None
+    finally:
+        fmi2.defaultCallbacks.logger = saved
     out = {"time": (np.arange(len(res)) + 1) * h}
     names = res.dtype.names
     for comp, var in RECORD:
