@@ -13,6 +13,7 @@ Exit codes: 0 done, 1 every case rejected, 2 a user error, 70 an internal error,
 
 from __future__ import annotations
 
+import argparse
 import pathlib
 import shlex
 import sys
@@ -49,7 +50,7 @@ def parser() -> ArgumentParser:
     ap = ArgumentParser(
         prog=PROG,
         description=__doc__,
-        formatter_class=__import__("argparse").RawDescriptionHelpFormatter,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     ap.add_argument("study", type=pathlib.Path)
     ap.add_argument("--fmu", default=str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
