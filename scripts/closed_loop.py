@@ -40,9 +40,9 @@ MAX_STEPS = 10_000_000
 COMPONENTS = {"pump": "ReciprocatingDrive.fmu", "drive": "DriveTrain.fmu"}
 
 
-def parser() -> ArgumentParser:
+def parser(prog: str = PROG) -> ArgumentParser:
     ap = ArgumentParser(
-        prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("--importer", choices=("libcosim", "fmpy"), default="libcosim")
     ap.add_argument("--step", default="1e-3", help="communication step [s] (default 1e-3)")
@@ -107,8 +107,15 @@ def overrides(items: list[str], fmu_dir: pathlib.Path) -> dict:
     return out
 
 
-def main(argv=None) -> int:
-    a = parser().parse_args(argv)
+def main(argv=None, prog: str = PROG) -> int:
+    """The command: its exit code, with every error as one line (cli_errors.run_cli)."""
+    return run_cli(
+        prog, lambda: _main(argv, prog), on_interrupt=lambda: "stopped; nothing was written"
+    )
+
+
+def _main(argv, prog: str = PROG) -> int:
+    a = parser(prog).parse_args(argv)
     h = positive_float("--step", a.step)
     t_end = positive_float("--time", a.time)
     for fmu in COMPONENTS.values():
@@ -214,4 +221,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(run_cli(PROG, main, on_interrupt=lambda: "stopped; nothing was written"))
+    sys.exit(main())

@@ -46,9 +46,9 @@ def _count(name: str, minimum: int):
     return parse
 
 
-def parser() -> ArgumentParser:
+def parser(prog: str = PROG) -> ArgumentParser:
     ap = ArgumentParser(
-        prog=PROG,
+        prog=prog,
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -98,8 +98,13 @@ def resume_hint() -> str:
     return f"stopped{done}; resume with: {shlex.join([sys.executable, sys.argv[0], *argv])}"
 
 
-def main(argv=None) -> int:
-    a = parser().parse_args(argv)
+def main(argv=None, prog: str = PROG) -> int:
+    """The command: its exit code, with every error as one line (cli_errors.run_cli)."""
+    return run_cli(prog, lambda: _main(argv, prog), on_interrupt=resume_hint)
+
+
+def _main(argv, prog: str) -> int:
+    a = parser(prog).parse_args(argv)
     workers = None if a.workers is None else _count("--workers", 1)(a.workers)
     batch = None if a.batch_size is None else _count("--batch-size", 1)(a.batch_size)
     max_cases = None if a.max_cases is None else _count("--max-cases", 1)(a.max_cases)
@@ -153,4 +158,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(run_cli(PROG, main, on_interrupt=resume_hint))
+    sys.exit(main())
