@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 
 SCRIPT = ROOT / "scripts" / "closed_loop.py"
 HYPOTHESIS = settings(
-    max_examples=int(os.environ.get("RD_HOSTILE_EXAMPLES", "15")),
+    max_examples=int(os.environ.get("RD_HOSTILE_EXAMPLES", "12")),
     deadline=None,
     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
     derandomize=True,

@@ -37,7 +37,7 @@ from hypothesis import strategies as st
 SWEEP = ROOT / "scripts" / "sweep.py"
 TIMEOUT = 120  # s, any single command
 HYPOTHESIS = settings(
-    max_examples=int(os.environ.get("RD_HOSTILE_EXAMPLES", "15")),
+    max_examples=int(os.environ.get("RD_HOSTILE_EXAMPLES", "12")),
     deadline=None,
     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
     derandomize=True,
