@@ -44,9 +44,10 @@ def run(args, fmu_path, stdin=None, check=True):
 
 
 def read(path):
+    """name -> column of a CSV the twin wrote (headers `name [unit]`: the unit is dropped)."""
     with open(path) as f:
         rows = list(csv.reader(f))
-    head = rows[0]
+    head = [h.rpartition(" [")[0] or h for h in rows[0]]
     return {h: np.array([float(r[i]) for r in rows[1:]]) for i, h in enumerate(head)}
 
 
