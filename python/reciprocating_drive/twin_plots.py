@@ -72,9 +72,9 @@ def plot_twin(
     machine: str = "default",
     source: str = "",
     gap_limit: float | None = None,
-) -> None:
+) -> dict:
     """The three plots of a run of `machine` on the input `source`; an interval longer than
-    `gap_limit` (default: 5 median intervals) is a gap."""
+    `gap_limit` (default: 5 median intervals) is a gap. Returns each file's title."""
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     o = read_columns(outputs)
@@ -83,6 +83,11 @@ def plot_twin(
     limit = gap_limit if gap_limit is not None else 5 * float(np.median(dt)) if len(dt) else 0
     gaps = np.flatnonzero(dt > limit)
     what = f"{machine}, {pathlib.Path(source).name or source}" if source else machine
+    titles = {
+        "timeseries.png": f"Digital twin: loads from measured crank data ({what})",
+        "card.png": f"card: rod force against position ({what})",
+        "revolutions.png": f"Per-revolution trends ({what})",
+    }
     _stacked(
         t,
         o,
@@ -95,7 +100,7 @@ def plot_twin(
             ("rod.angle", "rod angle [rad]"),
         ],
         "time [s]",
-        f"Digital twin: loads from measured crank data ({what})",
+        titles["timeseries.png"],
         folder / "timeseries.png",
         gaps,
     )
@@ -106,7 +111,7 @@ def plot_twin(
     a.ticklabel_format(axis="x", useOffset=False, style="plain")
     a.set_xlabel("position s [m]")
     a.set_ylabel("rod force P [kN]")
-    a.set_title(f"card: rod force against position ({what})", fontsize=9)
+    a.set_title(titles["card.png"], fontsize=9)
     a.grid(True, alpha=0.3)
     fig.tight_layout()
     fig.savefig(folder / "card.png", dpi=80)
@@ -125,9 +130,10 @@ def plot_twin(
             ("friction_work", "friction work [J]"),
         ],
         "revolution",
-        f"Per-revolution trends ({what})",
+        titles["revolutions.png"],
         folder / "revolutions.png",
         np.flatnonzero(np.diff(rev) > 1),
         style="o-",
         size=(8, 10),
     )
+    return titles
