@@ -20,6 +20,7 @@ import pathlib
 import queue
 import select
 import signal
+import stat
 import sys
 import threading
 import time
@@ -63,7 +64,7 @@ def chunks_of(raw, follow: bool, size: int, poll: float = 0.05, path=None, idle=
     lineno = 0  # complete lines yielded
     waited = 0.0
     fd = raw.fileno() if hasattr(raw, "fileno") else None
-    pipe = fd is not None and not follow and not os.path.isfile(f"/proc/self/fd/{fd}")
+    pipe = fd is not None and not follow and not stat.S_ISREG(os.fstat(fd).st_mode)
     while True:
         if stop is not None and stop():
             return
@@ -386,6 +387,21 @@ def run(a, stopping: list) -> int:
     try:
         if a.input != "-" and not os.path.isfile(a.input):
             raise ValueError(f"{a.input}: no such file")
+        # An output written over the input or the checkpoint would destroy it.
+        files = [("--out", a.out), ("--summary", summary), ("--checkpoint", a.checkpoint)]
+        files += [("--resume", a.resume), ("input", None if a.input == "-" else a.input)]
+        seen = {}
+        for flag, path in files:
+            if path is None or not os.path.exists(path):
+                continue
+            key = (os.stat(path).st_dev, os.stat(path).st_ino)
+            if key in seen and {flag, seen[key]} != {"--checkpoint", "--resume"}:
+                raise ValueError(f"{flag} {path}: the same file as {seen[key]}")
+            seen.setdefault(key, flag)
+        if len({str(pathlib.Path(p).resolve()) for _, p in files[:3] if p is not None}) < sum(
+            p is not None for _, p in files[:3]
+        ):
+            raise ValueError("--out, --summary and --checkpoint must name different files")
         a.out.parent.mkdir(parents=True, exist_ok=True)
         summary.parent.mkdir(parents=True, exist_ok=True)
         if a.resume:

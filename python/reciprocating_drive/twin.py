@@ -769,6 +769,7 @@ class Twin:
         rev = np.concatenate(self.rev_parts) if self.rev_parts else self._empty()
         return {
             "version": 2,
+            "fmu_guid": self.fmu.model_description.guid,
             "machine": self.machine,
             "options": self.o.to_dict(),
             "fmu_state": base64.b64encode(self.fmu.serialize()).decode()
@@ -814,6 +815,12 @@ class Twin:
         except (KeyError, TypeError) as e:
             raise CheckpointError(f"not a twin checkpoint (options or machine: {e})") from None
         tw = cls(fmu_path, machine, options, extra_values)
+        guid = tw.fmu.model_description.guid
+        if cp.get("fmu_guid", guid) != guid:
+            raise CheckpointError(
+                f"made with the FMU {cp['fmu_guid']!r}; {str(fmu_path)!r} is {guid!r} (another "
+                "build: its state cannot be restored into this one)"
+            )
         try:
             tw._restore(cp)
         except FmuError as e:

@@ -415,6 +415,29 @@ def test_a_damaged_fmu_state_with_a_valid_checksum_is_refused(fmu_path, clean, s
     refused(twin([clean[0], "--out", out, "--resume", cp], fmu_path), "checkpoint")
 
 
+def test_a_checkpoint_of_another_fmu_build_is_refused(fmu_path, clean, stopped):
+    from reciprocating_drive.twin import save_checkpoint
+
+    out, cp = stopped
+    d = json.loads(cp.read_text())
+    del d["sha256"]
+    d["fmu_guid"] = "{00000000-0000-0000-0000-000000000000}"
+    save_checkpoint(cp, d)
+    refused(twin([clean[0], "--out", out, "--resume", cp], fmu_path), "another build")
+
+
+def test_an_output_over_the_input_is_refused(fmu_path, tmp_path):
+    src = tmp_path / "data.csv"
+    src.write_text(CLEAN)
+    refused(twin([src, "--out", src], fmu_path), "the same file as --out", code=2)
+    assert src.read_text() == CLEAN
+    refused(
+        twin([src, "--out", tmp_path / "o.csv", "--checkpoint", tmp_path / "o.csv"], fmu_path),
+        "must name different files",
+        code=2,
+    )
+
+
 # ---- items 5, 7, 13: --follow, Ctrl-C ---------------------------------------------------------
 
 
