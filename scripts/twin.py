@@ -25,6 +25,9 @@ import sys
 import threading
 import time
 
+# Ctrl-C while the modules load: a quiet stop, not a traceback (main() installs the real handler).
+signal.signal(signal.SIGINT, lambda signum, frame: sys.exit(130))
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
 from reciprocating_drive.batch import format_csv  # noqa: E402
@@ -523,7 +526,7 @@ def run(a, stopping: list) -> int:
                 if a.stop_after and lineno >= a.stop_after or stopping:
                     break
             if a.stop_after and lineno >= a.stop_after or stopping:
-                if a.checkpoint:
+                if a.checkpoint and verified:
                     checkpoint()
                 close()
                 if stopping:
@@ -535,7 +538,7 @@ def run(a, stopping: list) -> int:
                 )
                 return 0
         if stopping:
-            if a.checkpoint:
+            if a.checkpoint and verified:
                 checkpoint()
             close()
             print(f"twin.py: {resume_hint(lineno)}", file=sys.stderr)
@@ -554,7 +557,7 @@ def run(a, stopping: list) -> int:
         if getattr(e, "rows", None) is not None:
             emit(e.rows, getattr(e, "summaries", []))
         close()
-        where = f"{name}: " if isinstance(e, DataError) else ""
+        where = f"{name}: " if isinstance(e, (DataError, FmuError)) else ""
         print(f"twin.py: {where}{error_text(e)}", file=sys.stderr)
         return 1
     if a.checkpoint:

@@ -51,6 +51,13 @@ INPUTS = ("crank.angle", "crank.speed", "crank.acceleration", "link.external_for
 #: crank at rest, whose estimated speed is rounding noise around 0.
 SPEED_SLACK = 0.1
 
+#: |time| and |angle| the twin reads (docs/twin.md "Input"): beyond 1e10 s a double resolves
+#: 2 µs at best, beyond 1e9 revolutions 1 µrad.
+TIME_LIMIT = 1e10
+ANGLE_LIMIT = 1e9 * 2.0 * math.pi
+#: Largest half-width of the smoothing window in samples (a window of 200 001 samples).
+MAX_HALF = 100_000
+
 #: Samples conditioned and sent to the FMU per call at most (bounds the memory of the windows).
 BLOCK = 4096
 
@@ -490,6 +497,25 @@ class Twin:
         err = None
         if n == 0:
             return err
+        # Magnitudes beyond which a double no longer resolves a 1 kHz sample or a sample's step
+        # of the angle (docs/twin.md "Input"): refused, not computed with lost digits.
+        with np.errstate(invalid="ignore"):
+            big = np.flatnonzero((np.abs(t) > TIME_LIMIT) | (np.abs(a) > ANGLE_LIMIT))
+        if big.size:
+            k = int(big[0])
+            name, v, lim, unit = (
+                ("time", t[k], TIME_LIMIT, "s")
+                if abs(t[k]) > TIME_LIMIT
+                else ("crank_angle", a[k], ANGLE_LIMIT, "rad")
+            )
+            err = DataError(
+                f"line {ln[k]}: {name} = {float(v):.6g} {unit} is beyond ±{lim:.6g} {unit}, "
+                "where a double no longer resolves the samples"
+            )
+            ln, t, a, w, f = (x[:k] for x in (ln, t, a, w, f))
+            n = k
+            if n == 0:
+                return err
         # Intervals to the previous line (time never goes backwards up to the first error, so the
         # previous accepted sample of a line is the line before it, duplicates included).
         prev = (
@@ -580,7 +606,15 @@ class Twin:
                 if self.half is None and (self.last_t is not None or hi - lo > 1):
                     # The smoothing window in samples, from the first interval.
                     d = float(t[1] - t[0]) if first else float(t[0]) - self.last_t
-                    self.half = cond.window_samples(o.window, d)
+                    half = cond.window_samples(o.window, d)
+                    if half > MAX_HALF:
+                        raise DataError(
+                            f"line {ln[lo + 1] if first else ln[lo]}: the first interval, "
+                            f"{d:.6g} s, makes the --window {o.window:g} s smoothing window "
+                            f"{2 * half + 1:.6g} samples wide (at most {2 * MAX_HALF + 1}): check "
+                            "the time unit or --window"
+                        )
+                    self.half = half
                 self.last_raw, self.last_unwrapped, self.last_t = (
                     float(a[hi - 1]),
                     float(theta[hi - 1]),
@@ -805,6 +839,10 @@ class Twin:
         is wrong; a wrong machine or FMU raises ValueError."""
         if not isinstance(cp, dict):
             raise CheckpointError(f"not a twin checkpoint (a JSON {type(cp).__name__})")
+        if "sha256" in cp and cp["sha256"] != _digest(cp):
+            raise CheckpointError(
+                "the checkpoint was damaged or edited (its checksum does not match)"
+            )
         if cp.get("version") != 2:
             raise CheckpointError(
                 f"checkpoint version {cp.get('version')!r}; this twin reads version 2"

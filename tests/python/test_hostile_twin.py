@@ -516,6 +516,55 @@ def test_ctrl_c_stops_with_a_resume_hint_and_the_resume_is_exact(fmu_path, clean
     accepted(p, out, clean[1])
 
 
+def test_idle_limit_bounds_the_wait_on_standard_input(fmu_path, tmp_path):
+    """A producer that sends a few lines and then nothing, keeping the pipe open."""
+    p = subprocess.Popen(
+        TWIN + ["-", "--out", str(tmp_path / "o.csv"), "--idle-limit", "1", "--fmu", fmu_path],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    try:
+        p.stdin.write("".join(CLEAN.splitlines(keepends=True)[:50]).encode())
+        p.stdin.flush()
+        t0 = time.monotonic()
+        assert p.wait(timeout=60) == 1
+        assert time.monotonic() - t0 < 30
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait(timeout=10)
+        p.stdin.close()
+    refused(subprocess.CompletedProcess(p.args, 1, b"", p.stderr.read()), "no new input for 1 s")
+
+
+@pytest.mark.parametrize(
+    "rows,needle",
+    [
+        ("0,1e300\n0.001,1e300\n0.002,1e300\n", "line 2: crank_angle = 1e+300 rad is beyond"),
+        ("1e300,0\n2e300,0\n", "line 2: time = 1e+300 s is beyond"),
+        ("0,0\n1e-300,0\n2e-300,0\n3e-300,0\n", "line 3: the first interval, 1e-300 s"),
+    ],
+)
+def test_numbers_a_double_cannot_resolve_are_refused_without_a_hang(
+    fmu_path, tmp_path, rows, needle
+):
+    src = tmp_path / "x.csv"
+    src.write_text("time,crank_angle\n" + rows)
+    refused(twin([src, "--out", tmp_path / "o.csv"], fmu_path, timeout=60), needle)
+
+
+def test_unix_timestamps_give_the_clean_result_shifted(fmu_path, tmp_path):
+    """Time as a plant logs it (seconds since 1970) is within the limits."""
+    rows = clean_rows(100)
+    for r in rows:
+        r[0] = repr(1.764e9 + float(r[0]))
+    src = tmp_path / "epoch.csv"
+    src.write_text(csv_text(rows))
+    p = twin([src, "--out", tmp_path / "o.csv"], fmu_path)
+    assert p.returncode == 0, p.stderr
+
+
 # ---- issue 24 item 4: the options follow the machine ------------------------------------------
 
 
@@ -542,7 +591,8 @@ def test_kvo630_runs_at_its_design_speed_with_default_options(fmu_path, tmp_path
 NUMBER = r"\s*[-+]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][-+]?[0-9]+)?\s*"
 
 GENERATED = settings(
-    max_examples=8,
+    # RD_HOSTILE_EXAMPLES=50 for a deeper search than the test suite's.
+    max_examples=int(os.environ.get("RD_HOSTILE_EXAMPLES", "8")),
     deadline=None,
     derandomize=True,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
@@ -848,6 +898,39 @@ def test_generated_damaged_checkpoints(fmu_path, clean, checkpointed, tmp_path_f
             assert summary_of(out).read_bytes() == summary_bytes
         else:
             accepted(p, out, clean[1])
+
+
+EXTREME = st.one_of(
+    st.floats(allow_nan=False, allow_infinity=False),
+    st.sampled_from([0.0, -0.0, 1e-300, 5e-324, 1e300, -1e300, 1e10, 1.764e9, 2**53, 1e-9]),
+)
+
+
+@GENERATED
+@given(
+    st.lists(
+        st.tuples(st.integers(0, 3), st.integers(0, 3), EXTREME),
+        min_size=BATCH,
+        max_size=BATCH,
+    )
+)
+def test_generated_extreme_numbers(fmu_path, tmp_path_factory, cases):
+    """Numbers that are numbers but not sane (1e300 s, 5e-324 rad, a force of -1e300 N) in a
+    sample of the first rows of a speed and force file: exit 0, or one line naming the line;
+    never a traceback or a hang (the finding: 1e300 rad looped in the revolution count)."""
+    d = _fresh(tmp_path_factory)
+    args = []
+    for j, (row, col, value) in enumerate(cases):
+        rows = clean_rows(60, speed=True, force=True)
+        rows[row][col] = repr(value)
+        src = d / f"x{j}.csv"
+        src.write_text(csv_text(rows, ("time", "crank_angle", "crank_speed", "process_force")))
+        args.append([src, "--out", d / f"o{j}.csv"])
+    for j, p in enumerate(twin_all(args, fmu_path)):
+        if p.returncode != 0:
+            refused(p, f"x{j}.csv")
+        else:
+            assert b"Traceback" not in p.stderr
 
 
 NUMERIC = [
