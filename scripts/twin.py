@@ -388,8 +388,10 @@ def run(a, stopping: list) -> int:
     opts, given = options_of(a)
     name = "standard input" if a.input == "-" else a.input
     try:
-        if a.input != "-" and not os.path.isfile(a.input):
+        if a.input != "-" and not os.path.exists(a.input):
             raise ValueError(f"{a.input}: no such file")
+        if a.input != "-" and os.path.isdir(a.input):
+            raise ValueError(f"{a.input}: a folder, not a CSV file")
         # An output written over the input or the checkpoint would destroy it.
         files = [("--out", a.out), ("--summary", summary), ("--checkpoint", a.checkpoint)]
         files += [("--resume", a.resume), ("input", None if a.input == "-" else a.input)]
@@ -415,6 +417,11 @@ def run(a, stopping: list) -> int:
             check_resume(cp, a, given)
             twin = Twin.from_checkpoint(a.fmu, cp)
             skip = twin.lines_read
+            if a.stop_after is not None and a.stop_after <= skip:
+                raise ValueError(
+                    f"--stop-after {a.stop_after}: the checkpoint {a.resume} is at line {skip} "
+                    "already; give a later line"
+                )
             for path, size in ((a.out, cp["out_bytes"]), (summary, cp["summary_bytes"])):
                 # The outputs must hold at least what the checkpoint covers: a shorter file was
                 # changed since (it is never padded); what follows that size is cut.

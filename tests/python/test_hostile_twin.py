@@ -384,6 +384,14 @@ def test_resume_refuses_changed_options(fmu_path, clean, stopped, args, needle):
     refused(twin([clean[0], "--out", out, "--resume", cp, *args], fmu_path), needle)
 
 
+def test_resume_refuses_a_stop_before_the_checkpoint(fmu_path, clean, stopped):
+    out, cp = stopped
+    before = out.read_bytes()
+    p = twin([clean[0], "--out", out, "--resume", cp, "--stop-after", "100"], fmu_path)
+    refused(p, "--stop-after 100", "at line 150 already", code=2)
+    assert out.read_bytes() == before
+
+
 @pytest.mark.parametrize(
     "damage,needle",
     [
