@@ -84,7 +84,12 @@ def chunks_of(raw, follow: bool, size: int, poll: float = 0.05, path=None, idle=
             data = b""
         if not data:
             if follow:
-                st = os.stat(path)
+                try:
+                    st = os.stat(path)
+                except FileNotFoundError:
+                    raise InputChanged(
+                        f"{path} was removed after line {lineno}: following it ends here"
+                    ) from None
                 here = os.fstat(fd)
                 if (st.st_ino, st.st_dev) != (here.st_ino, here.st_dev):
                     raise InputChanged(

@@ -495,6 +495,13 @@ def test_follow_detects_a_replaced_file_and_does_not_hang(fmu_path, tmp_path):
     refused(p, "g.csv was replaced")
 
 
+def test_follow_detects_a_removed_file(fmu_path, tmp_path):
+    src, out = tmp_path / "g.csv", tmp_path / "o.csv"
+    src.write_text(CLEAN)
+    p = _follow(fmu_path, src, out, src.unlink)
+    refused(p, "g.csv was removed", f"after line {N + 1}")
+
+
 def test_ctrl_c_stops_with_a_resume_hint_and_the_resume_is_exact(fmu_path, clean, tmp_path):
     src, out, cp = tmp_path / "g.csv", tmp_path / "o.csv", tmp_path / "cp.json"
     src.write_text("".join(CLEAN.splitlines(keepends=True)[:201]))
