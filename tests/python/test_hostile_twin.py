@@ -859,9 +859,15 @@ def checkpointed(fmu_path, clean, tmp_path_factory):
     return out.read_bytes(), summary_of(out).read_bytes(), cp.read_bytes()
 
 
+def _nested(values):
+    return st.one_of(
+        st.lists(values, max_size=3), st.dictionaries(st.text(max_size=3), values, max_size=3)
+    )
+
+
 JSON_VALUES = st.recursive(
     st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=5),
-    lambda v: st.lists(v, max_size=3) | st.dictionaries(st.text(max_size=3), v, max_size=3),
+    _nested,
     max_leaves=5,
 )
 
