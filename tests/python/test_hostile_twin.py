@@ -610,6 +610,7 @@ GENERATED = settings(
     max_examples=int(os.environ.get("RD_HOSTILE_EXAMPLES", "8")),
     deadline=None,
     derandomize=True,
+    database=None,  # derandomized: nothing to replay, nothing to write in the checkout
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
 )
 #: Cases per generated example, run as concurrent processes (most of a run is start-up).
