@@ -1,0 +1,139 @@
+"""Exactly once (docs/plant.md): the twin killed with SIGKILL at random points and restarted, and
+PostgreSQL restarted in the middle of a run, against an uninterrupted run into a fresh database.
+The reference is the uninterrupted run; the comparison is bit for bit on every per-sample value,
+and the primary keys of the schema make any repeated row an error of its transaction."""
+
+from __future__ import annotations
+
+import random
+import signal
+import time
+
+import numpy as np
+import plant_util as pu
+import pytest
+
+SEED = 2025
+
+
+@pytest.fixture(scope="module")
+def pg():
+    from pg_server import PgServer, pg_bindir
+
+    if pg_bindir() is None:
+        pytest.fail(
+            "PostgreSQL is not installed: scripts/test.sh installs it (scripts/lib/postgres.sh)"
+        )
+    with PgServer() as server:
+        yield server
+
+
+@pytest.fixture(scope="module")
+def reference(fmu_path):
+    """The clean run: the shipped sample through the twin's core in one go, in this process
+    (rows, summaries, gap messages), no database involved."""
+    from reciprocating_drive.twin import SUMMARY_FIELDS, Options, Twin
+
+    tw = Twin(fmu_path, "default", Options(angle_unit="counts", counts_per_rev=4096))
+    rows, sums = tw.feed(pu.SAMPLE.read_text().splitlines(), 1)
+    rest, more = tw.finish()
+    rows = np.concatenate([rows, rest])
+    table = np.column_stack([np.arange(len(rows)), rows])
+    revs = [tuple(s[k] for k in SUMMARY_FIELDS) for s in sums + more]
+    return table, revs, list(tw.messages)
+
+
+def _same(db, reference, run="r1"):
+    ref_s, ref_r, ref_gaps = reference
+    got = pu.samples(db, run)
+    assert got.shape == ref_s.shape, f"{len(got)} samples stored, the clean run has {len(ref_s)}"
+    assert np.array_equal(got[:, 0], np.arange(len(got))), "a sample is missing or repeated"
+    if not db.startswith("host="):
+        # SQLite stores a REAL that is a whole number as an integer, which has no -0.0
+        # (docs/plant.md "Schema"): the one difference from bit identity it allows.
+        ref_s = ref_s + 0.0
+    assert np.array_equal(pu.bits(got), pu.bits(ref_s)), "values differ from the clean run"
+    assert [r[1:] for r in pu.revolutions(db, run)] == ref_r
+    ev = pu.events(db, run)
+    assert [e[3] for e in ev if e[1] == "gap"] == ref_gaps
+    assert [e[0] for e in ev] == list(range(len(ev))), "event numbers not consecutive"
+    return ev
+
+
+@pytest.mark.parametrize("kind", ["sqlite", "postgres"])
+def test_sigkill_three_times_loses_nothing_and_repeats_nothing(
+    kind, fmu_path, tmp_path, reference, request
+):
+    db = str(tmp_path / "twin.sqlite")
+    if kind == "postgres":
+        pg = request.getfixturevalue("pg")
+        db = pg.dsn
+        run_id = "kill-" + str(time.time_ns())
+        sink = pu.pg_sink(db)
+    else:
+        run_id = "r1"
+        sink = pu.sqlite_sink(db)
+    # Paced at 6x real time (12 s of data in about 2 s) so that the kills fall inside the run.
+    cfg = pu.write_config(
+        tmp_path / "t.toml",
+        run=run_id,
+        source=pu.csv_source(pace=6.0),
+        sinks=sink,
+        fmu=fmu_path,
+        run_extra="commit_interval = 0.05\ncommit_samples = 300\n",
+    )
+    rng = random.Random(SEED + (kind == "postgres"))
+    progress = [0]
+
+    for _ in range(3):
+        p = pu.start(cfg)
+        try:
+            # Once this run has committed something of its own, a random moment later: SIGKILL.
+            pu.wait_for_commit(db, run_id, progress[-1], p)
+            time.sleep(rng.uniform(0.0, 0.5))
+            assert p.poll() is None, f"the run ended before the kill: {p.stderr.read()}"
+            p.send_signal(signal.SIGKILL)
+            p.wait(timeout=10)
+        finally:
+            if p.poll() is None:
+                p.kill()
+                p.wait(timeout=10)
+        progress.append(pu.committed(db, run_id))
+    # Each restart got further, and the kills fell inside the run (not after its end).
+    assert progress == sorted(progress) and len(set(progress)) == 4, progress
+    assert progress[-1] < len(reference[0]), progress
+    done = pu.run(cfg)
+    assert done.returncode == 0, done.stderr
+    ev = _same(db, reference, run_id)
+    assert 1 <= len([e for e in ev if e[1] == "resumed"]) <= 4
+    assert pu.query(db, "SELECT status FROM runs WHERE name = ?", (run_id,)) == [("finished",)]
+    # Run once more: nothing to do, nothing added.
+    again = pu.run(cfg)
+    assert again.returncode == 0 and "already finished" in again.stderr
+    assert len(pu.samples(db, run_id)) == len(reference[0])
+
+
+def test_postgres_restart_mid_run_buffers_and_loses_nothing(pg, fmu_path, tmp_path, reference):
+    run_id = "restart-" + str(time.time_ns())
+    cfg = pu.write_config(
+        tmp_path / "t.toml",
+        run=run_id,
+        source=pu.csv_source(pace=4.0),
+        sinks=pu.pg_sink(pg.dsn, extra="retry_for = 60\nretry_max = 0.5\n"),
+        fmu=fmu_path,
+        run_extra="commit_interval = 0.05\ncommit_samples = 300\n",
+    )
+    p = pu.start(cfg)
+    try:
+        before = pu.wait_for_commit(pg.dsn, run_id, 0, p)
+        pg.restart_after(3.0)  # down for 3 s: the twin goes on reading and computing
+        out, err = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait(timeout=10)
+    assert p.returncode == 0, err
+    assert 0 < before < len(reference[0])
+    ev = _same(pg.dsn, reference, run_id)
+    retries = [e for e in ev if e[1] == "sink_retry"]
+    assert retries and retries[0][2] >= 1, ev
