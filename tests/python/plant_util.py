@@ -147,3 +147,79 @@ def wait_for_commit(db, run, above: int, proc, timeout=30.0) -> int:
             raise AssertionError(f"no commit beyond {above} samples within {timeout} s")
         time.sleep(0.02)
     return n
+
+
+def clean_run(fmu_path, path=SAMPLE, counts=True):
+    """The clean run: a CSV file through the twin's core in one go, in this process (seq, t and
+    outputs as one array; summaries as tuples; the gap messages), no database involved."""
+    from reciprocating_drive.twin import SUMMARY_FIELDS, Options, Twin
+
+    opts = Options(angle_unit="counts", counts_per_rev=4096) if counts else Options()
+    tw = Twin(fmu_path, "default", opts)
+    rows, sums = tw.feed(pathlib.Path(path).read_text().splitlines(), 1)
+    rest, more = tw.finish()
+    rows = np.concatenate([rows, rest])
+    table = np.column_stack([np.arange(len(rows)), rows])
+    revs = [tuple(s[k] for k in SUMMARY_FIELDS) for s in sums + more]
+    return table, revs, list(tw.messages)
+
+
+def same_values(got: np.ndarray, ref: np.ndarray, sqlite: bool) -> bool:
+    """Bit for bit; SQLite stores a whole-number REAL as an integer, which has no -0.0
+    (docs/plant.md "Schema"), so there -0.0 and 0.0 count as the same."""
+    if got.shape != ref.shape:
+        return False
+    if sqlite:
+        got, ref = got + 0.0, ref + 0.0
+    return bool(np.array_equal(bits(got), bits(ref)))
+
+
+class PlcProcess:
+    """scripts/plc_sim.py as a real process on 127.0.0.1; stopped (bounded) on exit."""
+
+    def __init__(self, *args, env_extra=None, data=SAMPLE):
+        import socket
+
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            self.port = s.getsockname()[1]
+        self.endpoint = f"opc.tcp://127.0.0.1:{self.port}/plc"
+        self.args = [
+            sys.executable,
+            str(ROOT / "scripts" / "plc_sim.py"),
+            "--port",
+            str(self.port),
+            "--data",
+            str(data),
+            "--linger",
+            "60",
+            *args,
+        ]
+        self.env = {**env(), **(env_extra or {})}
+
+    def __enter__(self):
+        import time
+
+        self.p = subprocess.Popen(
+            self.args, env=self.env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+        )
+        deadline = time.monotonic() + 30
+        self.out = []
+        while time.monotonic() < deadline:
+            line = self.p.stdout.readline()
+            if not line:
+                break
+            self.out.append(line)
+            if "listening on" in line:
+                return self
+        self.__exit__()
+        raise AssertionError("plc_sim did not start: " + "".join(self.out))
+
+    def __exit__(self, *exc):
+        if self.p.poll() is None:
+            self.p.terminate()
+            try:
+                self.p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.p.kill()
+                self.p.wait(timeout=10)

@@ -30,17 +30,7 @@ def pg():
 
 @pytest.fixture(scope="module")
 def reference(fmu_path):
-    """The clean run: the shipped sample through the twin's core in one go, in this process
-    (rows, summaries, gap messages), no database involved."""
-    from reciprocating_drive.twin import SUMMARY_FIELDS, Options, Twin
-
-    tw = Twin(fmu_path, "default", Options(angle_unit="counts", counts_per_rev=4096))
-    rows, sums = tw.feed(pu.SAMPLE.read_text().splitlines(), 1)
-    rest, more = tw.finish()
-    rows = np.concatenate([rows, rest])
-    table = np.column_stack([np.arange(len(rows)), rows])
-    revs = [tuple(s[k] for k in SUMMARY_FIELDS) for s in sums + more]
-    return table, revs, list(tw.messages)
+    return pu.clean_run(fmu_path)
 
 
 def _same(db, reference, run="r1"):
@@ -48,11 +38,7 @@ def _same(db, reference, run="r1"):
     got = pu.samples(db, run)
     assert got.shape == ref_s.shape, f"{len(got)} samples stored, the clean run has {len(ref_s)}"
     assert np.array_equal(got[:, 0], np.arange(len(got))), "a sample is missing or repeated"
-    if not db.startswith("host="):
-        # SQLite stores a REAL that is a whole number as an integer, which has no -0.0
-        # (docs/plant.md "Schema"): the one difference from bit identity it allows.
-        ref_s = ref_s + 0.0
-    assert np.array_equal(pu.bits(got), pu.bits(ref_s)), "values differ from the clean run"
+    assert pu.same_values(got, ref_s, sqlite=not db.startswith("host=")), "values differ"
     assert [r[1:] for r in pu.revolutions(db, run)] == ref_r
     ev = pu.events(db, run)
     assert [e[3] for e in ev if e[1] == "gap"] == ref_gaps
