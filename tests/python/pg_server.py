@@ -51,7 +51,24 @@ class PgServer:
 
     def init(self) -> PgServer:
         if os.geteuid() == 0:
-            pw = pwd.getpwnam(self.user)
+            try:
+                pw = pwd.getpwnam(self.user)
+            except KeyError:
+                # The server refuses root: an unprivileged system user to run it.
+                subprocess.run(
+                    [
+                        "useradd",
+                        "--system",
+                        "--no-create-home",
+                        "--shell",
+                        "/usr/sbin/nologin",
+                        self.user,
+                    ],
+                    check=True,
+                    capture_output=True,
+                    timeout=30,
+                )
+                pw = pwd.getpwnam(self.user)
             os.chown(self.dir, pw.pw_uid, pw.pw_gid)
         self._as_user(["initdb", "-D", self.data, "-U", "twin", "--auth=trust", "-E", "UTF8"])
         with open(os.path.join(self.data, "postgresql.conf"), "a") as f:

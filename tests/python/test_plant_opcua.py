@@ -63,6 +63,8 @@ def _check_equal(db, run, reference):
     assert len(got) == len(ref_s), f"{len(got)} samples, the file has {len(ref_s)}"
     assert pu.same_values(got, ref_s, sqlite=True)
     assert [r[1:] for r in pu.revolutions(db, run)] == ref_r
+    gaps = [e[3] for e in pu.events(db, run) if e[1] == "gap"]
+    assert gaps == reference[2], gaps  # the file's one gap, reported once
 
 
 def test_scalar_and_block_nodes_give_the_file_replay_bit_for_bit(fmu_path, tmp_path, reference):

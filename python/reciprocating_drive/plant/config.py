@@ -65,6 +65,11 @@ class _Table:
 
     def done(self) -> None:
         extra = sorted(set(self.data) - self.used)
+        if "password" in extra:
+            raise ConfigError(
+                f"{self.path}: {self.name}.password: a password is never written in the "
+                "configuration; use password_file or password_env"
+            )
         if extra:
             raise ConfigError(
                 f"{self.path}: {self.name}.{extra[0]} is not a known key "
