@@ -69,6 +69,9 @@ def main(argv=None) -> int:
     ap.add_argument("--speed", type=positive, default=1.0, help="multiple of real time")
     ap.add_argument("--block-ms", type=positive, default=50.0)
     ap.add_argument("--no-history", action="store_true")
+    ap.add_argument(
+        "--nodes", choices=("scalar", "block", "both"), default="both", help="which nodes to write"
+    )
     ap.add_argument("--security", choices=("Sign", "SignAndEncrypt"), default=None)
     ap.add_argument("--cert-dir", default=None)
     ap.add_argument("--user", default=None)
@@ -120,6 +123,7 @@ def main(argv=None) -> int:
             outage=a.outage,
             origin=a.origin,
             start_delay=a.start_delay,
+            written=a.nodes,
         )
     except (OSError, ValueError) as e:
         print(f"plc_sim.py: --data {a.data}: {e}", file=sys.stderr)

@@ -104,7 +104,7 @@ class Config:
     options: dict  # reciprocating_drive.twin.Options fields
     source: SourceConfig
     sinks: list[SinkConfig]
-    commit_interval: float = 0.2
+    commit_interval: float = 0.1
     commit_samples: int = 20000
 
 
@@ -176,7 +176,7 @@ def parse(data: dict, path: str = "<config>") -> Config:
         machine = _path(path, machine)
     fmu = run.get("fmu", str, str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
     fmu = _path(path, fmu)
-    commit_interval = run.positive("commit_interval", 0.2)
+    commit_interval = run.positive("commit_interval", 0.1)
     commit_samples = run.get(
         "commit_samples", int, 20000, "must be an integer >= 1", lambda v: v >= 1
     )

@@ -110,6 +110,9 @@ class Pipeline:
         }
         for s in self.sinks:
             s.commit(state, self.c, status)
+        if status is not None:
+            for s in self.sinks:
+                s.flush()
         self.commits += 1
         self.dirty = False
         self.last_commit = time.monotonic()
@@ -128,7 +131,10 @@ class Pipeline:
         finally:
             self.source.close()
             for s in self.sinks:
-                s.close()
+                try:
+                    s.flush()
+                finally:
+                    s.shutdown()
 
     def _run(self) -> int:
         cfg = self.cfg

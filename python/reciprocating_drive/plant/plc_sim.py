@@ -110,6 +110,7 @@ class PlcSim:
     outage: tuple | None = None  # (data time t [s], seconds closed)
     origin: float | None = None  # Unix seconds of t = 0 (default: the next whole second)
     start_delay: float = 0.0  # seconds between listening and the first sample
+    written: str = "both"  # which nodes are written: "scalar", "block" or "both"
     log: object = print
 
     def __post_init__(self):
@@ -241,8 +242,16 @@ class PlcSim:
             if not outage_done and now >= self.outage[0]:
                 outage_done = True
                 asyncio.get_running_loop().create_task(self._outage(self.outage[1]))
+            scalar = self.written in ("scalar", "both")
             while i < n and self.t[i] <= now:
                 ts = self._stamp(origin, self.t[i])
+                if not scalar:
+                    i += 1
+                    if self.t[i - 1] >= next_block or i == n:
+                        await self._block(block_start, i, origin, ts)
+                        block_start = i
+                        next_block = self.t[i - 1] + self.block_ms / 1000.0
+                    continue
                 if self.speed_col is not None:
                     await self._write("Pump.CrankSpeed", float(self.speed_col[i]), D, ts)
                 if self.force_col is not None:
@@ -267,7 +276,7 @@ class PlcSim:
                 else:
                     await self._write("Pump.CrankAngle", float(self.angle[i]), D, ts)
                 i += 1
-                if self.t[i - 1] >= next_block or i == n:
+                if self.written == "both" and (self.t[i - 1] >= next_block or i == n):
                     await self._block(block_start, i, origin, ts)
                     block_start = i
                     next_block = self.t[i - 1] + self.block_ms / 1000.0

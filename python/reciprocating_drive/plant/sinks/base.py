@@ -10,11 +10,19 @@ retries with a bounded back-off (`retry_for` seconds in all, doubling delays up 
 commit whose outcome is unknown (the connection died during COMMIT) is settled by reading back the
 checkpoint's commit number. Only when `retry_for` has passed does the run stop, with one line, and
 the database still holds a consistent state to resume from.
+
+The transactions run on a writer thread, in order, while the pipeline computes the next chunk
+(the database's own work releases Python's lock, and the machine has a second core). At most
+`depth` commits wait for it; then `commit` waits, and the source's queue buffers (a database
+that is down slows the twin, it never loses a row).
 """
 
 from __future__ import annotations
 
+import functools
 import json
+import queue
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -62,14 +70,21 @@ class Sink:
     name = "sink"
     transient: tuple = ()  # exceptions meaning "the database is unreachable now"
 
-    def __init__(self, samples="all", retry_for: float = 300.0, retry_max: float = 5.0):
+    def __init__(
+        self, samples="all", retry_for: float = 300.0, retry_max: float = 5.0, depth: int = 2
+    ):
         self.samples = samples
         self.retry_for, self.retry_max = retry_for, retry_max
         self.batch = _Batch()
         self.done = Counters()  # what the database holds (from its checkpoint)
+        self.skip = Counters()  # what it held when the run resumed: not handed to it again
+        self.commits = 0
         self.run_key = None
         self.retries = 0  # commits that had to be retried (reported as events by the pipeline)
         self.notes: list[str] = []
+        self._q: queue.Queue = queue.Queue(maxsize=depth)
+        self._error: BaseException | None = None
+        self._worker: threading.Thread | None = None
 
     # ---- to implement --------------------------------------------------------------------------
     def _connect(self) -> None: ...
@@ -86,6 +101,10 @@ class Sink:
         self.run_key, state = self._retrying(lambda: self._open_run(run))
         if state is not None:
             self.done = Counters(**state["counters"])
+            self.skip = Counters(**state["counters"])
+            self.commits = self.done.commits
+        self._worker = threading.Thread(target=self._work, name=f"sink {self.name}", daemon=True)
+        self._worker.start()
         return state
 
     def add(self, rows: np.ndarray, first_seq: int, summaries: list, first_rev: int, events):
@@ -94,7 +113,7 @@ class Sink:
         b = self.batch
         if len(rows) and self.samples != "none":
             seq = np.arange(first_seq, first_seq + len(rows))
-            keep = seq >= self.done.samples
+            keep = seq >= self.skip.samples
             if self.samples != "all":
                 keep &= seq % int(self.samples) == 0
             if keep.all():
@@ -103,33 +122,74 @@ class Sink:
                 # Decimated or partly held already: the kept rows with their own seq.
                 b.rows.append((seq[keep], rows[keep]))
         for i, s in enumerate(summaries):
-            if first_rev + i >= self.done.revolutions:
+            if first_rev + i >= self.skip.revolutions:
                 b.summaries.append(s)
         for seq, wall, ev in events:
-            if seq >= self.done.events:
+            if seq >= self.skip.events:
                 b.events.append((seq, wall, ev))
 
     def commit(self, state: dict, c: Counters, status: str | None = None) -> None:
-        """Writes the batch and the checkpoint `state` in one transaction (retried, bounded)."""
-        c = Counters(c.samples, c.revolutions, c.events, self.done.commits + 1)
+        """Hands the batch and the checkpoint `state` to the writer thread, which writes them in
+        one transaction (retried, bounded). Raises the writer's failure, if any."""
+        self._check()
+        self.commits += 1
+        c = Counters(c.samples, c.revolutions, c.events, self.commits)
         text = json.dumps({**state, "counters": c.__dict__})
-        batch = self.batch
+        batch, self.batch = self.batch, _Batch()
+        while True:
+            try:
+                self._q.put((batch, text, c, status), timeout=0.5)
+                return
+            except queue.Full:
+                self._check()
 
-        def once():
-            self._write(batch, text, c, status)
+    def flush(self) -> None:
+        """Waits until every commit handed over is in the database (or raises its failure)."""
+        if self._worker is not None:
+            while self._worker.is_alive() and self._q.unfinished_tasks:
+                time.sleep(0.005)
+        self._check()
 
-        def settled() -> bool:
-            # After a lost connection: did the COMMIT we were waiting for go through?
-            return self._committed() >= c.commits
+    def _check(self) -> None:
+        if self._error is not None:
+            e, self._error = self._error, None
+            self._worker = None
+            raise e
 
-        self._retrying(once, settled)
-        self.batch = _Batch()
-        self.done = Counters(
-            max(c.samples, self.done.samples),
-            max(c.revolutions, self.done.revolutions),
-            max(c.events, self.done.events),
-            c.commits,
-        )
+    def _settled(self, commits: int) -> bool:
+        """After a lost connection: did the COMMIT we were waiting for go through?"""
+        return self._committed() >= commits
+
+    def shutdown(self) -> None:
+        """Ends the writer thread (after what it holds) and closes the connection."""
+        if self._worker is not None and self._worker.is_alive():
+            try:
+                self._q.put(None, timeout=self.retry_for + 10)
+                self._worker.join(timeout=self.retry_for + 10)
+            except queue.Full:
+                pass
+        self.close()
+
+    def _work(self) -> None:
+        while True:
+            item = self._q.get()
+            if item is None:
+                self._q.task_done()
+                return
+            batch, text, c, status = item
+            try:
+                if self._error is None:
+                    self._retrying(
+                        functools.partial(self._write, batch, text, c, status),
+                        functools.partial(self._settled, c.commits),
+                    )
+                    self.done = c
+            except BaseException as e:  # noqa: BLE001 - raised in the pipeline's thread
+                self._error = e
+            finally:
+                self._q.task_done()
+            if self._error is not None:
+                return
 
     def _retrying(self, fn, settled=None):
         start, delay, reconnect = time.monotonic(), 0.05, False

@@ -32,7 +32,10 @@ class SqliteSink(Sink):
         if self.db is not None:
             return
         try:
-            db = sqlite3.connect(self.path, isolation_level=None, timeout=30.0)
+            # One thread at a time uses it: the pipeline's to open, then the writer's.
+            db = sqlite3.connect(
+                self.path, isolation_level=None, timeout=30.0, check_same_thread=False
+            )
             db.execute("PRAGMA journal_mode=WAL")
             db.execute("PRAGMA synchronous=NORMAL")
         except sqlite3.DatabaseError as e:
