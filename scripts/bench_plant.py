@@ -6,7 +6,10 @@
 1. Replay: the shipped sample repeated `--repeats` times (12 s each) from a file, into SQLite and
    PostgreSQL (a temporary server, tests/python/pg_server.py), with every sample's row and with
    summaries only; beside it, in the same run, the baseline: the twin's core alone on the same
-   lines (Twin.feed, no source, no sink). Figures: multiples of real time, whole process.
+   lines (Twin.feed, no source, no sink). Figures: multiples of real time of the whole process,
+   by wall time and by CPU time (all its threads, and for PostgreSQL the server's backend too):
+   on a shared machine the wall time says how busy the others were, the CPU time what the twin
+   needs.
 2. Live at 1 kHz: the simulated PLC in real time, the twin subscribed over OPC UA (scalar nodes),
    SQLite; the database is polled every 10 ms and each sample's latency is the poll's wall time
    minus the sample's source timestamp (an upper bound, by at most the poll interval). Default
@@ -84,6 +87,15 @@ def timed(cfg) -> tuple[float, float]:
     return w, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
 
 
+def server_cpu(pg) -> float:
+    """CPU seconds of the PostgreSQL server's finished backends (the postmaster's children)."""
+    if pg is None:
+        return 0.0
+    pid = pathlib.Path(pg.data, "postmaster.pid").read_text().split()[0]
+    f = pathlib.Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(f[13]) + int(f[14])) / os.sysconf("SC_CLK_TCK")  # cutime + cstime
+
+
 def baseline(path) -> float:
     """The twin's core alone on the file's lines (blocks of 64 KiB worth of lines)."""
     from reciprocating_drive.twin import Options, Twin
@@ -115,7 +127,11 @@ def replay(repeats: int, d: pathlib.Path) -> None:
                     if kind == "sqlite"
                     else f'[[sink]]\ntype = "postgres"\ndsn = "{pg.dsn}"\nsamples = {samples}\n'
                 )
+                server = pg if kind == "postgres" else None
+                s0 = server_cpu(server)
                 w, cpu = timed(config(d / f"{run}.toml", run, src, sink))
+                time.sleep(0.2)  # the backend of the closed connection is reaped
+                cpu += server_cpu(server) - s0
                 label = f"{kind}, samples = {samples}"
                 print(
                     f"  {label:<28} whole process: {w:6.2f} s wall {span / w:7.1f}x real time; "
@@ -192,7 +208,7 @@ def memory(n: int, d: pathlib.Path) -> None:
     db = d / "mem.sqlite"
     src = 'type = "csv"\npath = "/dev/stdin"\nangle_unit = "counts"\ncounts_per_rev = 4096\n'
     sink = f'[[sink]]\ntype = "sqlite"\npath = "{db}"\nsamples = "none"\n'
-    cfg = config(d / "mem.toml", "mem", src, sink, extra="commit_samples = 100000\n")
+    cfg = config(d / "mem.toml", "mem", src, sink)
     p = run_twin(cfg, stdin=subprocess.PIPE)
     feeder = threading.Thread(target=produce, args=(p.stdin, n), daemon=True)
     t0 = time.perf_counter()
@@ -227,6 +243,9 @@ def memory(n: int, d: pathlib.Path) -> None:
         f"{ref} kB, largest after {top} kB ({(top / ref - 1) * 100:+.1f} %); "
         f"{len(points)} readings"
     )
+    marks = [(s, r) for s, r in points if s > 0]
+    for k in np.unique(np.linspace(0, len(marks) - 1, 8).astype(int)):
+        print(f"  {marks[k][0]:>9} samples: VmRSS {marks[k][1]} kB")
 
 
 def main(argv=None) -> int:

@@ -257,3 +257,36 @@ def test_secured_server_refusals_are_one_clear_line(fmu_path, tmp_path, secured,
     assert len(lines) == 1 and message in lines[0], p.stderr
     _no_secret(p)
     assert "not-the-" not in p.stderr
+
+
+def test_sigkill_and_restart_on_a_live_source_with_history_loses_nothing(
+    fmu_path, tmp_path, reference
+):
+    import random
+    import signal
+    import time
+
+    plc = pu.PlcProcess("--speed", "2", "--start-delay", START_DELAY)
+    cfg = twin_config(tmp_path, "killed", opcua_source(plc.endpoint), fmu_path)
+    db = tmp_path / "killed.sqlite"
+    p = pu.start(cfg)
+    try:
+        with plc:
+            pu.wait_for_commit(db, "killed", 500, p)
+            time.sleep(random.Random(7).uniform(0.0, 0.5))
+            p.send_signal(signal.SIGKILL)
+            p.wait(timeout=10)
+            at_kill = pu.committed(db, "killed")
+            # Restarted while the PLC goes on: it resumes from the checkpoint and reads the
+            # samples since then back from the server's history.
+            p = pu.start(cfg)
+            out, err = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait(timeout=10)
+    assert p.returncode == 0, err
+    assert 500 < at_kill < len(reference[0])
+    _check_equal(db, "killed", reference)
+    ev = pu.events(db, "killed")
+    assert any(e[1] == "reconnect" and "resumed on" in e[3] for e in ev), ev

@@ -17,6 +17,7 @@ class CsvSource:
         self.path, self.pace = str(path), pace
         self.block = block or (1 << 12 if pace > 0 else 1 << 16)
         self.ended = False
+        self.live = pace > 0  # paced: commits by time, as a live source
         self._it = None
 
     def start(self, lines_read: int = 0, last_t=None, time_origin=None) -> None:

@@ -117,6 +117,12 @@ class OpcUaSource:
         self.need_header = lines_read == 0
         self.last_t = last_t  # the last sample handed out (twin time)
         self.time_origin = time_origin
+        if last_t is not None and time_origin is not None:
+            # Resumed: the samples after the checkpoint's last one are read back from the
+            # server's history at the first connection, as after a lost connection.
+            self._origin_dt = EPOCH + dt.timedelta(seconds=time_origin)
+            self.last_dt = self._origin_dt + dt.timedelta(microseconds=round(last_t * 1e6))
+            self._resumed = True
         self.connected = threading.Event()
         self.thread = threading.Thread(target=self._thread, name="opcua-source", daemon=True)
         self.thread.start()
@@ -327,10 +333,16 @@ class OpcUaSource:
             await sub.subscribe_data_change(end_node)
         self.join = _Joiner(self)
         events = []
+        if lost is None and getattr(self, "_resumed", False):
+            lost = (None, "the twin was restarted")
+            self._resumed = False
         if lost is not None:
             lost_at, reason = lost
-            down = time.monotonic() - lost_at
-            msg = f"connection to {self.s['endpoint']} lost ({reason}), back after {down:.3g} s"
+            if lost_at is None:
+                msg = f"resumed on {self.s['endpoint']} after the last checkpoint"
+            else:
+                down = time.monotonic() - lost_at
+                msg = f"connection to {self.s['endpoint']} lost ({reason}), back after {down:.3g} s"
             if self.s["history"] and self.last_dt is not None:
                 got = 0
                 try:
