@@ -46,6 +46,17 @@ def _same(db, reference, run="r1"):
     return ev
 
 
+def _rows_after_checkpoint(db, run) -> int:
+    """Sample rows committed beyond what the run's checkpoint covers."""
+    got = pu.query(
+        db,
+        "SELECT COUNT(*) FROM samples s JOIN runs r ON r.run = s.run JOIN checkpoints c "
+        "ON c.run = r.run WHERE r.name = ? AND s.seq >= c.samples",
+        (run,),
+    )
+    return got[0][0] if got else 0
+
+
 @pytest.mark.parametrize("kind", ["sqlite", "postgres"])
 def test_sigkill_three_times_loses_nothing_and_repeats_nothing(
     kind, fmu_path, tmp_path, reference, request
@@ -66,17 +77,26 @@ def test_sigkill_three_times_loses_nothing_and_repeats_nothing(
         source=pu.csv_source(pace=6.0),
         sinks=sink,
         fmu=fmu_path,
-        run_extra="commit_interval = 0.05\ncommit_samples = 300\n",
+        run_extra="commit_interval = 0.05\ncommit_samples = 2000\n",
     )
     rng = random.Random(SEED + (kind == "postgres"))
     progress = [0]
 
-    for _ in range(3):
+    uncovered = []
+    for k in range(3):
         p = pu.start(cfg)
         try:
-            # Once this run has committed something of its own, a random moment later: SIGKILL.
+            # Once this run has committed a checkpoint of its own, a random moment later: SIGKILL.
+            # The first kill waits until rows after the checkpoint are committed (rows go out
+            # every 0.05 s, checkpoints every 2000 lines): they must be deleted and made again.
             pu.wait_for_commit(db, run_id, progress[-1], p)
-            time.sleep(rng.uniform(0.0, 0.5))
+            if k == 0:
+                deadline = time.monotonic() + 30
+                while _rows_after_checkpoint(db, run_id) == 0:
+                    assert time.monotonic() < deadline and p.poll() is None
+                    time.sleep(0.005)
+            else:
+                time.sleep(rng.uniform(0.0, 0.5))
             assert p.poll() is None, f"the run ended before the kill: {p.stderr.read()}"
             p.send_signal(signal.SIGKILL)
             p.wait(timeout=10)
@@ -85,8 +105,10 @@ def test_sigkill_three_times_loses_nothing_and_repeats_nothing(
                 p.kill()
                 p.wait(timeout=10)
         progress.append(pu.committed(db, run_id))
+        uncovered.append(_rows_after_checkpoint(db, run_id))
     # Each restart got further, and the kills fell inside the run (not after its end).
     assert progress == sorted(progress) and len(set(progress)) == 4, progress
+    assert uncovered[0] > 0, uncovered
     assert progress[-1] < len(reference[0]), progress
     done = pu.run(cfg)
     assert done.returncode == 0, done.stderr

@@ -106,6 +106,7 @@ class Config:
     sinks: list[SinkConfig]
     commit_interval: float = 0.1
     commit_samples: int = 20000
+    checkpoint_interval: float = 2.0
 
 
 def _secret(t: _Table, what: str) -> str | None:
@@ -177,6 +178,7 @@ def parse(data: dict, path: str = "<config>") -> Config:
     fmu = run.get("fmu", str, str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
     fmu = _path(path, fmu)
     commit_interval = run.positive("commit_interval", 0.1)
+    checkpoint_interval = run.positive("checkpoint_interval", 2.0)
     commit_samples = run.get(
         "commit_samples", int, 20000, "must be an integer >= 1", lambda v: v >= 1
     )
@@ -266,6 +268,7 @@ def parse(data: dict, path: str = "<config>") -> Config:
         sinks,
         commit_interval,
         commit_samples,
+        checkpoint_interval,
     )
 
 

@@ -77,6 +77,8 @@ class Pipeline:
             s.add(rows, first, summaries, self.c.revolutions, events)
         self.c.samples = self.twin.rows_out
         self.c.revolutions += len(summaries)
+        if summaries:
+            self.c.rev_upto = int(summaries[-1]["revolution"])
         self.dirty = True
 
     def _twin_events(self) -> None:
@@ -94,7 +96,7 @@ class Pipeline:
             self._event(Event("duplicates", f"{n} duplicate timestamp(s) dropped", count=n))
             self.dups_seen = tw.duplicates
 
-    def _commit(self, status: str | None = None) -> None:
+    def _commit(self, status: str | None = None, checkpoint: bool = True) -> None:
         for s in self.sinks:
             if s.retries:
                 self._event(
@@ -102,12 +104,16 @@ class Pipeline:
                 )
                 s.retries, s.notes = 0, []
         self._hand(self.twin._empty(), [])
-        state = {
-            "twin": self.twin.checkpoint(),
-            "time_origin": self.source_origin(),
-            "duplicates_reported": self.dups_seen,
-            "gaps_reported": self.gap_count,
-        }
+        state = None
+        if checkpoint or status is not None:
+            state = {
+                "twin": self.twin.checkpoint(),
+                "time_origin": self.source_origin(),
+                "duplicates_reported": self.dups_seen,
+                "gaps_reported": self.gap_count,
+            }
+            self.last_checkpoint = time.monotonic()
+            self.lines_since_checkpoint = 0
         for s in self.sinks:
             s.commit(state, self.c, status)
         if status is not None:
@@ -165,7 +171,7 @@ class Pipeline:
         if state is not None:
             twin = Twin.from_checkpoint(cfg.fmu, state["twin"])
             c = state["counters"]
-            self.c = Counters(c["samples"], c["revolutions"], c["events"])
+            self.c = Counters(c["samples"], c["revolutions"], c["events"], 0, c.get("rev_upto"))
             self.dups_seen = state.get("duplicates_reported", 0)
         self.twin = twin
         self.gaps_seen, self.msgs_seen = len(twin.gaps), 0
@@ -185,8 +191,8 @@ class Pipeline:
             )
         )
         self.dirty = True
-        self.last_commit = time.monotonic()
-        self.lines_since = 0
+        self.last_commit = self.last_checkpoint = time.monotonic()
+        self.lines_since = self.lines_since_checkpoint = 0
         lineno = twin.lines_read
         live = getattr(self.source, "live", True)
 
@@ -212,14 +218,22 @@ class Pipeline:
                             return self._failed(e)
                         lineno += len(chunk.lines)
                         self.lines_since += len(chunk.lines)
+                        self.lines_since_checkpoint += len(chunk.lines)
                         self._hand(rows, sums)
                 # A live source commits every commit_interval (the rows' latency); a replay
                 # as fast as possible every commit_samples lines (fewer, larger transactions).
+                # Rows of a live source go out every commit_interval, with a checkpoint every
+                # checkpoint_interval; a replay commits rows and checkpoint together.
+                now = time.monotonic()
                 if self.dirty and (
                     self.lines_since >= cfg.commit_samples
-                    or (live and time.monotonic() - self.last_commit >= cfg.commit_interval)
+                    or (live and now - self.last_commit >= cfg.commit_interval)
                 ):
-                    self._commit()
+                    self._commit(
+                        checkpoint=not live
+                        or self.lines_since_checkpoint >= cfg.commit_samples
+                        or now - self.last_checkpoint >= cfg.checkpoint_interval
+                    )
             if self.stop_signal is not None:
                 self._commit()
                 self.log(

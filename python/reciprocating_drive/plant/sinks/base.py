@@ -1,9 +1,12 @@
 """What every database sink does (docs/plant.md, "Exactly once").
 
 The pipeline hands a sink rows, revolution summaries and events as the twin produces them (`add`);
-they wait in memory until `commit(state)`, which writes all of them AND the checkpoint `state` in
-one transaction. After a crash the database holds exactly what the last committed checkpoint
-covers, and the twin resumes from that checkpoint: nothing is lost and nothing is stored twice.
+they wait in memory until `commit(state)`, which writes all of them, and the checkpoint `state` if
+one is given, in one transaction. A live twin commits rows often (their latency) and checkpoints
+less often (a checkpoint holds a revolution of rows, hundreds of kB). When the run is opened
+again, the rows after the last checkpoint are deleted in the same transaction that reads it, so
+the database holds exactly what that checkpoint covers, and the twin resumes from it and computes
+them again: nothing is lost and nothing is stored twice.
 
 A commit that fails because the database is unreachable keeps everything in memory, reconnects and
 retries with a bounded back-off (`retry_for` seconds in all, doubling delays up to `retry_max`); a
@@ -49,12 +52,14 @@ class RunInfo:
 @dataclass
 class Counters:
     """How much of the run a checkpoint covers: sample rows (the next sample's seq), revolution
-    summaries and events handed out, and the number of commits."""
+    summaries and events handed out, the number of the last revolution handed out (None: none
+    yet), and the number of commits."""
 
     samples: int = 0
     revolutions: int = 0
     events: int = 0
     commits: int = 0
+    rev_upto: int | None = None
 
 
 @dataclass
@@ -128,13 +133,13 @@ class Sink:
             if seq >= self.skip.events:
                 b.events.append((seq, wall, ev))
 
-    def commit(self, state: dict, c: Counters, status: str | None = None) -> None:
-        """Hands the batch and the checkpoint `state` to the writer thread, which writes them in
-        one transaction (retried, bounded). Raises the writer's failure, if any."""
+    def commit(self, state: dict | None, c: Counters, status: str | None = None) -> None:
+        """Hands the batch and the checkpoint `state` (None: rows only) to the writer thread, which
+        writes them in one transaction (retried, bounded). Raises the writer's failure, if any."""
         self._check()
         self.commits += 1
-        c = Counters(c.samples, c.revolutions, c.events, self.commits)
-        text = json.dumps({**state, "counters": c.__dict__})
+        c = Counters(c.samples, c.revolutions, c.events, self.commits, c.rev_upto)
+        text = None if state is None else json.dumps({**state, "counters": c.__dict__})
         batch, self.batch = self.batch, _Batch()
         while True:
             try:
@@ -214,6 +219,21 @@ class Sink:
                 time.sleep(delay)
                 delay = min(delay * 2, self.retry_max)
                 reconnect = True
+
+
+def uncovered(state: dict | None, run: int) -> list:
+    """Statements (with ? marks) deleting a run's rows that its checkpoint `state` does not cover
+    (all of them without a checkpoint): they were committed after it and are computed again."""
+    c = Counters(**state["counters"]) if state else Counters()
+    out = [
+        ("DELETE FROM samples WHERE run = ? AND seq >= ?", (run, c.samples)),
+        ("DELETE FROM events WHERE run = ? AND seq >= ?", (run, c.events)),
+    ]
+    if c.rev_upto is None:
+        out.append(("DELETE FROM revolutions WHERE run = ?", (run,)))
+    else:
+        out.append(("DELETE FROM revolutions WHERE run = ? AND revolution > ?", (run, c.rev_upto)))
+    return out
 
 
 def new_event(seq: int, ev: Event) -> tuple:

@@ -15,7 +15,7 @@ import psycopg
 
 from ...twin import SUMMARY_FIELDS
 from ..schema import SCHEMA_VERSION, column, ddl
-from .base import RunInfo, Sink, SinkError
+from .base import RunInfo, Sink, SinkError, uncovered
 
 _COPY_HEADER = b"PGCOPY\n\xff\r\n\x00" + (0).to_bytes(4, "big") + (0).to_bytes(4, "big")
 _COPY_TRAILER = (-1).to_bytes(2, "big", signed=True)
@@ -117,9 +117,12 @@ class PostgresSink(Sink):
                     cp = c.execute(
                         "SELECT state FROM checkpoints WHERE run = %s", (key,)
                     ).fetchone()
-                    if cp is not None:
+                    if cp is not None and cp[0]:
                         state = json.loads(cp[0])
                         state["status"] = status
+                    # What the last checkpoint does not cover is computed again (base.py).
+                    for stmt, args in uncovered(state, key):
+                        c.execute(stmt.replace("?", "%s"), args)
         except psycopg.errors.UniqueViolation:
             # Another twin created the same run at the same moment.
             raise SinkError(
@@ -164,15 +167,33 @@ class PostgresSink(Sink):
                                 for s, w, e in batch.events
                             ],
                         )
-                    cur.execute(
-                        "INSERT INTO checkpoints (run, commits, samples, revolutions, events, "
-                        "wall_time, state) VALUES (%s, %s, %s, %s, %s, %s, %s) ON CONFLICT (run) "
-                        "DO UPDATE SET commits = excluded.commits, samples = excluded.samples, "
-                        "revolutions = excluded.revolutions, events = excluded.events, "
-                        "wall_time = excluded.wall_time, state = excluded.state",
-                        (run, c.commits, c.samples, c.revolutions, c.events, time.time(), state),
-                    )
-                    origin = json.loads(state).get("time_origin")
+                    if state is None:
+                        # Rows only: the commit number moves (to settle an unknown outcome).
+                        cur.execute(
+                            "INSERT INTO checkpoints (run, commits, samples, revolutions, events, "
+                            "wall_time, state) VALUES (%s, %s, 0, 0, 0, %s, '') ON CONFLICT (run) "
+                            "DO UPDATE SET commits = excluded.commits",
+                            (run, c.commits, time.time()),
+                        )
+                    else:
+                        cur.execute(
+                            "INSERT INTO checkpoints (run, commits, samples, revolutions, events, "
+                            "wall_time, state) VALUES (%s, %s, %s, %s, %s, %s, %s) ON CONFLICT "
+                            "(run) DO UPDATE SET commits = excluded.commits, "
+                            "samples = excluded.samples, revolutions = excluded.revolutions, "
+                            "events = excluded.events, wall_time = excluded.wall_time, "
+                            "state = excluded.state",
+                            (
+                                run,
+                                c.commits,
+                                c.samples,
+                                c.revolutions,
+                                c.events,
+                                time.time(),
+                                state,
+                            ),
+                        )
+                    origin = json.loads(state).get("time_origin") if state else None
                     cur.execute(
                         "UPDATE runs SET time_origin = COALESCE(time_origin, %s), "
                         "status = COALESCE(%s, status), finished_at = CASE WHEN %s = 'finished' "

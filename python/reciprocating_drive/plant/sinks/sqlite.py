@@ -15,7 +15,7 @@ import numpy as np
 
 from ...twin import SUMMARY_FIELDS
 from ..schema import SCHEMA_VERSION, column, ddl
-from .base import RunInfo, Sink, SinkError
+from .base import RunInfo, Sink, SinkError, uncovered
 
 
 class SqliteSink(Sink):
@@ -95,9 +95,12 @@ class SqliteSink(Sink):
                         f"({machine}), not {run.machine_id!r} ({run.machine}); name a new run"
                     )
                 cp = db.execute("SELECT state FROM checkpoints WHERE run = ?", (key,)).fetchone()
-                if cp is not None:
+                if cp is not None and cp[0]:
                     state = json.loads(cp[0])
                     state["status"] = status
+                # What the last checkpoint does not cover is computed again (base.py).
+                for stmt, args in uncovered(state, key):
+                    db.execute(stmt, args)
             db.execute("COMMIT")
         except sqlite3.DatabaseError as e:
             if db.in_transaction:
@@ -133,14 +136,24 @@ class SqliteSink(Sink):
                     "VALUES (?, ?, ?, ?, ?, ?, ?)",
                     ((run, s, e.t, w, e.kind, e.count, e.message) for s, w, e in batch.events),
                 )
-            db.execute(
-                "INSERT INTO checkpoints (run, commits, samples, revolutions, events, wall_time, state) "
-                "VALUES (?, ?, ?, ?, ?, ?, ?) ON CONFLICT (run) DO UPDATE SET commits = excluded.commits, "
-                "samples = excluded.samples, revolutions = excluded.revolutions, "
-                "events = excluded.events, wall_time = excluded.wall_time, state = excluded.state",
-                (run, c.commits, c.samples, c.revolutions, c.events, time.time(), state),
-            )
-            origin = json.loads(state).get("time_origin")
+            if state is None:
+                # Rows only: the commit number moves (to settle a COMMIT of unknown outcome).
+                db.execute(
+                    "INSERT INTO checkpoints (run, commits, samples, revolutions, events, "
+                    "wall_time, state) VALUES (?, ?, 0, 0, 0, ?, '') ON CONFLICT (run) DO UPDATE "
+                    "SET commits = excluded.commits",
+                    (run, c.commits, time.time()),
+                )
+            else:
+                db.execute(
+                    "INSERT INTO checkpoints (run, commits, samples, revolutions, events, "
+                    "wall_time, state) VALUES (?, ?, ?, ?, ?, ?, ?) ON CONFLICT (run) DO UPDATE "
+                    "SET commits = excluded.commits, samples = excluded.samples, "
+                    "revolutions = excluded.revolutions, events = excluded.events, "
+                    "wall_time = excluded.wall_time, state = excluded.state",
+                    (run, c.commits, c.samples, c.revolutions, c.events, time.time(), state),
+                )
+            origin = json.loads(state).get("time_origin") if state else None
             db.execute(
                 "UPDATE runs SET time_origin = COALESCE(time_origin, ?), status = COALESCE(?, status), "
                 "finished_at = CASE WHEN ? = 'finished' THEN ? ELSE finished_at END WHERE run = ?",
