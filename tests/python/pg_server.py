@@ -80,6 +80,29 @@ class PgServer:
         self._as_user(["createdb", "-h", "127.0.0.1", "-p", str(self.port), "-U", "twin", "twin"])
         return self
 
+    def add_password_user(self, name: str, password: str) -> str:
+        """A login role that must give its password (scram-sha-256); its connection string,
+        without the password."""
+        import psycopg
+        from psycopg import sql
+
+        with psycopg.connect(self.dsn, autocommit=True) as c:
+            # DDL takes no parameters: the password as a quoted literal.
+            c.execute(
+                sql.SQL("CREATE ROLE {} LOGIN PASSWORD {}").format(
+                    sql.Identifier(name), sql.Literal(password)
+                )
+            )
+            c.execute(f"GRANT ALL ON DATABASE twin TO {name}".encode())
+            c.execute(f"GRANT ALL ON SCHEMA public TO {name}".encode())
+        hba = os.path.join(self.data, "pg_hba.conf")
+        with open(hba) as f:
+            rules = f.read()
+        with open(hba, "w") as f:
+            f.write(f"host all {name} 127.0.0.1/32 scram-sha-256\n" + rules)
+        self._as_user(["pg_ctl", "-D", self.data, "reload"], timeout=30)
+        return self.dsn.replace("user=twin", f"user={name}")
+
     def start(self) -> None:
         self._as_user(
             [

@@ -145,3 +145,36 @@ def test_postgres_restart_mid_run_buffers_and_loses_nothing(pg, fmu_path, tmp_pa
     ev = _same(pg.dsn, reference, run_id)
     retries = [e for e in ev if e[1] == "sink_retry"]
     assert retries and retries[0][2] >= 1, ev
+
+
+def test_postgres_password_from_the_environment_and_a_refused_login(pg, fmu_path, tmp_path):
+    """The password comes from an environment variable; a wrong one is refused at once (not
+    retried as an outage) with one line, and neither password is printed."""
+    import os
+    import subprocess
+    import sys
+
+    secret = "pg-S3cret-pw"
+    dsn = pg.add_password_user("pwuser", secret)
+    short = tmp_path / "short.csv"
+    short.write_text("\n".join(pu.SAMPLE.read_text().splitlines()[:1001]) + "\n")
+    cfg = pu.write_config(
+        tmp_path / "pw.toml",
+        run="pw-" + str(time.time_ns()),
+        source=pu.csv_source(short),
+        sinks=pu.pg_sink(dsn, extra='password_env = "TWIN_TEST_PG_PW"\n'),
+        fmu=fmu_path,
+    )
+    for pw, status in ((secret, 0), ("wrong-" + secret, 1)):
+        p = subprocess.run(
+            [sys.executable, str(pu.SCRIPT), "--config", str(cfg)],
+            env={**pu.env(), "TWIN_TEST_PG_PW": pw},
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        assert p.returncode == status, p.stderr
+        assert secret not in p.stdout + p.stderr
+    assert "password authentication failed" in p.stderr and p.stderr.count("\n") == 1
+    assert len(pu.samples(pg.dsn, cfg.read_text().split('"')[1])) == 1000
+    assert "TWIN_TEST_PG_PW" not in os.environ

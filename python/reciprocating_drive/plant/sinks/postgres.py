@@ -52,9 +52,16 @@ class PostgresSink(Sink):
             return
         self.close()
         kw = {"password": self.password} if self.password is not None else {}
-        self.conn = psycopg.connect(
-            self.dsn, connect_timeout=max(1, int(self.connect_timeout)), autocommit=True, **kw
-        )
+        try:
+            self.conn = psycopg.connect(
+                self.dsn, connect_timeout=max(1, int(self.connect_timeout)), autocommit=True, **kw
+            )
+        except psycopg.OperationalError as e:
+            text = str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__
+            # A refusal is not an outage: retrying cannot help.
+            if any(k in text for k in ("authentication failed", "does not exist", "no password")):
+                raise SinkError(f"{self.name}: refused: {text}") from None
+            raise
 
     def _open_run(self, run: RunInfo):
         c = self.conn
