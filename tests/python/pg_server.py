@@ -93,8 +93,8 @@ class PgServer:
                     sql.Identifier(name), sql.Literal(password)
                 )
             )
-            c.execute(f"GRANT ALL ON DATABASE twin TO {name}".encode())
-            c.execute(f"GRANT ALL ON SCHEMA public TO {name}".encode())
+            # The rights of the tables' owner (the schema may exist already).
+            c.execute(sql.SQL("GRANT twin TO {}").format(sql.Identifier(name)))
         hba = os.path.join(self.data, "pg_hba.conf")
         with open(hba) as f:
             rules = f.read()

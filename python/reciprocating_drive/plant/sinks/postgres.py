@@ -70,8 +70,10 @@ class PostgresSink(Sink):
             with c.transaction():
                 # One twin at a time creates the schema.
                 c.execute("SELECT pg_advisory_xact_lock(7452031)")
-                for stmt in ddl("postgres", run.outputs):
-                    c.execute(stmt)
+                # Made once (a role that only writes rows need not own the tables).
+                if c.execute("SELECT to_regclass('schema_info')").fetchone()[0] is None:
+                    for stmt in ddl("postgres", run.outputs):
+                        c.execute(stmt)
                 got = c.execute("SELECT version FROM schema_info").fetchall()
                 if not got:
                     c.execute("INSERT INTO schema_info VALUES (%s)", (SCHEMA_VERSION,))
