@@ -50,12 +50,6 @@ MUST_NOT_RUN = [
 # Blocks of pages that other work is rewriting at the moment, not yet marked in their Markdown:
 # (page, the command's first 40 characters) -> reason. Each entry moves into its page as a marker.
 PENDING_MARKERS = {
-    ("docs/sweeps.md", "scripts/sweep.py STUDY --workers"): "STUDY is a placeholder",
-    ("docs/sweeps.md", "scripts/sweep.py STUDY --scheduler"): "needs a Dask cluster",
-    ("docs/sweeps.md", "dask scheduler --host 0.0.0.0"): "needs a Dask cluster",
-    ("docs/sweeps.md", "dask worker tcp://scheduler-host"): "needs a Dask cluster",
-    ("docs/twin.md", "producer | .venv/bin/python"): "needs a live data producer",
-    ("docs/twin.md", "scripts/twin.py growing.csv --follow"): "needs a growing file",
     ("docs/performance.md", "scripts/bench_ratio.py"): "a benchmark (builds with cargo)",
     ("docs/performance.md", "cargo bench"): "a benchmark (builds with cargo)",
     ("README.md", "scripts/bench_ratio.py"): "a benchmark (builds with cargo)",
@@ -151,7 +145,7 @@ def sandbox(tmp_path, fmu_path):
     root = tmp_path / "repo"
     root.mkdir()
     shutil.copytree(ROOT / "scripts", root / "scripts")
-    for d in ("python", "data", "studies", "resources", "ssp", "docs"):
+    for d in ("python", "data", "studies", "resources", "ssp", "docs", "examples"):
         (root / d).symlink_to(ROOT / d)
     (root / ".venv").symlink_to(sys.prefix)
     fmus = root / "target" / "fmu"
@@ -201,11 +195,12 @@ def test_example_runs_as_written(example, sandbox):
         pytest.skip(f"{example.id} `{example.code.splitlines()[0][:60]}`: {example.skip}")
     if example.language == "toml":
         # A design study as docs/sweeps.md shows it: the study reader accepts it and builds cases.
-        from reciprocating_drive.study import build_cases, load_study
+        from reciprocating_drive.study import load_study
 
         path = sandbox / f"study_{example.line}.toml"
         path.write_text(example.code)
-        assert build_cases(load_study(path)), f"{example.id}: the study has no case"
+        study = load_study(path, fmu=sandbox / "target" / "fmu" / "ReciprocatingDrive.fmu")
+        assert study.n_cases > 0 and study.case(0), f"{example.id}: the study has no case"
         return
     if example.language == "sh":
         for pattern, why in MUST_NOT_RUN:

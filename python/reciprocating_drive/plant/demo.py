@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import pathlib
+import signal
 import subprocess
 import sys
 import tempfile
@@ -66,12 +67,12 @@ def demo(db: str, seconds: float | None = None) -> int:
             )
             if seconds is not None:
                 # The pipeline stops (and commits) on SIGINT, as an operator's Ctrl-C.
-                import signal
-
                 timer = threading.Timer(seconds, lambda: os.kill(os.getpid(), signal.SIGINT))
                 timer.daemon = True
                 timer.start()
             status = run_config(str(cfg))
+            if seconds is not None and status == 128 + signal.SIGINT:
+                status = 0  # stopped by its own timer after --seconds, as asked
         print(
             f'demo: query it with: sqlite3 {db} "SELECT revolution, start_time, mean_speed, '
             f"rod_force_max FROM revolutions JOIN runs USING (run) WHERE name = '{run}'\"",
