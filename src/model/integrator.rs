@@ -39,7 +39,7 @@
 //! error stays ~10× below the tolerance (DP5/Tsitouras reach ~1–2× tolerance).
 //!
 //! The elastic rod's caller does not integrate ϑ itself but φ = ϑ − c·Δ(τ), c = K_Δ/K_ϑ at the
-//! step's start (drive.rs, `CageRhs::shift`): the same equation, less the quasi-static part of
+//! step's start (drive/cage_step.rs, `CageRhs::shift`): the same equation, less the quasi-static part of
 //! the forced response that those terms act on. On this problem (the shift as a wrapper of the
 //! RHS, c from P at the start of each communication step) Verner 6(5) then needs 9 940 RHS
 //! evaluations per simulated second at 1 ms (about 1.1 internal steps per call; 9 is the floor

@@ -165,6 +165,11 @@ impl LinkBeam {
         ]
     }
 
+    /// Scaled section boundaries inside the link (where the compliance moments change formula).
+    pub fn interior_bounds(&self) -> &[f64] {
+        &self.bounds[1..self.count]
+    }
+
     /// A station (generalised coordinate at scaled z) for repeated flexibility evaluations.
     #[inline]
     pub fn station(&self, dof: Dof, z: f64) -> Station {

@@ -4,6 +4,7 @@
 //! Where things are:
 //! * `link_beam.rs`  – the link as a stepped Euler–Bernoulli beam; exact Mohr flexibilities (§5.1);
 //! * `supports.rs`   – support contacts, frame axes, the beam problem → reactions R, M (§5.2, §5.3);
+//! * `gland.rs`      – the reactions of a link with one gland in closed form over the stroke;
 //! * `friction.rs`   – friction from the reactions, the implicit rod-force equation (§4, §5.3, §5.4);
 //! * `validation.rs` – rejected configurations and their messages (§5.2);
 //! * `dense_solve.rs`– the small allocation-free linear solve.
@@ -18,6 +19,7 @@
 
 mod dense_solve;
 mod friction;
+mod gland;
 mod link_beam;
 mod supports;
 mod validation;
@@ -316,11 +318,11 @@ impl Guide {
                 "guide friction: tanβ = {tan_beta} is not finite"
             )));
         }
-        let infl = self.system.influence(s, LoadSet::Rigid)?;
+        let (base, per_q) = self.system.rigid_influence(s)?;
         let dq_dp = if self.rod_side_force { -tan_beta } else { 0.0 };
         let affine: [AffineReaction; 3] = std::array::from_fn(|x| AffineReaction {
-            base: infl.base[x],
-            slope: ForceMoment { r: dq_dp * infl.per_q[x].r, m: dq_dp * infl.per_q[x].m },
+            base: base[x],
+            slope: ForceMoment { r: dq_dp * per_q[x].r, m: dq_dp * per_q[x].m },
         });
         let sign = friction::regularized_sign(v / self.velocity_scale);
         let k = friction::sensitivity(&self.laws, &affine);
