@@ -94,3 +94,53 @@ fn a_crank_carried_forward_past_the_largest_double_fails_the_step_and_changes_no
     assert_eq!(f.get("crank.model_angle"), before);
     assert_eq!(f.step(5e-3, 1e-3), OK);
 }
+
+/// The per-call trace is opt-in by name (docs/fmi-interface.md "Logging categories"): debug
+/// logging switched on at instantiation, or by fmi2SetDebugLogging with no categories, logs the
+/// model's events and warnings but not one line per call; naming logCalls or logAll adds exactly
+/// one line per call, in category logCalls.
+#[test]
+fn per_call_trace_only_when_its_category_is_named() {
+    let api = Api::load();
+    // A trace line is the bare name of the function called, whatever its category.
+    let calls = |f: &Inst| {
+        let lines = f.log.lines.lock().unwrap();
+        lines.iter().filter(|l| l.3 == "fmi2DoStep" || l.3 == "fmi2GetReal").count()
+    };
+    let set_logging = |f: &Inst, names: &[&str]| {
+        let cats: Vec<_> = names.iter().map(|n| std::ffi::CString::new(*n).unwrap()).collect();
+        let ptrs: Vec<_> = cats.iter().map(|c| c.as_ptr()).collect();
+        unsafe { (api.fmi2SetDebugLogging)(f.c, 1, ptrs.len(), ptrs.as_ptr()) }
+    };
+    // loggingOn = true at fmi2Instantiate (Inst::new), as the FMI Library does for libcosim.
+    let f = running(&api);
+    for k in 5..1005 {
+        assert_eq!(f.step(k as f64 * 1e-3, 1e-3), OK);
+    }
+    assert_eq!(calls(&f), 0, "{:?}", f.log.messages().last());
+    // fmi2SetDebugLogging(loggingOn = true, nCategories = 0).
+    assert_eq!(set_logging(&f, &[]), OK);
+    for k in 1005..2005 {
+        assert_eq!(f.step(k as f64 * 1e-3, 1e-3), OK);
+        let _ = f.get("rod.force");
+    }
+    assert_eq!(calls(&f), 0);
+    // Named: one line per call (1000 steps and 1000 reads), whichever of the two names.
+    for (names, t0) in [(&["logCalls"][..], 2005), (&["logAll"][..], 3005)] {
+        f.log.clear();
+        assert_eq!(set_logging(&f, names), OK);
+        for k in t0..t0 + 1000 {
+            assert_eq!(f.step(k as f64 * 1e-3, 1e-3), OK);
+            let _ = f.get("rod.force");
+        }
+        let lines = f.log.lines.lock().unwrap().clone();
+        let steps = lines.iter().filter(|l| l.2 == "logCalls" && l.3 == "fmi2DoStep").count();
+        let reads = lines.iter().filter(|l| l.2 == "logCalls" && l.3 == "fmi2GetReal").count();
+        assert_eq!((steps, reads), (1000, 1000), "{names:?}");
+    }
+    // Only logEvents named: no trace.
+    f.log.clear();
+    assert_eq!(set_logging(&f, &["logEvents"]), OK);
+    assert_eq!(f.step(4.005, 1e-3), OK);
+    assert_eq!(calls(&f), 0);
+}

@@ -459,7 +459,7 @@ impl<M: FmuModel> Instance<M> {
     #[inline]
     pub fn quick_get_real(&mut self, vrs: &[u32], out: &mut [f64]) -> bool {
         if self.core.mode != Mode::StepComplete
-            || self.logger.wants(Category::All)
+            || self.logger.wants(Category::Calls)
             || vrs.len() != out.len()
         {
             return false;
@@ -603,7 +603,7 @@ impl<M: FmuModel> Instance<M> {
     #[inline]
     pub fn quick_set_real(&mut self, vrs: &[u32], values: &[f64]) -> bool {
         if self.core.mode != Mode::StepComplete
-            || self.logger.wants(Category::All)
+            || self.logger.wants(Category::Calls)
             || vrs.len() != values.len()
             || self.provisional.is_some()
         {
@@ -674,7 +674,7 @@ impl<M: FmuModel> Instance<M> {
     #[inline]
     pub fn quick_step(&mut self, current: f64, h: f64) -> bool {
         self.core.mode == Mode::StepComplete
-            && !self.logger.wants(Category::All)
+            && !self.logger.wants(Category::Calls)
             && self.step_arguments_ok(current, h)
             && self.carry(current, h)
     }
