@@ -140,7 +140,7 @@ pub static VARIABLES: &[Var<ReciprocatingDrive>] = &[
         "Lever f_m of the rigid part's inertia force on the cage"),
     param!("rod.initial_state", Integer, rod_initial_state, Fixed, "", Range::closed(0.0, 1.0),
         "Initial cage state: 1 quasi-static (equilibrium at the initial inputs), 0 at rest"),
-    param!("solver.tolerance", Real, solver_tolerance, Fixed, "", Range { min: 0.0, max: 1.0, min_open: true, max_open: true },
+    param!("solver.tolerance", Real, solver_tolerance, Fixed, "", Range::TOLERANCE,
         "Tolerance of the cage-equation integrator (relative, and absolute on rod.angle and on rod.angular_velocity/Omega0) when fmi2SetupExperiment gives none"),
     param_bool!("balancer.enabled", balancer_enabled, Fixed,
         "Torsion-bar balancer on the link: F_bal = -k_b*(s - s_0)"),

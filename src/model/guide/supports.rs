@@ -30,7 +30,7 @@ use super::dense_solve::{solve_in_place, Matrix, Rhs, MAX_EQ, MAX_RHS};
 use super::link_beam::{Dof, LinkBeam, Station};
 use super::validation::{contacts, is_rigid, NAMES};
 use super::{GuideSpec, SupportKind};
-use crate::model::error::ModelError;
+use crate::model::error::{num, ModelError};
 
 /// Maximum number of contacts: three supports with two each.
 const MAX_CONTACTS: usize = 6;
@@ -858,13 +858,13 @@ impl SupportSystem {
                     Dof::Deflection => "lateral contact",
                     Dof::Slope => "slope restraint",
                 };
-                format!("{} {what} at z = {z} m", NAMES[c.support].label)
+                format!("{} {what} at z = {} m", NAMES[c.support].label, num(z))
             })
             .collect();
         ModelError::evaluation(format!(
             "the link's support problem is singular at s = {} m (supports nearly coincide or do \
              not hold the link): {} (docs/model.md §5.2)",
-            s_scaled * self.length,
+            num(s_scaled * self.length),
             positions.join(", ")
         ))
     }
