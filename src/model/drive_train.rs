@@ -281,7 +281,8 @@ impl DriveTrain {
              integrator: {e}",
             num(state.speed),
             num(drive_torque),
-            num(load),
+            // A negative load in parentheses, so that the subtraction reads as one.
+            if load < 0.0 { format!("({})", num(load)) } else { num(load) },
             num(self.inertia),
             num(acc),
             num(acc * h)
