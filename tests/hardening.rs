@@ -326,6 +326,15 @@ fn integer_ranges_and_the_tolerance_bound_in_messages() {
         "{}",
         f.log.last()
     );
+    // A support so soft that the link is barely held names its stiffness (it read only
+    // "singular ... supports nearly coincide or do not hold the link").
+    let f = Inst::new(&api, "soft");
+    assert_eq!(f.setup(0.0), OK);
+    assert_eq!(f.enter(), OK);
+    assert_eq!(f.set("support_A.stiffness", 1e-300), OK);
+    assert_eq!(f.exit(), ERROR);
+    let m = f.log.last();
+    assert!(m.contains("support_A.stiffness = 1e-300 N/m") && m.contains("EJ/L³ = "), "{m}");
     // A call out of sequence says what state the instance is in and what to do.
     let f = Inst::new(&api, "sequence");
     assert_eq!(f.step(0.0, 1e-3), ERROR);

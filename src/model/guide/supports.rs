@@ -858,12 +858,29 @@ impl SupportSystem {
                     Dof::Deflection => "lateral contact",
                     Dof::Slope => "slope restraint",
                 };
-                format!("{} {what} at z = {} m", NAMES[c.support].label, num(z))
+                // A spring's stiffness, from its scaled compliance (1/k)·EJ_ref/L³.
+                let spring = if c.compliance > 0.0 {
+                    let k = self.force_unit / (self.length * c.compliance);
+                    format!(" ({}.stiffness = {} N/m)", NAMES[c.support].label, num(k))
+                } else {
+                    String::new()
+                };
+                format!("{} {what} at z = {} m{spring}", NAMES[c.support].label, num(z))
             })
             .collect();
+        // Springs far softer than the link's bending stiffness scale hold it too weakly to solve.
+        let soft = if self.cons[..self.n].iter().any(|c| c.compliance > 0.0) {
+            format!(
+                "; the link's bending stiffness scale is EJ/L³ = {} N/m, and a support much \
+                 softer than that barely holds it",
+                num(self.force_unit / self.length)
+            )
+        } else {
+            String::new()
+        };
         ModelError::evaluation(format!(
             "the link's support problem is singular at s = {} m (supports nearly coincide or do \
-             not hold the link): {} (docs/model.md §5.2)",
+             not hold the link): {}{soft} (docs/model.md §5.2)",
             num(s_scaled * self.length),
             positions.join(", ")
         ))
