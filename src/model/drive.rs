@@ -713,7 +713,7 @@ impl Model {
         }
         Err(ModelError::evaluation(format!(
             "rod.initial_state = 1: the quasi-static cage angle did not converge (last ϑ = {} rad)",
-            cage.theta
+            crate::model::error::num(cage.theta)
         )))
     }
 

@@ -33,7 +33,7 @@ use super::gland::{self, GlandTable, Miss};
 use super::link_beam::{Dof, LinkBeam, Station};
 use super::validation::{contacts, is_rigid, NAMES};
 use super::{GuideSpec, SupportKind};
-use crate::model::error::ModelError;
+use crate::model::error::{num, ModelError};
 
 /// Maximum number of contacts: three supports with two each.
 const MAX_CONTACTS: usize = 6;
@@ -1070,13 +1070,30 @@ impl SupportSystem {
                     Dof::Deflection => "lateral contact",
                     Dof::Slope => "slope restraint",
                 };
-                format!("{} {what} at z = {z} m", NAMES[c.support].label)
+                // A spring's stiffness, from its scaled compliance (1/k)·EJ_ref/L³.
+                let spring = if c.compliance > 0.0 {
+                    let k = self.force_unit / (self.length * c.compliance);
+                    format!(" ({}.stiffness = {} N/m)", NAMES[c.support].label, num(k))
+                } else {
+                    String::new()
+                };
+                format!("{} {what} at z = {} m{spring}", NAMES[c.support].label, num(z))
             })
             .collect();
+        // Springs far softer than the link's bending stiffness scale hold it too weakly to solve.
+        let soft = if self.cons[..self.n].iter().any(|c| c.compliance > 0.0) {
+            format!(
+                "; the link's bending stiffness scale is EJ/L³ = {} N/m, and a support much \
+                 softer than that barely holds it",
+                num(self.force_unit / self.length)
+            )
+        } else {
+            String::new()
+        };
         ModelError::evaluation(format!(
             "the link's support problem is singular at s = {} m (supports nearly coincide or do \
-             not hold the link): {} (docs/model.md §5.2)",
-            s_scaled * self.length,
+             not hold the link): {}{soft} (docs/model.md §5.2)",
+            num(s_scaled * self.length),
             positions.join(", ")
         ))
     }
