@@ -21,9 +21,8 @@ import time
 
 import numpy as np
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "python"))
-from reciprocating_drive.cli_errors import (  # noqa: E402
+from .. import artifacts
+from ..cli_errors import (
     ArgumentParser,
     RunFailed,
     UserError,
@@ -47,11 +46,11 @@ def parser(prog: str = PROG) -> ArgumentParser:
     ap.add_argument("--importer", choices=("libcosim", "fmpy"), default="libcosim")
     ap.add_argument("--step", default="1e-3", help="communication step [s] (default 1e-3)")
     ap.add_argument("--time", default="10", help="simulated time [s] (default 10)")
-    ap.add_argument("--out-dir", type=pathlib.Path, default=ROOT / "results")
+    ap.add_argument("--out-dir", type=pathlib.Path, default=artifacts.results_dir())
     ap.add_argument(
         "--fmu-dir",
         type=pathlib.Path,
-        default=ROOT / "target" / "fmu",
+        default=artifacts.fmu_dir(),
         help="where ReciprocatingDrive.fmu and DriveTrain.fmu are",
     )
     ap.add_argument(
@@ -67,7 +66,7 @@ def parser(prog: str = PROG) -> ArgumentParser:
 def overrides(items: list[str], fmu_dir: pathlib.Path) -> dict:
     """--set pump.mass.reciprocating=350 → {"pump": {"mass.reciprocating": 350.0}}, each value
     checked against the FMU's type and range."""
-    from reciprocating_drive.study import model_parameters
+    from ..study import model_parameters
 
     out = {"pump": {}, "drive": {}}
     for item in items:
@@ -121,8 +120,8 @@ def _main(argv, prog: str = PROG) -> int:
     for fmu in COMPONENTS.values():
         if not (a.fmu_dir / fmu).is_file():
             raise UserError(f"--fmu-dir {a.fmu_dir}: no {fmu}; build it with scripts/build-fmu.sh")
-    from reciprocating_drive.presets import read_ssv
-    from reciprocating_drive.system import (
+    from ..presets import read_ssv
+    from ..system import (
         SSD,
         LoopFailed,
         build_ssp,
@@ -155,10 +154,12 @@ def _main(argv, prog: str = PROG) -> int:
             "(every sample is kept in memory)"
         )
 
+    # Beside the FMUs of a checkout's build; in the results of any other run (an installed
+    # package's folder is not the user's to write in).
     ssp_path = (
         a.out_dir / "ClosedLoop.ssp"
-        if a.fmu_dir != ROOT / "target" / "fmu" or a.set
-        else ROOT / "target" / "fmu" / "ClosedLoop.ssp"
+        if a.fmu_dir != artifacts.fmu_dir() or a.set or artifacts.installed()
+        else artifacts.fmu_dir() / "ClosedLoop.ssp"
     )
     ssp = build_ssp(
         ssp_path,

@@ -20,8 +20,7 @@ import os
 import pathlib
 import sys
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "python"))
+from .. import artifacts
 
 FAULTS = ("bad_status", "nan", "wrong_type")
 
@@ -60,11 +59,11 @@ def positive(text: str) -> float:
     return v
 
 
-def main(argv=None) -> int:
+def main(argv=None, prog: str | None = None) -> int:
     ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    ap.add_argument("--data", default=str(ROOT / "data" / "twin" / "pump_encoder.csv"))
+    ap.add_argument("--data", default=str(artifacts.twin_sample()))
     ap.add_argument("--port", type=int, default=0, help="default: a free port")
     ap.add_argument("--speed", type=positive, default=1.0, help="multiple of real time")
     ap.add_argument("--block-ms", type=positive, default=50.0)
@@ -106,7 +105,7 @@ def main(argv=None) -> int:
             return 2
     if a.cert_dir:
         pathlib.Path(a.cert_dir).mkdir(parents=True, exist_ok=True)
-    from reciprocating_drive.plant.plc_sim import PlcSim, serve
+    from ..plant.plc_sim import PlcSim, serve
 
     try:
         sim = PlcSim(

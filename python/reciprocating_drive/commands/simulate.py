@@ -20,11 +20,10 @@ import math
 import pathlib
 import sys
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "python"))
-from reciprocating_drive.mission import OUTPUTS, format_summary, run_mission, write_summary  # noqa: E402
-from reciprocating_drive.plots import plot_mission  # noqa: E402
-from reciprocating_drive.presets import PRESET_DIR, available_presets, preset_values  # noqa: E402
+from .. import artifacts
+from ..mission import OUTPUTS, format_summary, run_mission, write_summary
+from ..plots import plot_mission
+from ..presets import PRESET_DIR, available_presets, preset_values
 
 UNITS = {
     "crank.model_speed": "rad/s",
@@ -59,14 +58,14 @@ def write_csv(path: pathlib.Path, data: dict) -> None:
             )
 
 
-def main(argv=None) -> int:
+def main(argv=None, prog: str | None = None) -> int:
     ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("preset", nargs="?", default="default")
-    ap.add_argument("--fmu", default=str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
+    ap.add_argument("--fmu", default=str(artifacts.fmu()))
     ap.add_argument("--resources", default=str(PRESET_DIR), help="folder of the .ssv presets")
-    ap.add_argument("--out-dir", default=str(ROOT / "results"))
+    ap.add_argument("--out-dir", default=str(artifacts.results_dir()))
     ap.add_argument(
         "--revolutions",
         type=int,

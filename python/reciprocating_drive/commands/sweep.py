@@ -18,16 +18,15 @@ import pathlib
 import shlex
 import sys
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "python"))
-from reciprocating_drive.cli_errors import (  # noqa: E402
+from .. import artifacts
+from ..cli_errors import (
     ArgumentParser,
     RunFailed,
     UserError,
     positive_float,
     run_cli,
 )
-from reciprocating_drive.study import DEFAULT_MAX_CASES, check_fmu, load_study  # noqa: E402
+from ..study import DEFAULT_MAX_CASES, check_fmu, load_study
 
 PROG = "sweep.py"
 STATE: dict = {}
@@ -53,8 +52,8 @@ def parser(prog: str = PROG) -> ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     ap.add_argument("study", type=pathlib.Path)
-    ap.add_argument("--fmu", default=str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
-    ap.add_argument("--out-dir", type=pathlib.Path, default=ROOT / "results" / "sweeps")
+    ap.add_argument("--fmu", default=str(artifacts.fmu()))
+    ap.add_argument("--out-dir", type=pathlib.Path, default=artifacts.results_dir() / "sweeps")
     ap.add_argument(
         "--scheduler",
         default=None,
@@ -118,12 +117,12 @@ def _main(argv, prog: str) -> int:
     # Everything is validated before a cluster starts (docs/sweeps.md "Errors and exit codes").
     study = load_study(a.study, fmu=a.fmu, max_cases=max_cases)
     if a.scheduler is not None:
-        from reciprocating_drive.sweep import scheduler_address
+        from ..sweep import scheduler_address
 
         scheduler_address(a.scheduler)
 
-    from reciprocating_drive.sweep import Progress, load_rows, run_sweep, warnings
-    from reciprocating_drive.sweep_plot import plot_sweep
+    from ..sweep import Progress, load_rows, run_sweep, warnings
+    from ..sweep_plot import plot_sweep
 
     for w in warnings(study):
         print(f"warning: {w}", flush=True)

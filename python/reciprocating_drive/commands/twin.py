@@ -25,14 +25,10 @@ import sys
 import threading
 import time
 
-# Ctrl-C while the modules load: a quiet stop, not a traceback (main() installs the real handler).
-signal.signal(signal.SIGINT, lambda signum, frame: sys.exit(130))
-
-ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "python"))
-from reciprocating_drive.batch import format_csv  # noqa: E402
-from reciprocating_drive.fmu import FmuError  # noqa: E402
-from reciprocating_drive.twin import (  # noqa: E402
+from .. import artifacts
+from ..batch import format_csv
+from ..fmu import FmuError
+from ..twin import (
     SUMMARY_FIELDS,
     CheckpointError,
     DataError,
@@ -268,10 +264,12 @@ def check_resume(cp: dict, a, given: dict) -> None:
         raise ValueError("--ignore-speed differs from the checkpoint's use of crank_speed")
 
 
-def main(argv=None) -> int:
-    ap = Parser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def main(argv=None, prog: str | None = None) -> int:
+    ap = Parser(
+        prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("input", help="CSV file, or - for standard input")
-    ap.add_argument("--fmu", default=str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
+    ap.add_argument("--fmu", default=str(artifacts.fmu()))
     ap.add_argument(
         "--machine", default=None, help="a preset, 'default' (the default), or an .ssv file"
     )
@@ -327,7 +325,9 @@ def main(argv=None) -> int:
         default=None,
         help="fastest possible crank speed [rad/s] (default: 100 at 65 strokes/min, scaled)",
     )
-    ap.add_argument("--out", type=pathlib.Path, default=ROOT / "results" / "twin" / "outputs.csv")
+    ap.add_argument(
+        "--out", type=pathlib.Path, default=artifacts.results_dir() / "twin" / "outputs.csv"
+    )
     ap.add_argument(
         "--summary", type=pathlib.Path, default=None, help="default: <out>-revolutions.csv"
     )
@@ -585,7 +585,7 @@ def run(a, stopping: list) -> int:
         + f"; wrote {a.out} and {summary}"
     )
     if a.plots:
-        from reciprocating_drive.twin_plots import plot_twin
+        from ..twin_plots import plot_twin
 
         plot_twin(
             a.out,

@@ -12,16 +12,14 @@ checkpoint committed in the database, and nothing is lost or stored twice.
 from __future__ import annotations
 
 import argparse
-import pathlib
 import sys
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "python"))
+from .. import artifacts
 
 
-def main(argv=None) -> int:
+def main(argv=None, prog: str | None = None) -> int:
     ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     g = ap.add_mutually_exclusive_group(required=True)
     g.add_argument("--config", help="the twin's configuration file (TOML)")
@@ -33,15 +31,15 @@ def main(argv=None) -> int:
     ap.add_argument("--seconds", type=float, default=None, help="with --demo: stop after this long")
     ap.add_argument(
         "--db",
-        default=str(ROOT / "results" / "twin" / "demo.sqlite"),
+        default=str(artifacts.results_dir() / "twin" / "demo.sqlite"),
         help="with --demo: the database",
     )
     a = ap.parse_args(argv)
     if a.demo:
-        from reciprocating_drive.plant.demo import demo
+        from ..plant.demo import demo
 
         return demo(a.db, a.seconds)
-    from reciprocating_drive.plant.pipeline import run_config
+    from ..plant.pipeline import run_config
 
     return run_config(a.config)
 

@@ -1,0 +1,15 @@
+#!/usr/bin/env python3
+"""A simulated pump PLC: an OPC UA server playing crank data (docs/plant.md).
+
+The same command as `rdrive plc-sim` of the installed package: python/reciprocating_drive/commands/plc_sim.py
+(`--help` describes it).
+"""
+
+import pathlib
+import sys
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "python"))
+from reciprocating_drive.commands import run_script  # noqa: E402
+
+if __name__ == "__main__":
+    run_script("plc_sim")
