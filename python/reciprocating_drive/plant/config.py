@@ -13,8 +13,6 @@ from dataclasses import dataclass, field
 from .. import artifacts
 from ..presets import available_presets
 
-ROOT = pathlib.Path(__file__).resolve().parents[3]
-
 
 class ConfigError(ValueError):
     pass

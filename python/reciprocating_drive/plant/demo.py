@@ -15,7 +15,7 @@ import tempfile
 import threading
 import time
 
-from .config import ROOT
+from .. import artifacts
 from .pipeline import run_config
 from .plc_sim import free_port
 
@@ -24,11 +24,13 @@ def demo(db: str, seconds: float | None = None) -> int:
     port = free_port()
     endpoint = f"opc.tcp://127.0.0.1:{port}/plc"
     pathlib.Path(db).parent.mkdir(parents=True, exist_ok=True)
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "python")}
+    # The simulated PLC in a process of its own, from this very package (checkout or wheel).
+    env = {**os.environ, "PYTHONPATH": str(artifacts.PACKAGE.parent)}
     plc = subprocess.Popen(
         [
             sys.executable,
-            str(ROOT / "scripts" / "plc_sim.py"),
+            "-m",
+            "reciprocating_drive.commands.plc_sim",
             "--port",
             str(port),
             "--start-delay",
