@@ -300,8 +300,17 @@ def test_the_one_command_demo(tmp_path):
 
     db = tmp_path / "demo.sqlite"
     p = subprocess.run(
-        [sys.executable, str(pu.SCRIPT), "--demo", "--seconds", "6", "--db", str(db),
-         "--page-port", "0"],  # fmt: skip
+        [
+            sys.executable,
+            str(pu.SCRIPT),
+            "--demo",
+            "--seconds",
+            "6",
+            "--db",
+            str(db),
+            "--page-port",
+            "0",
+        ],  # fmt: skip
         env=pu.env(),
         capture_output=True,
         text=True,
