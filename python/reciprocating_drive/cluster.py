@@ -33,8 +33,16 @@ def fmu_key(data: bytes) -> str:
 
 
 def _identity() -> dict:
-    """Runs on a worker: what the client compares."""
-    return {"version": __version__, "pid": os.getpid()}
+    """What must agree between the client and a worker: this package's version, and dask's and
+    distributed's (the task protocol). Runs on a worker, and on the client for the reference."""
+    import dask
+    import distributed
+
+    return {
+        "reciprocating_drive": __version__,
+        "dask": dask.__version__,
+        "distributed": distributed.__version__,
+    }
 
 
 def _receive_fmu(data: bytes, key: str) -> str:
@@ -63,12 +71,18 @@ def prepare_workers(client, fmu_path: str | os.PathLike):
     Returns (key, future of the bytes) for the cases to pass to `local_fmu`. Raises WorkerMismatch
     naming each worker whose version differs, before anything runs."""
     ids = client.run(_identity)
-    wrong = {w: i["version"] for w, i in ids.items() if i["version"] != __version__}
+    mine = _identity()
+    wrong = {
+        w: ", ".join(f"{k} {v}" for k, v in i.items() if v != mine[k])
+        for w, i in ids.items()
+        if i != mine
+    }
     if wrong:
         names = "; ".join(f"{w} has {v}" for w, v in sorted(wrong.items()))
+        ours = ", ".join(f"{k} {v}" for k, v in mine.items())
         raise WorkerMismatch(
-            f"{len(wrong)} of {len(ids)} workers run another reciprocating_drive than the client's "
-            f"{__version__}: {names}; install the same wheel on every worker"
+            f"{len(wrong)} of {len(ids)} workers run other versions than the client's ({ours}): "
+            f"{names}; install the same wheel and dask on every worker"
         )
     data = pathlib.Path(fmu_path).read_bytes()
     return fmu_key(data), client.scatter(data, broadcast=True)

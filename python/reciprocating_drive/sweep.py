@@ -158,6 +158,16 @@ class Row:
     worker: str
 
 
+def _worker_name() -> str:
+    """The Dask worker's address (which machine computed a row), or the process id outside one."""
+    try:
+        from distributed import get_worker
+
+        return get_worker().address
+    except (ImportError, ValueError):
+        return f"pid {os.getpid()}"
+
+
 def run_batch(
     fmu_path: str, study: Study, cases: list[int], fmu_data: bytes | None = None
 ) -> list[dict]:
@@ -181,9 +191,7 @@ def run_batch(
         except (FmuError, ValueError, RuntimeError) as e:
             status, message = "error", str(e)
             metrics = {m: math.nan for m in study.metrics}
-        row = asdict(
-            Row(i, status, message, inside, time.perf_counter() - t0, f"pid {os.getpid()}")
-        )
+        row = asdict(Row(i, status, message, inside, time.perf_counter() - t0, _worker_name()))
         out.append({**{"case": i}, **params, **metrics, **row})
     return out
 
@@ -405,13 +413,21 @@ def probe_scheduler(addr: str, timeout: float) -> None:
 @contextlib.contextmanager
 def _quiet_distributed():
     """distributed logs to stderr; while a cluster is started and closed (also after Ctrl-C) its
-    routine warnings would bury the tool's own one-line messages."""
+    routine warnings would bury the tool's own one-line messages. Its table of version differences
+    between client and workers too: what must agree (this package, dask, distributed) is checked
+    by cluster.prepare_workers, which names the worker in one line."""
+    import warnings
+
+    from distributed.versions import VersionMismatchWarning
+
     names = ("distributed", "tornado", "asyncio")
     levels = [logging.getLogger(n).level for n in names]
     for n in names:
         logging.getLogger(n).setLevel(logging.CRITICAL)
     try:
-        yield
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", VersionMismatchWarning)
+            yield
     finally:
         for n, lv in zip(names, levels):
             logging.getLogger(n).setLevel(lv)

@@ -85,9 +85,15 @@ _venv_link_package() {
     [ "$(cat "$site/reciprocating_drive.pth" 2>/dev/null)" = "$root/python" ] \
         || echo "$root/python" > "$site/reciprocating_drive.pth"
     launcher="$(dirname "$VENV_PYTHON")/rdrive"
-    if [ ! -x "$launcher" ]; then
-        printf '#!%s\nimport sys\nfrom reciprocating_drive.cli import main\nsys.exit(main())\n' \
-            "$VENV_PYTHON" > "$launcher"
+    # The __main__ guard matters: Dask's LocalCluster starts its workers by re-running __main__.
+    if ! grep -q "__main__" "$launcher" 2>/dev/null; then
+        cat > "$launcher" <<EOF
+#!$VENV_PYTHON
+import sys
+from reciprocating_drive.cli import main
+if __name__ == "__main__":
+    sys.exit(main())
+EOF
         chmod +x "$launcher"
     fi
 }
