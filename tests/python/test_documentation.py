@@ -137,6 +137,10 @@ def test_defaults_in_the_model_page_are_the_fmus_start_values(model_description)
     assert checked >= 10
 
 
+#: Figures a test takes rather than scripts/make_docs.py (a browser's screenshot), and that test.
+TAKEN_BY_TESTS = {"twin_page.png": "tests/python/test_page.py"}
+
+
 def test_figures_regenerate(tmp_path, fmu_path, monkeypatch):
     """scripts/make_docs.py writes every figure the pages show."""
     monkeypatch.setenv("RD_FMU", fmu_path)
@@ -149,9 +153,11 @@ def test_figures_regenerate(tmp_path, fmu_path, monkeypatch):
     for page in DOCS.glob("*.md"):
         shown |= set(re.findall(r"figures/([\w.-]+\.png)", page.read_text()))
     assert shown, "the pages show no figure"
-    for name in shown:
+    for name in shown - set(TAKEN_BY_TESTS):
         png = tmp_path / name
         assert png.is_file() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+    for name, test in TAKEN_BY_TESTS.items():
+        assert f'figures" / "{name}"' in (ROOT / test).read_text(), (name, test)
     # The variable table in the page is what the script generates from the FMU.
     table = make_docs.variable_table(pathlib.Path(fmu_path))
     assert table in (DOCS / "fmi-interface.md").read_text(), (
