@@ -4,7 +4,9 @@
 #   (cross-compiled; RD_WIN64=0 skips it, docs/win64.md), resources/, documentation/ (the
 #   variable table and docs/ as HTML with its figures)
 # and its FMI 3.0 variant as target/fmu/<modelIdentifier>-fmi3.fmu: the same binaries (they export
-# both standards' functions) under FMI 3.0's platform names (x86_64-linux, x86_64-windows), the
+# both standards' functions) under FMI 3.0's platform names (x86_64-linux, x86_64-windows), plus
+# aarch64-linux (cross-compiled with Debian's aarch64 toolchain; RD_AARCH64=0 skips it; FMI 2.0
+# has no platform name for it), the
 # FMI 3.0 modelDescription.xml (modelDescription/fmi3/<modelIdentifier>.xml), the same resources/
 # and documentation/ (docs/fmi-interface.md "FMI 3.0").
 # Installs libclang (bindgen, for the fmi-sys FMI 2.0 types) when it is missing.
@@ -13,6 +15,7 @@ cd "$(dirname "$0")/.."
 source scripts/lib/ensure-build-deps.sh
 ensure_build_deps
 source scripts/lib/win64.sh
+source scripts/lib/aarch64.sh
 
 # The FMUs this repository builds, by modelIdentifier. Each has a cdylib crate
 # cdylib/<modelIdentifier>/ (cargo names its library lib<modelIdentifier>.so) and a checked-in
@@ -32,6 +35,10 @@ cargo build --release --workspace --lib
 if win64_enabled; then
     ensure_win64_build
     cargo build --release --target "$WIN64_TARGET" $(for id in "${MODELS[@]}"; do echo -n " -p fmu-$(echo "$id" | sed -E 's/([a-z])([A-Z])/\1-\2/g' | tr 'A-Z' 'a-z')"; done)
+fi
+if aarch64_enabled; then
+    ensure_aarch64_build
+    cargo build --release --target "$AARCH64_TARGET" $(for id in "${MODELS[@]}"; do echo -n " -p fmu-$(echo "$id" | sed -E 's/([a-z])([A-Z])/\1-\2/g' | tr 'A-Z' 'a-z')"; done)
 fi
 cargo build --release --quiet --bin gen-model-description
 gen=target/release/gen-model-description
@@ -84,6 +91,10 @@ for id in "${MODELS[@]}"; do
     if win64_enabled; then
         mkdir -p "$stage3/binaries/x86_64-windows"
         cp "$stage/binaries/win64/$id.dll" "$stage3/binaries/x86_64-windows/$id.dll"
+    fi
+    if aarch64_enabled; then
+        mkdir -p "$stage3/binaries/aarch64-linux"
+        cp "target/$AARCH64_TARGET/release/lib$id.so" "$stage3/binaries/aarch64-linux/$id.so"
     fi
     for pair in "$stage:target/fmu/$id.fmu" "$stage3:target/fmu/$id-fmi3.fmu"; do
         rm -f "${pair#*:}"

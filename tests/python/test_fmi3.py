@@ -13,6 +13,8 @@ they must say the same things about every variable and give the same numbers.
 * the x86_64-windows DLL under wine (tests/win64/host3.c) agrees with the x86_64-linux binary to
   the tolerances of test_win64.py (libm differences), and the Linux host of 3.0 prints exactly
   what the 2.0 host prints;
+* the aarch64-linux binary (cross-compiled) run under qemu-user agrees with the x86_64 one (to
+  the win64 tolerances; measured bit-identical, 2026-11-26, qemu-aarch64 7.2 on x86_64);
 * errors through 3.0 name the 3.0 function.
 """
 
@@ -331,9 +333,13 @@ def hosts(tmp_path_factory):
     return d
 
 
-def run_host(cmd):
+def run_host(cmd, **env):
     p = subprocess.run(
-        cmd, capture_output=True, text=True, timeout=600, env={**os.environ, "WINEDEBUG": "-all"}
+        cmd,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env={**os.environ, "WINEDEBUG": "-all", **env},
     )
     assert p.returncode == 0, p.stderr[-2000:]
     return np.array([[float(x) for x in line.split(",")] for line in p.stdout.split()])
@@ -442,3 +448,75 @@ def test_resource_path_is_the_native_folder(fmu_path, tmp_path):
     s.freeInstance()
     expected = str(tmp_path / "x" / "resources")
     assert any(f'resources: Some("{expected}")' in m for m in messages), messages
+
+
+# ------------------------------------------------------------------------------ aarch64-linux
+
+aarch64 = pytest.mark.skipif(
+    os.environ.get("RD_AARCH64") == "0", reason="RD_AARCH64=0: no aarch64 build"
+)
+
+
+def qemu_aarch64():
+    """qemu-user (scripts/lib/aarch64.sh installs it; scripts/test.sh calls it)."""
+    q = shutil.which("qemu-aarch64") or shutil.which("qemu-aarch64-static")
+    if q is None or not shutil.which("aarch64-linux-gnu-gcc"):
+        msg = "qemu-aarch64 or aarch64-linux-gnu-gcc missing: source scripts/lib/aarch64.sh"
+        if os.environ.get("CI") or os.environ.get("RD_REQUIRE_FMU"):
+            pytest.fail(msg)
+        pytest.skip(msg)
+    return q
+
+
+@aarch64
+@pytest.mark.parametrize("model", MODELS)
+def test_every_fmi3_fmu_has_an_aarch64_linux_binary(fmu_path, tmp_path, model):
+    with zipfile.ZipFile(fmu3(fmu_path, model)) as z:
+        z.extractall(tmp_path)
+    so = tmp_path / "binaries" / "aarch64-linux" / f"{model}.so"
+    assert so.is_file(), f"{model}-fmi3.fmu has no binaries/aarch64-linux/{model}.so"
+    head = so.read_bytes()[:20]
+    # ELF, 64-bit, little-endian, e_machine = EM_AARCH64 (183).
+    assert head[:4] == b"\x7fELF" and head[4] == 2 and head[5] == 1
+    assert int.from_bytes(head[18:20], "little") == 183
+
+
+@aarch64
+@pytest.mark.parametrize(
+    "machine,steps,h,tol", [("default", 2000, 1e-3, 1e-13), ("kvo630", 1000, 2e-4, 1e-9)]
+)
+def test_aarch64_under_qemu_matches_x86_64(fmu_path, hosts, tmp_path, machine, steps, h, tol):
+    """The aarch64 binary run by host3.c built for aarch64 under qemu-user against the x86_64
+    binary run by host3.c: the same tolerances as win64 (another libm, and GCC may fuse a
+    multiply-add on aarch64 where x86_64 rounds twice)."""
+    from fmpy import read_model_description
+
+    q = qemu_aarch64()
+    params = {k: v for k, v in preset_values(machine).items() if k != "crank.angle"}
+    d = tmp_path / "three"
+    zipfile.ZipFile(fmu3(fmu_path, "ReciprocatingDrive")).extractall(d)
+    md = read_model_description(str(d / "modelDescription.xml"))
+    args, names = host_args(md, steps, h, params)
+    arm_host = tmp_path / "host3-aarch64"
+    subprocess.run(
+        ["aarch64-linux-gnu-gcc", "-O2", "-o", arm_host, ROOT / "tests/win64/host3.c", "-ldl"],
+        check=True,
+    )
+    lib = "binaries/{}/ReciprocatingDrive.so"
+    x86 = run_host(
+        [str(hosts / "host3"), str(d / lib.format("x86_64-linux")), "ReciprocatingDrive", *args]
+    )
+    # qemu-user finds the arm64 C library (libc6-arm64-cross) under this prefix.
+    arm = run_host(
+        [q, str(arm_host), str(d / lib.format("aarch64-linux")), "ReciprocatingDrive", *args],
+        QEMU_LD_PREFIX=os.environ.get("QEMU_LD_PREFIX", "/usr/aarch64-linux-gnu"),
+    )
+    assert arm.shape == x86.shape == (steps + 1, len(names))
+    scale = np.maximum(np.max(np.abs(x86), axis=0), 1e-300)
+    rel = np.max(np.abs(arm - x86), axis=0) / scale
+    worst = int(np.argmax(rel))
+    print(
+        f"{machine}: aarch64 bit-identical {bool(np.array_equal(arm, x86))}; "
+        f"worst {names[worst]} {rel[worst]:.3g} of its scale"
+    )
+    assert rel[worst] <= tol, f"{names[worst]} differs by {rel[worst]:.3g} of its scale"
