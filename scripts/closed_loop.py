@@ -44,8 +44,8 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     r = (run_libcosim if a.importer == "libcosim" else run_fmpy)(ssp, a.step, a.time)
     wall = time.perf_counter() - t0
-    d = speed_fluctuation(r["time"], r["drive.crank.angle"], r["drive.crank.speed"])
-    w = r["drive.crank.speed"]
+    d = speed_fluctuation(r["time"], r["drivetrain.crank.angle"], r["drivetrain.crank.speed"])
+    w = r["drivetrain.crank.speed"]
     print(f"{a.importer}: {a.time:g} s at h = {a.step:g} s in {wall:.2f} s wall; wrote {ssp}")
     print(
         f"crank speed at the end {w[-1]:.5g} rad/s ({w[-1] * 60 / (2 * math.pi):.4g} strokes/min)"
@@ -61,9 +61,9 @@ def main(argv=None) -> int:
     t = r["time"]
     ax[0].plot(t, w * 60 / (2 * math.pi))
     ax[0].set_ylabel("crank speed\n[strokes/min]")
-    ax[1].plot(t, r["drive.motor.torque"], label="motor torque (motor shaft)")
+    ax[1].plot(t, r["drivetrain.motor.torque"], label="motor torque (motor shaft)")
     ax[1].set_ylabel("motor torque\n[N·m]")
-    ax[2].plot(t, r["drive.motor.power"] * 1e-3)
+    ax[2].plot(t, r["drivetrain.motor.power"] * 1e-3)
     ax[2].set_ylabel("motor power\n[kW]")
     for x in ax[:3]:
         x.set_xlabel("time [s]")
