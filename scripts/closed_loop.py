@@ -5,6 +5,10 @@ or fmpy, prints the per-revolution speed fluctuation δ = (ω_max − ω_min)/ω
 results/closed_loop.png (crank speed, motor torque and power, δ per revolution).
 
     .venv/bin/python scripts/closed_loop.py [--importer libcosim|fmpy] [--step 1e-3] [--time 10]
+    .venv/bin/python scripts/closed_loop.py --set drivetrain.crank.inertia=80 --set pump.load.mean=2e4
+
+Exit codes: 0 done, 1 the loop failed or diverged (the message names docs/closed-loop.md's
+stability condition ρ_eff < 1), 2 a user error, 70 an internal error, 130 stopped.
 """
 
 from __future__ import annotations
@@ -15,18 +19,34 @@ import pathlib
 import sys
 import time
 
+import numpy as np
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
-from reciprocating_drive.system import build_ssp, run_fmpy, run_libcosim, speed_fluctuation  # noqa: E402
+from reciprocating_drive.cli_errors import (  # noqa: E402
+    ArgumentParser,
+    RunFailed,
+    UserError,
+    positive_float,
+    run_cli,
+    show,
+)
+
+PROG = "closed_loop.py"
+#: At least this many steps per revolution: δ is a per-revolution extreme (docs/closed-loop.md).
+MIN_STEPS_PER_REVOLUTION = 36
+#: Samples of a run are held in memory (7 series): 10⁷ steps are about 0.6 GB.
+MAX_STEPS = 10_000_000
+COMPONENTS = {"pump": "ReciprocatingDrive.fmu", "drivetrain": "DriveTrain.fmu"}
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+def parser(prog: str = PROG) -> ArgumentParser:
+    ap = ArgumentParser(
+        prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("--importer", choices=("libcosim", "fmpy"), default="libcosim")
-    ap.add_argument("--step", type=float, default=1e-3)
-    ap.add_argument("--time", type=float, default=10.0)
+    ap.add_argument("--step", default="1e-3", help="communication step [s] (default 1e-3)")
+    ap.add_argument("--time", default="10", help="simulated time [s] (default 10)")
     ap.add_argument("--out-dir", type=pathlib.Path, default=ROOT / "results")
     ap.add_argument(
         "--fmu-dir",
@@ -34,49 +54,169 @@ def main(argv=None) -> int:
         default=ROOT / "target" / "fmu",
         help="where ReciprocatingDrive.fmu and DriveTrain.fmu are",
     )
-    a = ap.parse_args(argv)
-    ssp = build_ssp(
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="COMPONENT.PARAMETER=VALUE",
+        help="a parameter of the pump or the drivetrain over the shipped sets (ssp/ClosedLoop/*.ssv)",
+    )
+    return ap
+
+
+def overrides(items: list[str], fmu_dir: pathlib.Path) -> dict:
+    """--set pump.mass.reciprocating=350 → {"pump": {"mass.reciprocating": 350.0}}, each value
+    checked against the FMU's type and range."""
+    from reciprocating_drive.study import model_parameters
+
+    out = {"pump": {}, "drivetrain": {}}
+    for item in items:
+        key, eq, text = item.partition("=")
+        comp, _, name = key.partition(".")
+        if not eq or comp not in COMPONENTS or not name:
+            raise UserError(
+                f"--set {show(item)}: allowed: pump.PARAMETER=VALUE or drivetrain.PARAMETER=VALUE"
+            )
+        params, _, _ = model_parameters(str(fmu_dir / COMPONENTS[comp]), require_pump=False)
+        var = params.get(name)
+        if var is None:
+            raise UserError(
+                f"--set {show(item)}: {name!r} is not a parameter of the {comp} "
+                f"({COMPONENTS[comp]}); see docs/closed-loop.md"
+            )
+        t = text.strip().lower()
+        if var.type == "Boolean":
+            if t not in ("true", "false", "1", "0"):
+                raise UserError(f"--set {show(item)}: allowed: true or false")
+            value = t in ("true", "1")
+        else:
+            try:
+                value = int(t) if var.type in ("Integer", "Enumeration") else float(t)
+            except ValueError:
+                kind = "an integer" if var.type != "Real" else "a number"
+                raise UserError(f"--set {show(item)}: allowed: {kind}") from None
+            if (
+                not math.isfinite(value)
+                or (var.min is not None and value < var.min)
+                or (var.max is not None and value > var.max)
+            ):
+                lo = "-inf" if var.min is None else f"{var.min:g}"
+                hi = "inf" if var.max is None else f"{var.max:g}"
+                raise UserError(f"--set {show(item)}: allowed: {lo} .. {hi} {var.unit}".rstrip())
+        out[comp][name] = value
+    return out
+
+
+def main(argv=None, prog: str = PROG) -> int:
+    """The command: its exit code, with every error as one line (cli_errors.run_cli)."""
+    return run_cli(
+        prog, lambda: _main(argv, prog), on_interrupt=lambda: "stopped; nothing was written"
+    )
+
+
+def _main(argv, prog: str = PROG) -> int:
+    a = parser(prog).parse_args(argv)
+    h = positive_float("--step", a.step)
+    t_end = positive_float("--time", a.time)
+    for fmu in COMPONENTS.values():
+        if not (a.fmu_dir / fmu).is_file():
+            raise UserError(f"--fmu-dir {a.fmu_dir}: no {fmu}; build it with scripts/build-fmu.sh")
+    from reciprocating_drive.presets import read_ssv
+    from reciprocating_drive.system import (
+        SSD,
+        LoopFailed,
+        build_ssp,
+        loop_gain,
+        plot_closed_loop,
+        run_fmpy,
+        run_libcosim,
+        speed_fluctuation,
+        start_values,
+    )
+
+    extra = overrides(a.set, a.fmu_dir)
+    pump = {**read_ssv(SSD.parent / "pump.ssv"), **extra["pump"]}
+    drive = {**read_ssv(SSD.parent / "drivetrain.ssv"), **extra["drivetrain"]}
+    d = {**start_values(a.fmu_dir / "DriveTrain.fmu"), **drive}
+    omega = max(d["crank.speed_start"], d["motor.synchronous_speed"] / d["drive.gear_ratio"])
+    h_max = 2 * math.pi / omega / MIN_STEPS_PER_REVOLUTION
+    if h > h_max:
+        raise UserError(
+            f"--step {a.step}: a revolution takes {2 * math.pi / omega:.4g} s at "
+            f"{omega:.4g} rad/s; allowed: <= {h_max:.4g} s ({MIN_STEPS_PER_REVOLUTION} steps per "
+            "revolution, so that δ per revolution is resolved)"
+        )
+    n = round(t_end / h)
+    if n < 1:
+        raise UserError(f"--time {a.time}: shorter than one step (--step {a.step}); allowed: >= h")
+    if n > MAX_STEPS:
+        raise UserError(
+            f"--time {a.time} / --step {a.step} = {n} steps; allowed: <= {MAX_STEPS:,} "
+            "(every sample is kept in memory)"
+        )
+
+    ssp_path = (
         a.out_dir / "ClosedLoop.ssp"
-        if a.fmu_dir != ROOT / "target" / "fmu"
-        else ROOT / "target" / "fmu" / "ClosedLoop.ssp",
+        if a.fmu_dir != ROOT / "target" / "fmu" or a.set
+        else ROOT / "target" / "fmu" / "ClosedLoop.ssp"
+    )
+    ssp = build_ssp(
+        ssp_path,
+        pump=pump if a.set else None,
+        drive=drive if a.set else None,
         fmu_dir=a.fmu_dir,
     )
     t0 = time.perf_counter()
-    r = (run_libcosim if a.importer == "libcosim" else run_fmpy)(ssp, a.step, a.time)
+    failure = None
+    try:
+        r = (run_libcosim if a.importer == "libcosim" else run_fmpy)(ssp, h, t_end)
+    except LoopFailed as e:
+        failure = (e.time, str(e))
+    except Exception as e:  # fmpy raises a plain Exception when an FMU refuses a step
+        failure = (None, f"{a.importer}: {e}")
+    else:
+        w = r["drivetrain.crank.speed"]
+        bad = ~np.isfinite(w) | (w <= 0) | (w > 2 * omega)
+        bad |= ~np.isfinite(r["pump.crank.torque"])
+        if bad.any():
+            k = int(np.argmax(bad))
+            failure = (float(r["time"][k]), f"crank speed {w[k]:.4g} rad/s")
     wall = time.perf_counter() - t0
-    d = speed_fluctuation(r["time"], r["drivetrain.crank.angle"], r["drivetrain.crank.speed"])
+    if failure is not None:
+        g = loop_gain(pump, drive, h, a.fmu_dir)
+        at = f" at t = {failure[0]:.4g} s" if failure[0] is not None else ""
+        cond = (
+            f"ρ_eff = (m·TF²/J)·exp(−h/τ) = {g['rho']:.3g} (m·TF² = {g['m'] * g['tf'] ** 2:.4g} "
+            f"kg·m², J = {g['J']:.4g} kg·m², τ = {g['tau']:.3g} s)"
+        )
+        if g["rho"] >= 1:
+            raise RunFailed(
+                f"the closed loop diverged{at} ({failure[1]}): {cond} >= 1 breaks the stability "
+                'condition ρ_eff < 1 of docs/closed-loop.md "The algebraic loop"; give the drive '
+                "more inertia or the motor a stiffer curve, or a smaller --step"
+            )
+        raise RunFailed(
+            f"the closed loop failed{at} ({failure[1]}); {cond} < 1, so not the algebraic loop "
+            "of docs/closed-loop.md: check the parameters"
+        )
+    dfl = speed_fluctuation(r["time"], r["drivetrain.crank.angle"], r["drivetrain.crank.speed"])
     w = r["drivetrain.crank.speed"]
-    print(f"{a.importer}: {a.time:g} s at h = {a.step:g} s in {wall:.2f} s wall; wrote {ssp}")
+    print(f"{a.importer}: {t_end:g} s at h = {h:g} s in {wall:.2f} s wall; wrote {ssp}")
     print(
         f"crank speed at the end {w[-1]:.5g} rad/s ({w[-1] * 60 / (2 * math.pi):.4g} strokes/min)"
     )
-    print("speed fluctuation δ per revolution: " + ", ".join(f"{x:.4%}" for x in d))
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(4, 1, figsize=(10, 10))
-    t = r["time"]
-    ax[0].plot(t, w * 60 / (2 * math.pi))
-    ax[0].set_ylabel("crank speed\n[strokes/min]")
-    ax[1].plot(t, r["drivetrain.motor.torque"], label="motor torque (motor shaft)")
-    ax[1].set_ylabel("motor torque\n[N·m]")
-    ax[2].plot(t, r["drivetrain.motor.power"] * 1e-3)
-    ax[2].set_ylabel("motor power\n[kW]")
-    for x in ax[:3]:
-        x.set_xlabel("time [s]")
-        x.grid(True, alpha=0.4)
-    ax[3].plot(range(1, len(d) + 1), [100 * x for x in d], "o-")
-    ax[3].set_xlabel("revolution")
-    ax[3].set_ylabel("δ = (ω_max − ω_min)/ω_mean\n[%]")
-    ax[3].grid(True, alpha=0.4)
-    fig.suptitle(f"Pump and drive train in a closed loop ({a.importer}, h = {a.step * 1e3:g} ms)")
-    fig.tight_layout()
-    a.out_dir.mkdir(parents=True, exist_ok=True)
-    fig.savefig(a.out_dir / "closed_loop.png", dpi=90)
-    print(f"wrote {a.out_dir / 'closed_loop.png'}")
+    if dfl:
+        print("speed fluctuation δ per revolution: " + ", ".join(f"{x:.4%}" for x in dfl))
+    else:
+        print(f"speed fluctuation δ: no complete revolution in {t_end:g} s")
+    png = a.out_dir / "closed_loop.png"
+    plot_closed_loop(
+        r,
+        dfl,
+        f"Pump and drive train in a closed loop ({a.importer}, h = {h * 1e3:g} ms)",
+        png,
+    )
+    print(f"wrote {png}")
     return 0
 
 

@@ -42,6 +42,10 @@ fi
 echo "== scripts/lint.sh (rustfmt, clippy -D warnings, ruff)"
 bash scripts/lint.sh
 
+# The twin's PostgreSQL sink is tested against a real temporary server (tests/python/pg_server.py).
+source scripts/lib/postgres.sh
+ensure_postgres
+
 echo "== pytest tests/python"
 # RD_REQUIRE_FMU: a missing FMU fails the run instead of skipping the tests.
 # (pytest's summary stays the last line of the run.)

@@ -161,7 +161,7 @@ def revolution_table(
     """`summarize_revolutions` as columns, one element per complete revolution: 'revolution'
     (int), 'start_time', 'duration', 'mean_speed', and where their inputs are given
     'speed_fluctuation', '<q>.max', '<q>.max_angle_deg', '<q>.min', '<q>.min_angle_deg' for
-    each quantity q, 'friction_work', 'rod_angle_amplitude', 'stress_max'. No Python object per
+    each quantity q, 'friction_work', 'stroke', 'rod_angle_amplitude', 'stress_max'. No Python object per
     revolution: the digital twin summarises some 25 revolutions a second this way.
 
     Vectorised over the revolutions: a revolution's numbers depend only on its own samples and
@@ -252,6 +252,13 @@ def revolution_table(
         tab["friction_work"] = np.array(
             [np.add.reduce(terms[a:b]) for a, b in zip(toff.tolist(), (toff + n + 1).tolist())]
         )
+    if "suspension.position" in cols:
+        # The stroke: the travel between the extreme positions of the revolution, each refined
+        # like the other extremes (docs/twin.md "Output").
+        x = cols["suspension.position"]
+        xmax, _ = _refined_peaks(th, x, first_where(x, seg_max(x)))
+        xmin, _ = _refined_peaks(th, x, first_where(x, seg_min(x)))
+        tab["stroke"] = xmax - xmin
     if "rod.angle" in cols:
         tab["rod_angle_amplitude"] = seg_max(np.abs(cols["rod.angle"]))
     if "rod.stress_max" in cols:

@@ -28,6 +28,14 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 SSD = ROOT / "ssp" / "ClosedLoop" / "SystemStructure.ssd"
 FMU_DIR = ROOT / "target" / "fmu"
 
+
+class LoopFailed(RuntimeError):
+    """The co-simulation of the loop failed (an importer's error or non-finite values); `time`:
+    the last communication point reached, where known."""
+
+    time: float | None = None
+
+
 #: What the scripts and tests record: (component, variable).
 RECORD = (
     ("drivetrain", "crank.speed"),
@@ -95,7 +103,9 @@ def build_ssp(
 def run_libcosim(ssp: pathlib.Path, h: float, t_end: float, timing: dict | None = None) -> dict:
     """The system in libcosim (its SSP loader, fixed step h). Returns time and RECORD series at
     the communication points t_1 .. t_n. `timing` receives the seconds of loading the system
-    ("load") and of simulate_until ("simulate")."""
+    ("load") and of simulate_until ("simulate"). A failed simulation raises LoopFailed with the
+    time of the last communication point reached (libcosim's own log is silenced: the tools
+    print one line)."""
     import time
 
     from libcosimpy.CosimEnums import CosimVariableType
@@ -103,7 +113,7 @@ def run_libcosim(ssp: pathlib.Path, h: float, t_end: float, timing: dict | None 
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     from libcosimpy.CosimObserver import CosimObserver
 
-    log_output_level(CosimLogLevel.WARNING)
+    log_output_level(CosimLogLevel.FATAL)
     with tempfile.TemporaryDirectory() as d:
         with zipfile.ZipFile(ssp) as z:
             z.extractall(d)
@@ -112,7 +122,8 @@ def run_libcosim(ssp: pathlib.Path, h: float, t_end: float, timing: dict | None 
         ex = CosimExecution.from_ssp_file(d, step_size=step_ns)
         n = int(round(t_end / h))
         obs = CosimObserver.create_time_series(buffer_size=n + 10)
-        assert ex.add_observer(obs)
+        if not ex.add_observer(obs):
+            raise LoopFailed("libcosim: the time-series observer could not be added")
         idx = {s.name.decode(): s.index for s in ex.slave_infos()}
         refs = {}
         for comp, var in RECORD:
@@ -125,13 +136,16 @@ def run_libcosim(ssp: pathlib.Path, h: float, t_end: float, timing: dict | None 
         ok = ex.simulate_until(target_time=int(round(t_end * 1e9)))
         if timing is not None:
             timing.update(load=t1 - t0, simulate=time.perf_counter() - t1)
-        if not ok:
-            raise RuntimeError("libcosim: the simulation failed")
         out = {}
         for (comp, var), vr in refs.items():
             times, _steps, values = obs.time_series_real_samples(idx[comp], vr, 1, n)
             out[f"{comp}.{var}"] = np.asarray(values, dtype=float)
             out["time"] = np.asarray(times, dtype=float) * 1e-9
+        if not ok:
+            reached = float(out["time"][-1]) if len(out["time"]) else 0.0
+            err = LoopFailed(f"libcosim: the simulation failed after t = {reached:.4g} s")
+            err.time, err.series = reached, out
+            raise err
     return out
 
 
@@ -153,7 +167,26 @@ def run_fmpy(ssp: pathlib.Path, h: float, t_end: float) -> dict:
                 params.append(p)
     ps = ParameterSet(parameters=params)
     n = int(round(t_end / h))
-    res = simulate_ssp(str(ssp), stop_time=n * h - 0.5 * h, step_size=h, parameter_set=ps)
+    # fmpy instantiates the components with its default callbacks, whose logger prints every FMU
+    # message: keep them instead, and put the last error into LoopFailed's one line.
+    # The logger of fmu.py's _Log takes this project's FMUs' "%s" messages (its docstring).
+    import fmpy.fmi2 as fmi2
+
+    from .fmu import _Log
+
+    log = _Log(echo=False)
+    saved = fmi2.defaultCallbacks.logger
+    fmi2.defaultCallbacks.logger = log.callbacks.logger
+    try:
+        res = simulate_ssp(str(ssp), stop_time=n * h - 0.5 * h, step_size=h, parameter_set=ps)
+    except Exception as e:
+        text = f"fmpy: {str(e).rstrip('.')}"
+        errors = [m for (status, _, m) in log.lines if status >= 3 and m]  # fmi2Error, Fatal
+        if errors:
+            text += f"; the FMU: {' '.join(errors[-1].split())[:300]}"
+        raise LoopFailed(text) from None
+    finally:
+        fmi2.defaultCallbacks.logger = saved
     out = {"time": (np.arange(len(res)) + 1) * h}
     names = res.dtype.names
     for comp, var in RECORD:
@@ -174,3 +207,105 @@ def speed_fluctuation(time: np.ndarray, angle: np.ndarray, speed: np.ndarray) ->
         out.append(float((w.max() - w.min()) / w.mean()))
         k += 1
     return out
+
+
+def start_values(fmu: pathlib.Path) -> dict:
+    """Start values of an FMU's parameters, as Python numbers."""
+    from fmpy import read_model_description
+
+    out = {}
+    for v in read_model_description(str(fmu), validate=False).modelVariables:
+        if v.causality == "parameter" and v.start is not None:
+            if v.type == "Boolean":
+                out[v.name] = str(v.start).lower() in ("true", "1")
+            elif v.type in ("Integer", "Enumeration"):
+                out[v.name] = int(v.start)
+            else:
+                out[v.name] = float(v.start)
+    return out
+
+
+def torque_factor_max(pump_fmu: pathlib.Path, pump: dict, omega: float, n: int = 720) -> float:
+    """max |kinematics.torque_factor| over one revolution of the pump FMU at constant speed
+    (any mechanism: the FMU's own kinematics, docs/model.md §3)."""
+    import numpy as np
+
+    from .fmu import Fmu
+
+    f = Fmu(str(pump_fmu))
+    values = {k: v for k, v in pump.items() if k not in ("crank.angle", "crank.speed")}
+    values["crank.speed"] = omega
+    f.start(values)
+    ch = f.channel(["crank.angle", "crank.speed"], ["kinematics.torque_factor"])
+    row = np.empty(1)
+    h = 2 * math.pi / omega / n
+    ch.set_inputs([0.0, omega])
+    ch.read(row)
+    best = abs(row[0])
+    for k in range(1, n + 1):
+        ch.step(k * h, [omega * (k - 1) * h, omega], row)
+        best = max(best, abs(row[0]))
+    return float(best)
+
+
+def loop_gain(pump: dict, drive: dict, h: float, fmu_dir: pathlib.Path = FMU_DIR) -> dict:
+    """ρ_eff = (m·TF²/J)·exp(−h/τ) of docs/closed-loop.md "The algebraic loop", with
+    J = J_c + i²·J_m, τ = J/(i²·k_m), k_m = 2·T_b/(s_b·ω_s); TF_max from the pump FMU. `pump`,
+    `drive`: the components' parameter values (start values where not given)."""
+    fmu_dir = pathlib.Path(fmu_dir)
+    p = {**start_values(fmu_dir / "ReciprocatingDrive.fmu"), **pump}
+    d = {**start_values(fmu_dir / "DriveTrain.fmu"), **drive}
+    i = d["drive.gear_ratio"]
+    J = d["crank.inertia"] + i * i * d["motor.inertia"]
+    k_m = (
+        2 * d["motor.breakdown_torque"] / (d["motor.breakdown_slip"] * d["motor.synchronous_speed"])
+    )
+    tau = J / (i * i * k_m)
+    omega = max(d["crank.speed_start"], d["motor.synchronous_speed"] / i)
+    tf = torque_factor_max(fmu_dir / "ReciprocatingDrive.fmu", p, omega)
+    m = p["mass.reciprocating"]
+    rho = m * tf * tf / J * math.exp(-h / tau)
+    return {"rho": rho, "m": m, "tf": tf, "J": J, "tau": tau}
+
+
+def plot_closed_loop(r: dict, d: list, title: str, path: pathlib.Path | None = None):
+    """closed_loop.png: crank speed, motor torque and power against time, and δ per revolution.
+    No axis uses an offset, and a constant (δ once the loop is periodic) is drawn as one. Without
+    `path`, returns the figure (the tests read its axes)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
+
+    from .sweep_plot import plain_axis
+
+    fig, ax = plt.subplots(4, 1, figsize=(10, 10))
+    t, w = r["time"], r["drivetrain.crank.speed"]
+    series = [
+        (w * 60 / (2 * math.pi), "crank speed\n[strokes/min]"),
+        (r["drivetrain.motor.torque"], "motor torque\n[N·m]"),
+        (r["drivetrain.motor.power"] * 1e-3, "motor power\n[kW]"),
+    ]
+    for x, (y, label) in zip(ax[:3], series):
+        x.plot(t, y)
+        x.set_ylabel(label)
+        x.set_xlabel("time [s]")
+        x.grid(True, alpha=0.4)
+        plain_axis(x, y)
+    # δ to the digits printed (4 decimals of a per cent): differences below are rounding noise.
+    dp = np.round(np.asarray(d, dtype=float) * 100, 4)
+    ax[3].plot(range(1, len(dp) + 1), dp, "o-")
+    ax[3].set_xlabel("revolution")
+    ax[3].set_ylabel("δ = (ω_max − ω_min)/ω_mean\n[%]")
+    ax[3].grid(True, alpha=0.4)
+    ax[3].xaxis.set_major_locator(MaxNLocator(integer=True))
+    plain_axis(ax[3], dp)
+    fig.suptitle(title)
+    fig.tight_layout()
+    if path is None:
+        return fig
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return None

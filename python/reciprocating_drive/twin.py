@@ -30,8 +30,11 @@ twin's own position and buffers; a run resumed from one continues exactly as if 
 from __future__ import annotations
 
 import base64
+import binascii
+import hashlib
 import json
 import math
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -39,10 +42,21 @@ import numpy as np
 from . import conditioning as cond
 from .batch import local_cubic, parse_csv
 from .fmu import Fmu, FmuError
-from .presets import preset_values
+from .presets import available_presets, preset_values
 from .revolution import TWO_PI, revolution_table
 
 INPUTS = ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")
+
+#: Absolute part of the measured speed's tolerance [rad/s] (docs/twin.md "Measured speed"): a
+#: crank at rest, whose estimated speed is rounding noise around 0.
+SPEED_SLACK = 0.1
+
+#: |time| and |angle| the twin reads (docs/twin.md "Input"): beyond 1e10 s a double resolves
+#: 2 µs at best, beyond 1e9 revolutions 1 µrad.
+TIME_LIMIT = 1e10
+ANGLE_LIMIT = 1e9 * 2.0 * math.pi
+#: Largest half-width of the smoothing window in samples (a window of 200 001 samples).
+MAX_HALF = 100_000
 
 #: Samples conditioned and sent to the FMU per call at most (bounds the memory of the windows).
 BLOCK = 4096
@@ -56,6 +70,14 @@ class DataError(ValueError):
     summaries: list = []
 
 
+#: The default machine's crank speed [rad/s] (the FMU's start value of crank.speed, 65 strokes/min)
+#: and the options' defaults at that speed; for another machine `window` and `gap_limit` scale
+#: with 1/ω and `max_speed` with ω of its design speed (docs/twin.md "Options follow the machine"),
+#: so that each covers the same crank angle.
+DEFAULT_DESIGN_SPEED = 2.0 * math.pi * 65.0 / 60.0
+DEFAULT_WINDOW, DEFAULT_GAP_LIMIT, DEFAULT_MAX_SPEED = 0.1, 0.05, 100.0
+
+
 @dataclass
 class Options:
     angle_unit: str = "rad"  # rad | deg | counts
@@ -63,13 +85,53 @@ class Options:
     wrapped: bool = True  # angles wrap every revolution (else continuous)
     speed_unit: str = "rad/s"  # rad/s | rpm
     duplicates: str = "drop"  # drop | error
-    window: float = 0.1  # smoothing window [s]
-    gap_limit: float = 0.05  # a longer interval between samples is a gap [s]
-    max_speed: float = 100.0  # fastest physically possible crank speed [rad/s]
+    window: float | None = None  # smoothing window [s]; None: from the machine's design speed
+    gap_limit: float | None = None  # a longer interval between samples is a gap [s]; None: idem
+    max_speed: float | None = None  # fastest physically possible crank speed [rad/s]; None: idem
     use_measured_speed: bool = True  # take crank_speed from the data when present
+    separator: str = "auto"  # of the input's fields: auto | , | ; (';' reads decimal commas)
+    speed_check: str = "refuse"  # a measured speed that contradicts the angle: refuse | warn
+    speed_tolerance: float = 0.1  # relative, see docs/twin.md "Measured speed"
 
     def to_dict(self) -> dict:
         return dict(self.__dict__)
+
+    def resolved(self, design_speed: float) -> Options:
+        """These options with the machine-dependent defaults filled in for a machine whose design
+        crank speed is `design_speed` rad/s."""
+        r = DEFAULT_DESIGN_SPEED / design_speed
+        o = Options(**self.to_dict())
+        o.window = DEFAULT_WINDOW * r if o.window is None else o.window
+        o.gap_limit = DEFAULT_GAP_LIMIT * r if o.gap_limit is None else o.gap_limit
+        o.max_speed = DEFAULT_MAX_SPEED / r if o.max_speed is None else o.max_speed
+        return o
+
+    def validate(self) -> None:
+        """Raises ValueError naming the first illegal option (as its command-line flag)."""
+        choices = {
+            "angle_unit": ("rad", "deg", "counts"),
+            "speed_unit": ("rad/s", "rpm"),
+            "duplicates": ("drop", "error"),
+            "separator": ("auto", ",", ";"),
+            "speed_check": ("refuse", "warn"),
+        }
+        for name, allowed in choices.items():
+            v = getattr(self, name)
+            if v not in allowed:
+                flag = "--" + name.replace("_", "-")
+                raise ValueError(f"{flag} {v!r}: allowed: {', '.join(allowed)}")
+        positive = ["window", "gap_limit", "max_speed", "speed_tolerance"]
+        if self.angle_unit == "counts" or self.counts_per_rev is not None:
+            positive.append("counts_per_rev")
+        for name in positive:
+            v = getattr(self, name)
+            flag = "--" + name.replace("_", "-")
+            if v is None and name == "counts_per_rev":
+                raise ValueError("--counts-per-rev must be given (> 0) with --angle-unit counts")
+            if v is None:
+                continue
+            if not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+                raise ValueError(f"{flag} {v!r}: must be a finite number > 0")
 
 
 SUMMARY_FIELDS = (
@@ -88,8 +150,57 @@ SUMMARY_FIELDS = (
     "crank_torque_max",
     "crank_torque_min",
     "friction_work",
+    "stroke",
     "rod_angle_amplitude",
     "stress_max",
+)
+
+#: The unit of each of SUMMARY_FIELDS ("-": a count or a ratio), written in the CSV header as
+#: `name [unit]` (docs/twin.md "Output").
+SUMMARY_UNITS = {
+    "revolution": "-",
+    "start_time": "s",
+    "mean_speed": "rad/s",
+    "speed_fluctuation": "-",
+    "friction_work": "J",
+    "stroke": "m",
+    "rod_angle_amplitude": "rad",
+    "stress_max": "Pa",
+    **{
+        f"{k}_{m}": u
+        for k, u in (
+            ("acceleration", "m/s2"),
+            ("inertia_force", "N"),
+            ("guide_friction", "N"),
+            ("rod_force", "N"),
+            ("crank_torque", "N.m"),
+        )
+        for m in ("max", "min")
+    },
+}
+
+
+def with_unit(name: str, unit: str | None) -> str:
+    """A CSV column header: `name [unit]` (docs/twin.md "Output"); `[-]` without a unit."""
+    return f"{name} [{unit or '-'}]"
+
+
+def column_name(header: str) -> str:
+    """The name of a column header written by `with_unit` (or a plain name)."""
+    name, sep, rest = header.rpartition(" [")
+    return name if sep and rest.endswith("]") else header
+
+
+def summary_header() -> list[str]:
+    return [with_unit(f, SUMMARY_UNITS[f]) for f in SUMMARY_FIELDS]
+
+
+#: Outputs the twin itself reads (the revolutions and the summaries).
+_NEEDED_OUTPUTS = (
+    "crank.model_angle",
+    "crank.model_speed",
+    "suspension.position",
+    "suspension.acceleration",
 )
 
 _EXTREMES = (
@@ -104,43 +215,68 @@ _EXTREME_KEYS = {f"{key}_{m}": f"{q}.{m}" for q, key in _EXTREMES for m in ("max
 _SUMMARY_KEYS = tuple(_EXTREME_KEYS.get(f, f) for f in SUMMARY_FIELDS)
 
 
-def parse_header(line: str) -> dict:
-    names = [c.strip() for c in line.strip().split(",")]
-    cols = {n: i for i, n in enumerate(names)}
+#: A number as the twin reads it (docs/twin.md "Input"): ASCII decimal digits, an optional sign,
+#: point and exponent, and the words inf/nan (refused as not finite). Python's float() alone also
+#: takes `1_0` (as 10) and non-ASCII digits; Rust's parser (the native reader) takes neither.
+_NUMBER = re.compile(  # ASCII: \d would match any script's digits
+    r"[+-]?(?:\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|inf|infinity|nan)", re.I | re.ASCII
+)
+
+#: Decimal comma to point and ';' to ',' (a ';'-separated file with decimal commas, docs/twin.md).
+_EUROPEAN = str.maketrans({",": ".", ";": ","})
+
+
+def detect_separator(line: str) -> str:
+    """',' or ';': the separator of a header line (';' when it has a ';' and no ',')."""
+    return ";" if ";" in line and "," not in line else ","
+
+
+def parse_header(line: str, separator: str = ",") -> dict:
+    """Column name -> field index of the header line. A UTF-8 byte-order mark and quotes around
+    a name are removed; a name given twice, or no `time` or `crank_angle`, is an error."""
+    line = line.lstrip("\ufeff")
+    names = [c.strip().strip('"').strip() for c in line.strip().split(separator)]
+    cols: dict = {}
+    for i, n in enumerate(names):
+        if n in cols and n:
+            raise DataError(
+                f"line 1: the header names {n!r} twice (columns {cols[n] + 1} and {i + 1})"
+            )
+        cols.setdefault(n, i)
     for need in ("time", "crank_angle"):
         if need not in cols:
-            raise DataError(f"line 1: the header must name '{need}' (found: {', '.join(names)})")
+            shown = ", ".join(repr(n) for n in names)
+            raise DataError(f"line 1: the header must name '{need}' (found: {shown})")
+    cols["\0fields"] = len(names)
     return cols
+
+
+def n_fields(cols: dict) -> int:
+    """The number of fields of a data line (the header's)."""
+    return cols.get("\0fields", len(cols))
 
 
 def parse_line(
     line: str, lineno: int, cols: dict
 ) -> tuple[float, float, float | None, float | None]:
     parts = line.strip().split(",")
-    if len(parts) < len(cols):
-        raise DataError(f"line {lineno}: {len(parts)} fields, the header names {len(cols)}")
+    if len(parts) != n_fields(cols):
+        raise DataError(f"line {lineno}: {len(parts)} fields, the header names {n_fields(cols)}")
 
     def num(name):
         raw = parts[cols[name]].strip()
-        try:
-            v = float(raw)
-        except ValueError:
-            raise DataError(f"line {lineno}: {name} = {raw!r} is not a number") from None
+        if raw == "":
+            raise DataError(f"line {lineno}: {name} is empty (a number is needed)")
+        if not _NUMBER.fullmatch(raw):
+            raise DataError(f"line {lineno}: {name} = {raw!r} is not a number")
+        v = float(raw)
         if not math.isfinite(v):
             raise DataError(f"line {lineno}: {name} = {raw!r} is not a finite number")
         return v
 
     t, a = num("time"), num("crank_angle")
-    w = (
-        num("crank_speed")
-        if "crank_speed" in cols and parts[cols["crank_speed"]].strip() != ""
-        else None
-    )
-    f = (
-        num("process_force")
-        if "process_force" in cols and parts[cols["process_force"]].strip() != ""
-        else None
-    )
+    w = num("crank_speed") if "crank_speed" in cols else None
+    f = num("process_force") if "process_force" in cols else None
     return t, a, w, f
 
 
@@ -150,11 +286,16 @@ def parse_lines(lines: list[str], first_lineno: int, cols: dict):
     arrays of the lines before the first bad one and its DataError (or None). The clean lines are
     parsed natively (`batch.parse_csv`), from the first other one on in Python."""
     names = [c for c in ("time", "crank_angle", "crank_speed", "process_force") if c in cols]
-    defaults = [{"crank_speed": math.nan, "process_force": 0.0}.get(c) for c in names]
+    # Every field is required: an empty field is an error (docs/twin.md "Input").
+    defaults = [None] * len(names)
     n, pos, parts = len(lines), 0, []
     while pos < n:
         got = parse_csv(
-            "\n".join(lines[pos:]).encode(), len(cols), [cols[c] for c in names], defaults, n - pos
+            "\n".join(lines[pos:]).encode(),
+            n_fields(cols),
+            [cols[c] for c in names],
+            defaults,
+            n - pos,
         )
         k = len(got[0])
         parts.append(
@@ -247,21 +388,48 @@ class Twin:
         options: Options | None = None,
         extra_values: dict | None = None,
     ):
-        self.o = options or Options()
         self.machine = machine
-        self.values = {k: v for k, v in preset_values(machine).items() if k not in INPUTS}
+        try:
+            preset = preset_values(machine)
+        except KeyError:
+            raise ValueError(
+                f"--machine {machine!r}: no such machine; allowed: "
+                f"{', '.join(available_presets())} or an .ssv file"
+            ) from None
+        except Exception as e:  # an .ssv file that fmpy cannot read
+            raise ValueError(f"--machine {machine!r}: not a readable .ssv file ({e})") from None
+        self.values = {k: v for k, v in preset.items() if k not in INPUTS}
         self.values.update(extra_values or {})
-        self.fmu = Fmu(fmu_path)
+        try:
+            self.fmu = Fmu(fmu_path)
+        except Exception as e:  # not a zip, not an FMU, no binary for this platform
+            raise ValueError(f"--fmu {str(fmu_path)!r}: not a usable FMU ({e})") from None
         self.outputs = list(self.fmu.outputs)
+        missing = [n for n in (*INPUTS, "crank.speed") if n not in self.fmu.vr]
+        missing += [n for n in _NEEDED_OUTPUTS if n not in self.outputs]
+        if missing:
+            raise ValueError(
+                f"--fmu {str(fmu_path)!r}: not the ReciprocatingDrive FMU (it has no "
+                f"{', '.join(missing)})"
+            )
+        self.design_speed = float(
+            preset.get("crank.speed", self.fmu.variables["crank.speed"].start)
+        )
+        if not (math.isfinite(self.design_speed) and self.design_speed > 0):
+            raise ValueError(f"--machine {machine!r}: crank.speed {self.design_speed!r} is not > 0")
+        self.o = (options or Options()).resolved(self.design_speed)
+        self.o.validate()
         self.i_angle = 1 + self.outputs.index("crank.model_angle")
         self.channel = None
         self.cols = None
+        self.separator = ","  # of the input's fields: ',' or ';' (decimal comma), from the header
         self.half = None
         self.buf = _Segment()
         self.last_raw = None  # previous accepted raw angle (rad), unwrapped angle, time
         self.last_unwrapped = None
         self.last_t = None
         self.duplicates = 0
+        self.speed_ignored = 0  # measured speeds ignored (--speed-check warn)
         self.gaps: list = []
         self.rev_parts: list = []  # rows of the revolution in progress (and the sample before it)
         self.rev_next = None  # index of the next revolution to complete
@@ -275,6 +443,15 @@ class Twin:
     def header(self) -> list[str]:
         return ["time", *self.outputs]
 
+    @property
+    def units(self) -> list[str]:
+        """The unit of each column of `header` (the FMU's declared units)."""
+        return ["s", *(self.fmu.variables[n].unit or "-" for n in self.outputs)]
+
+    def header_with_units(self) -> list[str]:
+        """`header` as the CSV writes it: `name [unit]` (docs/twin.md "Output")."""
+        return [with_unit(n, u) for n, u in zip(self.header, self.units)]
+
     def _empty(self) -> np.ndarray:
         return np.empty((0, 1 + len(self.outputs)))
 
@@ -285,8 +462,18 @@ class Twin:
         it are processed and DataError carries their rows and summaries (pieces, when deferred)."""
         rows = [self._empty()]
         if lines and self.cols is None:
-            self.cols = parse_header(lines[0])
+            sep = self.o.separator
+            if sep == "auto":
+                sep = detect_separator(lines[0])
+            self.separator = sep
+            self.cols = parse_header(lines[0], sep)
+            if sep == ";":
+                self.messages.append(
+                    "the input is ';'-separated: a decimal comma is read as a decimal point"
+                )
             lines, first_lineno = lines[1:], first_lineno + 1
+        if self.separator == ";" and lines:
+            lines = "\n".join(lines).translate(_EUROPEAN).split("\n")
         self.lines_read = first_lineno + len(lines) - 1
         if not lines:
             return self._hand_out(rows, None)
@@ -310,6 +497,25 @@ class Twin:
         err = None
         if n == 0:
             return err
+        # Magnitudes beyond which a double no longer resolves a 1 kHz sample or a sample's step
+        # of the angle (docs/twin.md "Input"): refused, not computed with lost digits.
+        with np.errstate(invalid="ignore"):
+            big = np.flatnonzero((np.abs(t) > TIME_LIMIT) | (np.abs(a) > ANGLE_LIMIT))
+        if big.size:
+            k = int(big[0])
+            name, v, lim, unit = (
+                ("time", t[k], TIME_LIMIT, "s")
+                if abs(t[k]) > TIME_LIMIT
+                else ("crank_angle", a[k], ANGLE_LIMIT, "rad")
+            )
+            err = DataError(
+                f"line {ln[k]}: {name} = {float(v):.6g} {unit} is beyond ±{lim:.6g} {unit}, "
+                "where a double no longer resolves the samples"
+            )
+            ln, t, a, w, f = (x[:k] for x in (ln, t, a, w, f))
+            n = k
+            if n == 0:
+                return err
         # Intervals to the previous line (time never goes backwards up to the first error, so the
         # previous accepted sample of a line is the line before it, duplicates included).
         prev = (
@@ -381,7 +587,9 @@ class Twin:
             return err
         # Segments: a gap (an interval longer than gap_limit) starts a new one.
         gaps = [k for k in np.flatnonzero(dt > o.gap_limit).tolist() if not (first and k == 0)]
-        for lo, hi in zip([0, *gaps], [*gaps, len(t)]):
+        # A gap at the first sample of a chunk starts the first piece: reported once.
+        starts = [0, *gaps] if not gaps or gaps[0] != 0 else gaps
+        for lo, hi in zip(starts, [*starts[1:], len(t)]):
             if lo in gaps:
                 t0, t1 = (self.last_t if lo == 0 else float(t[lo - 1])), float(t[lo])
                 self.gaps.append((t0, t1))
@@ -398,7 +606,15 @@ class Twin:
                 if self.half is None and (self.last_t is not None or hi - lo > 1):
                     # The smoothing window in samples, from the first interval.
                     d = float(t[1] - t[0]) if first else float(t[0]) - self.last_t
-                    self.half = cond.window_samples(o.window, d)
+                    half = cond.window_samples(o.window, d)
+                    if half > MAX_HALF:
+                        raise DataError(
+                            f"line {ln[lo + 1] if first else ln[lo]}: the first interval, "
+                            f"{d:.6g} s, makes the --window {o.window:g} s smoothing window "
+                            f"{2 * half + 1:.6g} samples wide (at most {2 * MAX_HALF + 1}): check "
+                            "the time unit or --window"
+                        )
+                    self.half = half
                 self.last_raw, self.last_unwrapped, self.last_t = (
                     float(a[hi - 1]),
                     float(theta[hi - 1]),
@@ -409,6 +625,12 @@ class Twin:
         return err
 
     def finish(self) -> tuple[np.ndarray, list]:
+        """Flushes the samples still waiting for their window at the end of the input. An input
+        without a header or without a single sample is an error (DataError)."""
+        if self.cols is None:
+            raise DataError("the input is empty (no header, no sample)")
+        if self.last_t is None:
+            raise DataError("the input has no sample (only the header)")
         if self.half is None:
             self.half = 2
         rows, err = [self._empty()], None
@@ -470,7 +692,35 @@ class Twin:
         for lo in range(b.done, ready, BLOCK):
             centres = np.arange(lo, min(ready, lo + BLOCK))
             w_est, e_est = local_cubic(b.t, b.theta, half, lo, len(centres))
-            w = np.where(np.isnan(b.speed[centres]), w_est, b.speed[centres])
+            w_meas = b.speed[centres]
+            err = None
+            # A measured speed is checked against the angle's own rate (docs/twin.md "Measured
+            # speed"): a wrong unit or sign would otherwise go straight into the loads.
+            with np.errstate(invalid="ignore"):
+                off = np.abs(w_meas - w_est) > self.o.speed_tolerance * np.abs(w_est) + SPEED_SLACK
+            bad = np.flatnonzero(off)
+            if bad.size and self.o.speed_check == "warn":
+                if not self.speed_ignored:
+                    k = int(bad[0])
+                    self.messages.append(
+                        f"line {int(b.line[centres[k]])}: crank_speed {float(w_meas[k]):.6g} rad/s "
+                        f"contradicts the angle's rate {float(w_est[k]):.6g} rad/s: ignored there "
+                        "and wherever else it does (--speed-check warn)"
+                    )
+                self.speed_ignored += int(bad.size)
+                w_meas = np.where(off, math.nan, w_meas)
+            elif bad.size:
+                k = int(bad[0])
+                err = DataError(
+                    f"line {int(b.line[centres[k]])}: crank_speed = {float(w_meas[k]):.6g} rad/s "
+                    f"contradicts the crank angle, which turns at {float(w_est[k]):.6g} rad/s "
+                    f"(allowed: within {self.o.speed_tolerance:.0%} of it + {SPEED_SLACK:g} rad/s; "
+                    "check --speed-unit, or --speed-check warn, or --ignore-speed)"
+                )
+                centres, w_est, e_est, w_meas = (x[:k] for x in (centres, w_est, e_est, w_meas))
+                if k == 0:
+                    raise err
+            w = np.where(np.isnan(w_meas), w_est, w_meas)
             inputs = np.column_stack([b.theta[centres], w, e_est, b.force[centres]])
             block = np.empty((len(centres), 1 + len(self.outputs)))
             block[:, 0] = b.t[centres]
@@ -486,6 +736,8 @@ class Twin:
                 raise
             self._emit(block, rows)
             b.done = int(centres[-1]) + 1
+            if err is not None:
+                raise err
         # Keep only what later windows can still reach.
         keep_from = max(0, b.done - width)
         if keep_from > 0:
@@ -551,6 +803,7 @@ class Twin:
         rev = np.concatenate(self.rev_parts) if self.rev_parts else self._empty()
         return {
             "version": 2,
+            "fmu_guid": self.fmu.model_description.guid,
             "machine": self.machine,
             "options": self.o.to_dict(),
             "fmu_state": base64.b64encode(self.fmu.serialize()).decode()
@@ -572,6 +825,8 @@ class Twin:
             },
             "last": [self.last_raw, self.last_unwrapped, self.last_t],
             "duplicates": self.duplicates,
+            "speed_ignored": self.speed_ignored,
+            "separator": self.separator,
             "gaps": self.gaps,
             "rev_rows": rev.tolist(),
             "rev_next": self.rev_next,
@@ -579,15 +834,50 @@ class Twin:
 
     @classmethod
     def from_checkpoint(cls, fmu_path: str, cp: dict, extra_values: dict | None = None) -> Twin:
+        """The twin of a checkpoint (a dict as `checkpoint()` made it). A checkpoint that is not
+        one (missing or mistyped entries, a damaged FMU state) raises CheckpointError naming what
+        is wrong; a wrong machine or FMU raises ValueError."""
+        if not isinstance(cp, dict):
+            raise CheckpointError(f"not a twin checkpoint (a JSON {type(cp).__name__})")
+        if "sha256" in cp and cp["sha256"] != _digest(cp):
+            raise CheckpointError(
+                "the checkpoint was damaged or edited (its checksum does not match)"
+            )
         if cp.get("version") != 2:
-            raise ValueError(f"checkpoint version {cp.get('version')!r}; this twin reads version 2")
-        tw = cls(fmu_path, cp["machine"], Options(**cp["options"]), extra_values)
+            raise CheckpointError(
+                f"checkpoint version {cp.get('version')!r}; this twin reads version 2"
+            )
+        try:
+            options = Options(**cp["options"])
+            machine = cp["machine"]
+        except (KeyError, TypeError) as e:
+            raise CheckpointError(f"not a twin checkpoint (options or machine: {e})") from None
+        tw = cls(fmu_path, machine, options, extra_values)
+        guid = tw.fmu.model_description.guid
+        if cp.get("fmu_guid", guid) != guid:
+            raise CheckpointError(
+                f"made with the FMU {cp['fmu_guid']!r}; {str(fmu_path)!r} is {guid!r} (another "
+                "build: its state cannot be restored into this one)"
+            )
+        try:
+            tw._restore(cp)
+        except FmuError as e:
+            raise CheckpointError(f"the FMU refused the checkpoint's state ({e})") from None
+        except (KeyError, TypeError, ValueError, IndexError, binascii.Error) as e:
+            raise CheckpointError(f"not a twin checkpoint ({type(e).__name__}: {e})") from None
+        return tw
+
+    def _restore(self, cp: dict) -> None:
+        tw = self
         tw.lines_read, tw.rows_out, tw.cols, tw.half = (
-            cp["lines_read"],
-            cp["rows_out"],
+            int(cp["lines_read"]),
+            int(cp["rows_out"]),
             cp["cols"],
             cp["half"],
         )
+        if tw.cols is not None and not isinstance(tw.cols, dict):
+            raise TypeError("cols is not a mapping")
+        tw.separator = cp.get("separator", ",")
         bb = cp["buf"]
         tw.buf = _Segment(
             t=np.array(bb["t"], dtype=float),
@@ -595,18 +885,51 @@ class Twin:
             speed=np.array([math.nan if v is None else v for v in bb["speed"]], dtype=float),
             force=np.array(bb["force"], dtype=float),
             line=np.array(bb["line"], dtype=np.int64),
-            done=bb["done"],
-            segment_start=bb["segment_start"],
+            done=int(bb["done"]),
+            segment_start=bool(bb["segment_start"]),
         )
+        if len({len(getattr(tw.buf, n)) for n in _Segment.NAMES}) != 1:
+            raise ValueError("the buffered samples' columns differ in length")
         tw.last_raw, tw.last_unwrapped, tw.last_t = cp["last"]
-        tw.duplicates, tw.gaps = cp["duplicates"], [tuple(g) for g in cp["gaps"]]
+        tw.duplicates, tw.gaps = int(cp["duplicates"]), [tuple(g) for g in cp["gaps"]]
+        tw.speed_ignored = int(cp.get("speed_ignored", 0))
         rev = np.array(cp["rev_rows"], dtype=float).reshape(-1, 1 + len(tw.outputs))
         tw.rev_parts, tw.rev_next = ([rev] if len(rev) else []), cp["rev_next"]
         if cp["fmu_state"] is not None:
             tw.fmu.start(tw.values)
-            tw.fmu.restore(base64.b64decode(cp["fmu_state"]), cp["fmu_time"])
+            tw.fmu.restore(base64.b64decode(cp["fmu_state"], validate=True), float(cp["fmu_time"]))
             tw.channel = tw.fmu.channel(list(INPUTS), tw.outputs)
-        return tw
+
+
+class CheckpointError(ValueError):
+    """A checkpoint that cannot be used: damaged, edited, or not a twin's."""
+
+
+def _digest(cp: dict) -> str:
+    body = {k: v for k, v in cp.items() if k != "sha256"}
+    return hashlib.sha256(json.dumps(body, sort_keys=True).encode()).hexdigest()
+
+
+def load_checkpoint(path) -> dict:
+    """A checkpoint file written by `save_checkpoint`, its checksum verified: a damaged or edited
+    file raises CheckpointError naming the file (a changed number in a valid JSON would otherwise
+    resume with wrong values)."""
+    import pathlib
+
+    p = pathlib.Path(path)
+    try:
+        cp = json.loads(p.read_bytes().decode("utf-8"))
+    except OSError as e:
+        raise CheckpointError(f"{p}: cannot be read ({e.strerror or e})") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise CheckpointError(f"{p}: not a twin checkpoint (not JSON: {e})") from None
+    if not isinstance(cp, dict) or "sha256" not in cp:
+        raise CheckpointError(f"{p}: not a twin checkpoint (no checksum)")
+    if cp["sha256"] != _digest(cp):
+        raise CheckpointError(
+            f"{p}: the checkpoint was damaged or edited (its checksum does not match)"
+        )
+    return cp
 
 
 def save_checkpoint(path, cp: dict) -> None:
@@ -615,5 +938,9 @@ def save_checkpoint(path, cp: dict) -> None:
 
     p = pathlib.Path(path)
     tmp = p.with_suffix(p.suffix + ".tmp")
-    tmp.write_text(json.dumps(cp))
+    cp = {**cp, "sha256": _digest(cp)}
+    with open(tmp, "w") as f:
+        f.write(json.dumps(cp))
+        f.flush()
+        os.fsync(f.fileno())
     os.replace(tmp, p)

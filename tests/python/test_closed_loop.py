@@ -136,7 +136,7 @@ def test_loop_stability_condition(tmp_path, fmu_path, jc, stable):
     acceleration passed around the loop is multiplied per round trip by
     ρ_eff = (m·TF²/J)·exp(−h/τ), τ = J/(i²·k_m), k_m = 2T_b/(s_b·ω_s) the slope of the motor
     torque (the motor damps the crank within the step). A soft motor (s_b = 0.9) and no motor
-    inertia: J = 20 kg·m² gives ρ_eff,max = 0.58, smooth; J = 4 kg·m² gives 2.1, and the
+    inertia: J = 20 kg·m² gives ρ_eff,max = 0.57, smooth; J = 4 kg·m² gives 2.1, and the
     co-simulation diverges until the FMUs refuse the non-finite torque."""
     import pathlib
 

@@ -271,7 +271,7 @@ def test_lhs_design_is_stratified_and_bad_studies_are_refused(tmp_path):
             },
         }
     )
-    assert len(st.case_values) == 16
+    assert st.n_cases == len(st.case_values) == 16
     for p, (lo, hi) in {
         "mass.reciprocating": (100, 500),
         "guide.friction_coefficient": (0.0, 0.2),
@@ -279,13 +279,192 @@ def test_lhs_design_is_stratified_and_bad_studies_are_refused(tmp_path):
         u = sorted((c[p] - lo) / (hi - lo) for c in st.case_values)
         # Latin hypercube: exactly one sample in each of the 16 strata of every dimension.
         assert [int(x * 16) for x in u] == list(range(16))
-    with pytest.raises(StudyError, match="unknown"):
+    with pytest.raises(StudyError, match="metrics.0. = 'nonsense'; allowed: friction_work"):
         study_from_dict(
             {"metrics": ["nonsense"], "parameters": {"mass.reciprocating": {"values": [1.0]}}}
         )
-    with pytest.raises(StudyError, match="empty"):
+    with pytest.raises(StudyError, match="parameters = {}; allowed: at least one entry"):
         study_from_dict({"parameters": {}})
-    with pytest.raises(StudyError, match="not a preset"):
+    with pytest.raises(StudyError, match="machine = 'nosuch'; allowed: default, kvo630"):
         study_from_dict(
             {"machine": "nosuch", "parameters": {"mass.reciprocating": {"values": [1.0]}}}
         )
+
+
+# ---- parameters that cannot act (docs/sweeps.md "Parameters that cannot act") --------------
+
+NO_SUPPORTS = {"support_A.kind": 0, "support_B.kind": 0, "support_C.kind": 0}
+KVO = "kvo630"
+# (parameter, value 1, value 2, where the rule says it cannot act, where it says it acts).
+# A machine is the default one with these values over it, or a preset named by "machine".
+CLAIMS = [
+    ("support_C.tilt", 0.0, 2e-4, {}, {"support_C.attached": 0}),
+    ("support_C.length", 0.05, 0.1, {}, {"support_C.kind": 3}),
+    ("support_C.offset", 0.0, 2e-4, {"support_C.kind": 0}, {}),
+    ("support_C.stiffness", 2e6, 4e6, {"support_C.kind": 0}, {}),
+    ("support_C.z", 1.6, 1.4, {"support_C.kind": 0}, {}),
+    ("support_C.attached", 1, 0, {"support_C.kind": 0}, {}),
+    ("support_C.friction", 0.0, 0.1, {"support_C.kind": 0}, {}),
+    ("support_B.offset", 3e-4, 1e-4, {"support_B.kind": 0}, {}),
+    ("support_B.length", 0.4, 0.3, {"support_B.kind": 0}, {}),
+    ("guide.friction_coefficient", 0.1, 0.2, {"support_B.kind": 0}, {}),
+    (
+        "support_B.tilt",
+        0.0,
+        2e-4,
+        {"support_B.kind": 1, "support_B.attached": 1},
+        {"support_B.kind": 1, "support_B.attached": 0},
+    ),  # fmt: skip
+    ("support_A.offset", 0.0, 2e-4, {"support_A.kind": 0}, {}),
+    ("support_A.tilt", 0.0, 2e-4, {"support_A.kind": 0}, {}),
+    ("link.d3", 0.1, 0.12, NO_SUPPORTS, {}),
+    ("link.l3", 1.0, 1.1, NO_SUPPORTS, {}),
+    ("link.E", 2.1e11, 1.0e11, NO_SUPPORTS, {}),
+    ("link.lateral_load", 0.0, 500.0, NO_SUPPORTS, {}),
+    ("guide.velocity_scale", 0.02, 0.05, NO_SUPPORTS, {}),
+    ("guide.rod_side_force", True, False, NO_SUPPORTS, {}),
+    ("balancer.stiffness", 1e4, 2e4, {}, {"balancer.enabled": True}),
+    (
+        "balancer.design_speed",
+        6.8,
+        5.0,
+        {"balancer.enabled": True},
+        {"balancer.enabled": True, "balancer.tuning": 1},
+    ),  # fmt: skip
+    (
+        "balancer.neutral_position",
+        0.05,
+        0.1,
+        {"balancer.enabled": True, "balancer.tuning": 1},
+        {"balancer.enabled": True, "balancer.stiffness": 1e4},
+    ),  # fmt: skip
+    (
+        "balancer.neutral_position",
+        0.05,
+        0.1,
+        {"balancer.enabled": True},
+        {"balancer.enabled": True, "balancer.stiffness": 1e4},
+    ),  # fmt: skip
+    ("geometry.pivot_dx", 2.195, 2.3, {}, {"mechanism": 2, "geometry.rod_length": 3.0}),
+    ("rod.cage_inertia", 5e-7, 1e-6, {}, {"machine": KVO}),
+    ("rod.flex_length", 0.023, 0.02, {}, {"machine": KVO}),
+    ("rod.damping_ratio", 0.05, 0.1, {}, {"machine": KVO}),
+    ("geometry.rod_length", 1.19, 1.3, {"machine": KVO}, {}),
+]
+
+
+def _outputs(fmu, names, values, omega, n=90):
+    """Every output at n + 1 points of one revolution at constant speed."""
+    rows = np.empty((n + 1, len(names)))
+    fmu.start(values)
+    ch = fmu.channel(["crank.angle", "crank.speed"], names)
+    ch.set_inputs([0.0, omega])
+    ch.read(rows[0])
+    h = 2 * math.pi / omega / n
+    for k in range(1, n + 1):
+        ch.step(k * h, [omega * (k - 1) * h, omega], rows[k])
+    return rows
+
+
+def test_parameters_that_cannot_act_are_exactly_those_the_rule_names(fmu_path, model_description):
+    """Issue 24, finding 3: varying support_C.tilt of the unb600a gland gave bit-identical results.
+    For each rule of study.inert_in, the FMU is run with two values of the parameter where the
+    rule says it cannot act (every output at every point identical, bit for bit) and where the
+    rule says it acts (some output differs)."""
+    from reciprocating_drive.fmu import Fmu
+    from reciprocating_drive.presets import preset_values
+    from reciprocating_drive.study import inert_in, model_parameters
+
+    variables, _, _ = model_parameters(fmu_path)
+    names = [v.name for v in model_description.modelVariables if v.causality == "output"]
+    fmu = Fmu(fmu_path)
+    for name, v1, v2, inert_cfg, acting_cfg in CLAIMS:
+        for cfg, inert in ((inert_cfg, True), (acting_cfg, False)):
+            cfg = dict(cfg)
+            base = {k: v.start for k, v in variables.items()}
+            preset = preset_values(cfg.pop("machine", "default"))
+            omega = float(preset.pop("crank.speed", 2 * math.pi * 65 / 60))
+            preset.pop("crank.angle", None)
+            values = {**base, **preset, **cfg}
+            said = inert_in(values)
+            assert (name in said) == inert, (name, cfg, said.get(name))
+            a = _outputs(fmu, names, {**values, name: v1}, omega)
+            b = _outputs(fmu, names, {**values, name: v2}, omega)
+            same = np.array_equal(a, b)
+            assert same == inert, (name, cfg, "identical" if same else "different")
+
+
+def test_sweep_warns_of_a_parameter_that_cannot_act(fmu_path, tmp_path):
+    """The gland's tilt of unb600a varied with the clamp's offset: the command says in its output,
+    in the plot and in the Parquet table's metadata that the tilt cannot act; the offset acts."""
+    import pyarrow.parquet as pq
+
+    f = tmp_path / "gland.toml"
+    f.write_text(
+        'name = "gland"\nmachine = "unb600a"\nskip_revolutions = 0\nsteps_per_revolution = 60\n'
+        '[parameters]\n"support_C.tilt" = { values = [0.0, 1e-3] }\n'
+        '"support_A.offset" = { values = [0.0, 1e-4] }\n'
+    )
+    p = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "scripts" / "sweep.py"),
+            str(f),
+            "--fmu",
+            fmu_path,
+            "--out-dir",
+            str(tmp_path / "o"),
+            "--no-progress",
+            "--workers",
+            "1",
+        ],  # fmt: skip
+        capture_output=True,
+        text=True,
+        timeout=180,
+    )
+    assert p.returncode == 0, p.stderr
+    warn = [ln for ln in p.stdout.splitlines() if ln.startswith("warning: ")]
+    assert len(warn) == 1 and "support_C.tilt cannot act" in warn[0], p.stdout
+    meta = pq.read_schema(tmp_path / "o" / "gland.parquet").metadata
+    assert b"support_C.tilt cannot act" in meta[b"warnings"]
+    rows = load_rows(tmp_path / "o" / "gland.csv", load_study(f))
+    # The claim holds in the results: same numbers for both tilts, different for both offsets.
+    by = {(r["support_C.tilt"], r["support_A.offset"]): r["friction_work"] for r in rows}
+    assert by[(0.0, 0.0)] == by[(1e-3, 0.0)] and by[(0.0, 1e-4)] == by[(1e-3, 1e-4)]
+    assert by[(0.0, 0.0)] != by[(0.0, 1e-4)]
+
+
+def test_plot_uses_display_units_and_drops_all_zero_panels():
+    """Issue 24, finding 7: axes in display units, no offset notation, no panel for a metric that
+    is 0 in every case (sk8's guide friction: a single clamp) but a line saying why."""
+    from reciprocating_drive.sweep_plot import plot_sweep
+
+    study = study_from_dict(
+        {
+            "machine": "sk8-3.5-4000",
+            "metrics": ["guide_friction_max", "stress_max"],
+            "parameters": {"support_A.offset": {"values": [0.0, 1e-4, 2e-4]}},
+        }
+    )
+    rows = [
+        {
+            "case": i,
+            "support_A.offset": x,
+            "guide_friction_max": 0.0,
+            "stress_max": 3.0e8 + 1e-3 * i,
+            "status": "ok",
+        }  # fmt: skip
+        for i, x in enumerate([0.0, 1e-4, 2e-4])
+    ]
+    fig = plot_sweep(study, rows)
+    fig.canvas.draw()
+    panels = [ax for ax in fig.axes if ax.axison]
+    assert len(panels) == 1
+    ax = panels[0]
+    assert ax.get_xlabel() == "support_A.offset [mm]"
+    assert ax.get_ylabel() == "largest rod stress [MPa]"
+    assert ax.yaxis.get_offset_text().get_text() == ""
+    ticks = [float(t.get_text().replace("−", "-")) for t in ax.get_xticklabels() if t.get_text()]
+    assert 0.15 <= max(ticks) <= 0.3, ticks  # 0.2 mm, not 0.0002 m
+    texts = " ".join(t.get_text() for t in fig.texts)
+    assert "no guide friction: a single clamp (support A) holds the link" in texts

@@ -1,5 +1,6 @@
 //! The clean lines of the digital twin's input CSV, parsed natively. A line is clean when it has
-//! at least the header's number of fields and each wanted field is a finite decimal number that
+//! exactly the header's number of fields (docs/twin.md "Input": a row with more fields is as
+//! wrong as one with fewer) and each wanted field is a finite decimal number that
 //! Rust's correctly rounded parser reads (spaces around it allowed; an empty optional field gives
 //! its default). Such a field reads to the same double in Python's float(), so the caller parses
 //! the clean prefix here and anything else (blank lines, bad or unusual fields) in Python, which
@@ -21,7 +22,7 @@ pub fn clean_prefix(
             break;
         }
         let fields: Vec<&[u8]> = line.split(|&c| c == b',').collect();
-        if fields.len() < n_fields {
+        if fields.len() != n_fields {
             break;
         }
         for (j, &c) in cols.iter().enumerate() {
@@ -60,5 +61,20 @@ mod tests {
             (a[..3].to_vec(), b[..3].to_vec(), c[..3].to_vec()),
             (vec![0.5, 2.0, 7.0], vec![1e-3, 3.0, 8.0], vec![-1.0, 5.0, -1.0])
         );
+    }
+
+    #[test]
+    fn a_line_with_more_fields_than_the_header_is_not_clean() {
+        let text = b"1,2\n3,4,5\n6,7";
+        let (mut a, mut b) = ([0.0; 3], [0.0; 3]);
+        let n = clean_prefix(text, 2, &[0, 1], &[None, None], &mut [&mut a, &mut b]);
+        assert_eq!(n, 1);
+    }
+
+    #[test]
+    fn underscores_are_not_numbers() {
+        let text = b"1_0,2";
+        let (mut a, mut b) = ([0.0; 1], [0.0; 1]);
+        assert_eq!(clean_prefix(text, 2, &[0, 1], &[None, None], &mut [&mut a, &mut b]), 0);
     }
 }

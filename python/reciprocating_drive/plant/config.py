@@ -1,0 +1,318 @@
+"""The twin's configuration file (docs/plant.md, "Configuration"): TOML, read with the standard
+library's tomllib, checked key by key. Every mistake is one line naming the file, the key, the
+value and what is allowed (`ConfigError`)."""
+
+from __future__ import annotations
+
+import math
+import os
+import pathlib
+import tomllib
+from dataclasses import dataclass, field
+
+from ..presets import available_presets
+
+ROOT = pathlib.Path(__file__).resolve().parents[3]
+
+
+class ConfigError(ValueError):
+    pass
+
+
+_MISSING = object()
+
+
+class _Table:
+    """One table of the file, with the keys read from it tracked (unknown keys are errors)."""
+
+    def __init__(self, path: str, name: str, data):
+        self.path, self.name = path, name
+        if not isinstance(data, dict):
+            raise ConfigError(f"{path}: [{name}] must be a table (found {data!r})")
+        self.data, self.used = data, set()
+
+    def err(self, key, value, allowed) -> ConfigError:
+        return ConfigError(f"{self.path}: {self.name}.{key} = {value!r}: {allowed}")
+
+    def get(self, key, kind, default=_MISSING, allowed: str | None = None, check=None):
+        self.used.add(key)
+        if key not in self.data:
+            if default is _MISSING:
+                raise ConfigError(f"{self.path}: {self.name}.{key} is missing ({allowed})")
+            return default
+        v = self.data[key]
+        if kind is float and isinstance(v, int) and not isinstance(v, bool):
+            v = float(v)
+        if not isinstance(v, kind) or (kind is int and isinstance(v, bool)):
+            raise self.err(key, v, allowed or f"must be a {getattr(kind, '__name__', kind)}")
+        if isinstance(v, float) and not math.isfinite(v):
+            raise self.err(key, v, allowed or "must be a finite number")
+        if check is not None and not check(v):
+            raise self.err(key, v, allowed)
+        return v
+
+    def choice(self, key, options, default=_MISSING):
+        return self.get(key, str, default, "allowed: " + ", ".join(options), lambda v: v in options)
+
+    def positive(self, key, default=_MISSING, zero=False):
+        return self.get(
+            key,
+            float,
+            default,
+            "must be a number >= 0" if zero else "must be a number > 0",
+            (lambda v: v >= 0) if zero else (lambda v: v > 0),
+        )
+
+    def done(self) -> None:
+        extra = sorted(set(self.data) - self.used)
+        if "password" in extra:
+            raise ConfigError(
+                f"{self.path}: {self.name}.password: a password is never written in the "
+                "configuration; use password_file or password_env"
+            )
+        if extra:
+            raise ConfigError(
+                f"{self.path}: {self.name}.{extra[0]} is not a known key "
+                f"(known: {', '.join(sorted(self.used))})"
+            )
+
+
+@dataclass
+class SourceConfig:
+    type: str
+    settings: dict  # the checked keys, secrets excluded
+    password: str | None = field(default=None, repr=False)
+
+    def public(self) -> dict:
+        return {"type": self.type, **self.settings}
+
+
+@dataclass
+class SinkConfig:
+    type: str
+    settings: dict
+    password: str | None = field(default=None, repr=False)
+
+
+@dataclass
+class Config:
+    path: str
+    run_id: str
+    machine_id: str
+    machine: str
+    fmu: str
+    options: dict  # reciprocating_drive.twin.Options fields
+    source: SourceConfig
+    sinks: list[SinkConfig]
+    commit_interval: float = 0.1
+    commit_samples: int = 20000
+    checkpoint_interval: float = 2.0
+
+
+def _secret(t: _Table, what: str) -> str | None:
+    """A password from `password_file` or `password_env`, never from the file itself."""
+    if "password" in t.data:
+        raise ConfigError(
+            f"{t.path}: {t.name}.password: a password is never written in the configuration; "
+            "use password_file or password_env"
+        )
+    pf = t.get("password_file", str, None)
+    pe = t.get("password_env", str, None)
+    if pf and pe:
+        raise ConfigError(f"{t.path}: {t.name}: give password_file or password_env, not both")
+    if pf:
+        p = _path(t.path, pf)
+        try:
+            return pathlib.Path(p).read_text().strip("\r\n")
+        except OSError as e:
+            raise ConfigError(f"{t.path}: {t.name}.password_file = {pf!r}: {e.strerror}") from None
+    if pe:
+        if pe not in os.environ:
+            raise ConfigError(
+                f"{t.path}: {t.name}.password_env = {pe!r}: the environment has no such variable"
+            )
+        return os.environ[pe]
+    return None
+
+
+def _path(config_path: str, p: str) -> str:
+    """A path of the file, relative to the configuration file's folder."""
+    q = pathlib.Path(p)
+    return str(q if q.is_absolute() else (pathlib.Path(config_path).resolve().parent / q).resolve())
+
+
+def load(path: str) -> Config:
+    try:
+        with open(path, "rb") as f:
+            data = tomllib.load(f)
+    except OSError as e:
+        raise ConfigError(f"{path}: {e.strerror}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{path}: not valid TOML: {e}") from None
+    return parse(data, str(path))
+
+
+def parse(data: dict, path: str = "<config>") -> Config:
+    top = _Table(path, "(top)", data)
+    for key in data:
+        if key not in ("run", "source", "conditioning", "sink"):
+            raise ConfigError(
+                f"{path}: [{key}] is not a known table (known: run, source, conditioning, sink)"
+            )
+    run = _Table(path, "run", data.get("run", _MISSING) if "run" in data else {})
+    if "run" not in data:
+        raise ConfigError(f"{path}: [run] is missing (it names the run and the machine)")
+    ident = r"letters, digits and . _ - only, 1-64 characters"
+
+    def is_ident(v):
+        return 0 < len(v) <= 64 and all(c.isalnum() or c in "._-" for c in v)
+
+    run_id = run.get("id", str, allowed=ident, check=is_ident)
+    machine_id = run.get("machine_id", str, allowed=ident, check=is_ident)
+    machine = run.get("machine", str, "default")
+    presets = available_presets()
+    if machine not in presets and not machine.endswith(".ssv"):
+        raise run.err("machine", machine, "allowed: " + ", ".join(presets) + ", or an .ssv file")
+    if machine.endswith(".ssv"):
+        machine = _path(path, machine)
+    fmu = run.get("fmu", str, str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
+    fmu = _path(path, fmu)
+    commit_interval = run.positive("commit_interval", 0.1)
+    checkpoint_interval = run.positive("checkpoint_interval", 2.0)
+    commit_samples = run.get(
+        "commit_samples", int, 20000, "must be an integer >= 1", lambda v: v >= 1
+    )
+    run.done()
+
+    src = _Table(path, "source", data.get("source", {}))
+    if "source" not in data:
+        raise ConfigError(f'{path}: [source] is missing (type = "csv" or "opcua")')
+    stype = src.choice("type", ("csv", "opcua"))
+    opts = {
+        "angle_unit": src.choice("angle_unit", ("rad", "deg", "counts"), "rad"),
+        "counts_per_rev": src.get(
+            "counts_per_rev", float, None, "must be a number > 0", lambda v: v > 0
+        ),
+        "wrapped": src.get("wrapped", bool, True),
+        "speed_unit": src.choice("speed_unit", ("rad/s", "rpm"), "rad/s"),
+    }
+    if opts["angle_unit"] == "counts" and opts["counts_per_rev"] is None:
+        raise ConfigError(
+            f'{path}: source.counts_per_rev is missing (angle_unit = "counts" needs it)'
+        )
+    password = None
+    if stype == "csv":
+        settings = {
+            "path": _path(path, src.get("path", str, allowed="the CSV file to replay")),
+            "pace": src.positive("pace", 0.0, zero=True),
+        }
+    else:
+        settings = _opcua_settings(src, path)
+        password = _secret(src, "source")
+    src.done()
+
+    cond = _Table(path, "conditioning", data.get("conditioning", {}))
+    opts.update(
+        duplicates=cond.choice("duplicates", ("drop", "error"), "drop"),
+        window=cond.positive("window", 0.1),
+        gap_limit=cond.positive("gap_limit", 0.05),
+        max_speed=cond.positive("max_speed", 100.0),
+        use_measured_speed=cond.get("use_measured_speed", bool, True),
+    )
+    cond.done()
+
+    sinks_data = data.get("sink", [])
+    if not isinstance(sinks_data, list) or not sinks_data:
+        raise ConfigError(f'{path}: no [[sink]] (at least one: type = "sqlite" or "postgres")')
+    sinks = []
+    for i, sd in enumerate(sinks_data):
+        s = _Table(path, f"sink[{i}]", sd)
+        stype_ = s.choice("type", ("sqlite", "postgres"))
+        samples = s.get(
+            "samples",
+            (str, int),
+            "all",
+            'allowed: "all", "none", or N >= 1 (every N-th sample)',
+            lambda v: v in ("all", "none") or (isinstance(v, int) and v >= 1),
+        )
+        common = {
+            "samples": samples,
+            "retry_for": s.positive("retry_for", 300.0),
+            "retry_max": s.positive("retry_max", 5.0),
+        }
+        pw = None
+        if stype_ == "sqlite":
+            settings_ = {"path": _path(path, s.get("path", str, allowed="the database file"))}
+        else:
+            settings_ = {
+                "dsn": s.get(
+                    "dsn",
+                    str,
+                    allowed="a libpq connection string without password, e.g. "
+                    '"host=127.0.0.1 port=5432 dbname=twin user=twin"',
+                    check=lambda v: "password" not in v.lower(),
+                )
+            }
+            pw = _secret(s, f"sink[{i}]")
+        s.done()
+        sinks.append(SinkConfig(stype_, {**settings_, **common}, pw))
+    top.used.update(data)
+    return Config(
+        path,
+        run_id,
+        machine_id,
+        machine,
+        fmu,
+        opts,
+        SourceConfig(stype, settings, password),
+        sinks,
+        commit_interval,
+        commit_samples,
+        checkpoint_interval,
+    )
+
+
+def _opcua_settings(src: _Table, path: str) -> dict:
+    mode = src.choice("mode", ("scalar", "block"), "scalar")
+    node = 'an OPC UA node id, e.g. "ns=2;s=Pump.CrankAngle"'
+    s = {
+        "endpoint": src.get(
+            "endpoint", str, allowed="an opc.tcp:// URL", check=lambda v: v.startswith("opc.tcp://")
+        ),
+        "mode": mode,
+        "angle_node": src.get("angle_node", str, allowed=node),
+        "speed_node": src.get("speed_node", str, None),
+        "force_node": src.get("force_node", str, None),
+        "time_node": src.get("time_node", str, None),  # block mode: the timestamps' array
+        "history": src.get("history", bool, True),
+        "security_policy": src.choice("security_policy", ("None", "Basic256Sha256"), "None"),
+        "security_mode": src.choice("security_mode", ("Sign", "SignAndEncrypt"), "SignAndEncrypt"),
+        "certificate": src.get("certificate", str, None),
+        "private_key": src.get("private_key", str, None),
+        "trust": src.get("trust", list, []),
+        "username": src.get("username", str, None),
+        "timeout": src.positive("timeout", 5.0),
+        "reconnect_max": src.positive("reconnect_max", 5.0),
+        "reconnect_for": src.positive("reconnect_for", 300.0),
+        "publishing_interval": src.positive("publishing_interval", 0.05),
+        "end_node": src.get("end_node", str, None),
+    }
+    if mode == "block" and not s["time_node"]:
+        raise ConfigError(
+            f'{path}: source.time_node is missing (mode = "block" needs the timestamps\' array)'
+        )
+    for k in ("certificate", "private_key"):
+        if s[k]:
+            s[k] = _path(path, s[k])
+    s["trust"] = [_path(path, p) for p in s["trust"]]
+    if s["security_policy"] != "None":
+        for k in ("certificate", "private_key"):
+            if not s[k]:
+                raise ConfigError(
+                    f'{path}: source.{k} is missing (security_policy = "{s["security_policy"]}" needs it)'
+                )
+        if not s["trust"]:
+            raise ConfigError(
+                f"{path}: source.trust is missing (the server certificates to trust, a list of files)"
+            )
+    return s

@@ -1,0 +1,304 @@
+"""The twin in a plant (docs/plant.md): source -> the twin's core -> database sinks.
+
+    from reciprocating_drive.plant.pipeline import run_config
+    sys.exit(run_config("examples/twin/replay-sqlite.toml"))
+
+A source hands out chunks of input lines and data-health events; `Twin.feed` turns them into
+per-sample rows and revolution summaries; every sink gets them all and commits them, every
+`commit_interval` seconds or `commit_samples` input lines, in ONE transaction with the checkpoint
+that covers them (the twin's state: FMU state, input position, conditioning buffers, and the
+counts of rows, summaries and events handed out). Restarted with the same configuration, the
+pipeline resumes from the last committed checkpoint (docs/plant.md "Exactly once").
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import tempfile
+import time
+import traceback
+
+from ..fmu import FmuError
+from ..twin import DataError, Options, Twin
+from .config import Config, ConfigError, load
+from .samples import Event
+from .sinks.base import Counters, RunInfo, SinkError
+
+
+class SourceError(RuntimeError):
+    """A source that cannot go on or refuses us (one line; never a secret)."""
+
+
+def make_source(cfg: Config):
+    s = cfg.source
+    if s.type == "csv":
+        from .sources.csv import CsvSource
+
+        return CsvSource(s.settings["path"], pace=s.settings["pace"])
+    from .sources.opcua import OpcUaSource
+
+    return OpcUaSource(s.settings, password=s.password)
+
+
+def make_sinks(cfg: Config) -> list:
+    out = []
+    for s in cfg.sinks:
+        common = {k: s.settings[k] for k in ("samples", "retry_for", "retry_max")}
+        if s.type == "sqlite":
+            from .sinks.sqlite import SqliteSink
+
+            out.append(SqliteSink(s.settings["path"], **common))
+        else:
+            from .sinks.postgres import PostgresSink
+
+            out.append(PostgresSink(s.settings["dsn"], password=s.password, **common))
+    return out
+
+
+class Pipeline:
+    def __init__(self, cfg: Config, log=None):
+        self.cfg = cfg
+        self.log = log or (lambda m: print(m, file=sys.stderr, flush=True))
+        self.stop_signal = None
+        self.commits = 0
+
+    # ---- events and hand-over -------------------------------------------------------------------
+    def _event(self, ev: Event) -> None:
+        self.events.append((self.c.events, time.time(), ev))
+        self.c.events += 1
+
+    def _hand(self, rows, summaries) -> None:
+        first = self.twin.rows_out - len(rows)
+        self._twin_events()
+        events, self.events = self.events, []
+        for s in self.sinks:
+            s.add(rows, first, summaries, self.c.revolutions, events)
+        self.c.samples = self.twin.rows_out
+        self.c.revolutions += len(summaries)
+        if summaries:
+            self.c.rev_upto = int(summaries[-1]["revolution"])
+        self.dirty = True
+
+    def _twin_events(self) -> None:
+        tw = self.twin
+        for gap, msg in zip(tw.gaps[self.gaps_seen :], tw.messages[self.msgs_seen :]):
+            # Twin.feed records a gap twice when a chunk starts right after it (a chunk of one
+            # line, as live sources give): one event per gap.
+            if gap != self.last_gap:
+                self._event(Event("gap", msg, t=gap[0]))
+                self.gap_count += 1
+            self.last_gap = gap
+        self.gaps_seen, self.msgs_seen = len(tw.gaps), len(tw.messages)
+        if tw.duplicates > self.dups_seen:
+            n = tw.duplicates - self.dups_seen
+            self._event(Event("duplicates", f"{n} duplicate timestamp(s) dropped", count=n))
+            self.dups_seen = tw.duplicates
+
+    def _commit(self, status: str | None = None, checkpoint: bool = True) -> None:
+        for s in self.sinks:
+            if s.retries:
+                self._event(
+                    Event("sink_retry", f"{s.notes[0]} ({s.retries} retries)", count=s.retries)
+                )
+                s.retries, s.notes = 0, []
+        self._hand(self.twin._empty(), [])
+        state = None
+        if checkpoint or status is not None:
+            state = {
+                "twin": self.twin.checkpoint(),
+                "time_origin": self.source_origin(),
+                "duplicates_reported": self.dups_seen,
+                "gaps_reported": self.gap_count,
+            }
+            self.last_checkpoint = time.monotonic()
+            self.lines_since_checkpoint = 0
+        for s in self.sinks:
+            s.commit(state, self.c, status)
+        if status is not None:
+            for s in self.sinks:
+                s.flush()
+        self.commits += 1
+        self.dirty = False
+        self.last_commit = time.monotonic()
+        self.lines_since = 0
+
+    def source_origin(self):
+        return getattr(self.source, "time_origin", None)
+
+    # ---- the run --------------------------------------------------------------------------------
+    def run(self) -> int:
+        cfg = self.cfg
+        self.source = make_source(cfg)
+        self.sinks = make_sinks(cfg)
+        try:
+            return self._run()
+        finally:
+            self.source.close()
+            for s in self.sinks:
+                try:
+                    s.flush()
+                finally:
+                    s.shutdown()
+
+    def _run(self) -> int:
+        cfg = self.cfg
+        twin = Twin(cfg.fmu, cfg.machine, Options(**cfg.options))
+        info = RunInfo(
+            cfg.run_id,
+            cfg.machine_id,
+            cfg.machine,
+            twin.outputs,
+            cfg.options,
+            cfg.source.public(),
+        )
+        states = [s.open(info) for s in self.sinks]
+        have = [st for st in states if st is not None]
+        state = None
+        if have and (len(have) == len(states) or not self.source.rewindable):
+            state = min(have, key=lambda st: st["counters"]["samples"])
+        if (
+            state is not None
+            and state.get("status") == "finished"
+            and all(st is not None and st.get("status") == "finished" for st in states)
+        ):
+            self.log(f"run {cfg.run_id!r} is already finished in every sink; nothing to do")
+            return 0
+        self.c = Counters()
+        self.events: list = []
+        self.dups_seen = 0
+        if state is not None:
+            twin = Twin.from_checkpoint(cfg.fmu, state["twin"])
+            c = state["counters"]
+            self.c = Counters(c["samples"], c["revolutions"], c["events"], 0, c.get("rev_upto"))
+            self.dups_seen = state.get("duplicates_reported", 0)
+        self.twin = twin
+        self.gaps_seen, self.msgs_seen = len(twin.gaps), 0
+        self.last_gap = tuple(twin.gaps[-1]) if twin.gaps else None
+        self.gap_count = state.get("gaps_reported", 0) if state else 0
+        resumed = state is not None
+        self.source.start(
+            lines_read=twin.lines_read,
+            last_t=twin.last_t,
+            time_origin=state.get("time_origin") if state else None,
+        )
+        self._event(
+            Event(
+                "resumed" if resumed else "started",
+                f"{'resumed' if resumed else 'started'} run {cfg.run_id!r} of machine "
+                f"{cfg.machine_id!r} at input line {twin.lines_read}",
+            )
+        )
+        self.dirty = True
+        self.last_commit = self.last_checkpoint = time.monotonic()
+        self.lines_since = self.lines_since_checkpoint = 0
+        lineno = twin.lines_read
+        live = getattr(self.source, "live", True)
+
+        def on_signal(signum, _frame):
+            self.stop_signal = signal.Signals(signum).name
+
+        old = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGTERM, signal.SIGINT)}
+        try:
+            while self.stop_signal is None:
+                wait = max(0.0, cfg.commit_interval - (time.monotonic() - self.last_commit))
+                chunk = self.source.get(wait)
+                if chunk is None and self.source.ended:
+                    break
+                if chunk is not None:
+                    for ev in chunk.events:
+                        self._event(ev)
+                    if chunk.events:
+                        self.dirty = True
+                    if chunk.lines:
+                        try:
+                            rows, sums = twin.feed(chunk.lines, lineno + 1)
+                        except (DataError, FmuError) as e:
+                            return self._failed(e)
+                        lineno += len(chunk.lines)
+                        self.lines_since += len(chunk.lines)
+                        self.lines_since_checkpoint += len(chunk.lines)
+                        self._hand(rows, sums)
+                # A live source commits every commit_interval (the rows' latency); a replay
+                # as fast as possible every commit_samples lines (fewer, larger transactions).
+                # Rows of a live source go out every commit_interval, with a checkpoint every
+                # checkpoint_interval; a replay commits rows and checkpoint together.
+                now = time.monotonic()
+                if self.dirty and (
+                    self.lines_since >= cfg.commit_samples
+                    or (live and now - self.last_commit >= cfg.commit_interval)
+                ):
+                    self._commit(
+                        checkpoint=not live
+                        or self.lines_since_checkpoint >= cfg.commit_samples
+                        or now - self.last_checkpoint >= cfg.checkpoint_interval
+                    )
+            if self.stop_signal is not None:
+                self._commit()
+                self.log(
+                    f"stopped by {self.stop_signal} after input line {lineno}; committed. Run "
+                    "again with the same configuration to resume."
+                )
+                return 0
+            try:
+                rows, sums = twin.finish()
+            except (DataError, FmuError) as e:
+                return self._failed(e)
+            self._hand(rows, sums)
+            if twin.rows_out == 0:
+                self._event(Event("data_error", "the input holds no sample"))
+                self._commit("failed")
+                self.log(f"{cfg.source.public().get('path', 'source')}: the input holds no sample")
+                return 1
+            self._event(Event("finished", f"finished: {twin.rows_out} samples"))
+            self._commit("finished")
+        finally:
+            for sig, h in old.items():
+                signal.signal(sig, h)
+        for m in dict.fromkeys(twin.messages):
+            self.log(f"twin: {m}")
+        self.log(
+            f"run {cfg.run_id!r}: {twin.rows_out} samples, {self.c.revolutions} revolutions, "
+            f"{twin.duplicates} duplicate timestamps dropped, {self.gap_count} gap(s); "
+            f"{self.commits} commits to {', '.join(s.name for s in self.sinks)}"
+        )
+        return 0
+
+    def _failed(self, e) -> int:
+        """Bad data or an FMU failure: the rows before it are committed, then the run stops."""
+        if getattr(e, "rows", None) is not None:
+            self._hand(e.rows, e.summaries or [])
+        kind = "fmu_error" if isinstance(e, FmuError) else "data_error"
+        self._event(Event(kind, str(e)))
+        self._commit("failed")
+        self.log(f"twin: {e}")
+        return 1
+
+
+def run_config(path: str, log=None) -> int:
+    """The whole pipeline of a configuration file; returns the exit status (messages are one line
+    each on standard error; an unexpected failure writes its traceback to a file and says where)."""
+    log = log or (lambda m: print(m, file=sys.stderr, flush=True))
+    try:
+        cfg = load(path)
+    except ConfigError as e:
+        log(str(e))
+        return 2
+    try:
+        return Pipeline(cfg, log).run()
+    except (SinkError, SourceError, ConfigError) as e:
+        log(str(e))
+        return 1
+    except FmuError as e:
+        log(f"FMU {cfg.fmu}: {e}")
+        return 1
+    except (OSError, ValueError, KeyError) as e:
+        log(f"{type(e).__name__}: {e}" if not isinstance(e, OSError) else str(e))
+        return 1
+    except Exception:  # noqa: BLE001 - a bug: one line for the user, the details in a file
+        fd, where = tempfile.mkstemp(prefix="twin-plant-", suffix=".txt")
+        with os.fdopen(fd, "w") as f:
+            traceback.print_exc(file=f)
+        log(f"internal error of the twin; please report it with the details in {where}")
+        return 3

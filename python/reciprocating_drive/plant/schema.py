@@ -1,0 +1,92 @@
+"""The database schema of the twin's sinks (docs/plant.md, "Schema"), for SQLite and PostgreSQL.
+
+Version 1. Every table is keyed by the run (an integer, `runs.run`); a run has a name (the
+configuration's `run.id`, unique) and a machine identifier. Per-sample and per-revolution rows have
+primary keys (run, seq) and (run, revolution), so a row can never be stored twice: a bug that tried
+would fail its transaction instead of duplicating data. The time index (run, t) serves the queries
+plants make ("this machine, this hour"). Times `t` are seconds from the run's `time_origin` (Unix
+seconds), the twin's own time; wall-clock times are Unix seconds.
+"""
+
+from __future__ import annotations
+
+from ..twin import SUMMARY_FIELDS
+
+SCHEMA_VERSION = 1
+
+
+def column(output: str) -> str:
+    """The column of an FMU output: `support_A.reaction` -> `support_a_reaction` (lower case:
+    PostgreSQL folds unquoted names)."""
+    return output.replace(".", "_").lower()
+
+
+def ddl(dialect: str, outputs: list[str]) -> list[str]:
+    """The statements creating the schema (idempotent: IF NOT EXISTS)."""
+    real = "DOUBLE PRECISION" if dialect == "postgres" else "REAL"
+    big = "BIGINT" if dialect == "postgres" else "INTEGER"
+    runkey = (
+        "BIGINT GENERATED ALWAYS AS IDENTITY PRIMARY KEY"
+        if dialect == "postgres"
+        else "INTEGER PRIMARY KEY AUTOINCREMENT"
+    )
+    # SQLite: the rows stored in the primary key's order (one B-tree fewer per row inserted).
+    clustered = " WITHOUT ROWID" if dialect == "sqlite" else ""
+    outs = ",\n  ".join(f"{column(o)} {real} NOT NULL" for o in outputs)
+    revs = ",\n  ".join(f"{f} {real}" for f in SUMMARY_FIELDS[1:])
+    return [
+        "CREATE TABLE IF NOT EXISTS schema_info (version INTEGER NOT NULL)",
+        f"""CREATE TABLE IF NOT EXISTS runs (
+  run {runkey},
+  name TEXT NOT NULL UNIQUE,
+  machine_id TEXT NOT NULL,
+  machine TEXT NOT NULL,
+  outputs TEXT NOT NULL,
+  options TEXT NOT NULL,
+  source TEXT NOT NULL,
+  time_origin {real},
+  started_at {real} NOT NULL,
+  finished_at {real},
+  status TEXT NOT NULL
+)""",
+        f"""CREATE TABLE IF NOT EXISTS samples (
+  run {big} NOT NULL REFERENCES runs(run),
+  seq {big} NOT NULL,
+  t {real} NOT NULL,
+  {outs},
+  PRIMARY KEY (run, seq)
+){clustered}""",
+        "CREATE INDEX IF NOT EXISTS samples_time ON samples (run, t)",
+        f"""CREATE TABLE IF NOT EXISTS revolutions (
+  run {big} NOT NULL REFERENCES runs(run),
+  revolution {big} NOT NULL,
+  {revs},
+  PRIMARY KEY (run, revolution)
+)""",
+        "CREATE INDEX IF NOT EXISTS revolutions_time ON revolutions (run, start_time)",
+        f"""CREATE TABLE IF NOT EXISTS events (
+  run {big} NOT NULL REFERENCES runs(run),
+  seq {big} NOT NULL,
+  t {real},
+  wall_time {real} NOT NULL,
+  kind TEXT NOT NULL,
+  count {big} NOT NULL,
+  message TEXT NOT NULL,
+  PRIMARY KEY (run, seq)
+)""",
+        "CREATE INDEX IF NOT EXISTS events_time ON events (run, t)",
+        f"""CREATE TABLE IF NOT EXISTS checkpoints (
+  run {big} PRIMARY KEY REFERENCES runs(run),
+  commits {big} NOT NULL,
+  samples {big} NOT NULL,
+  revolutions {big} NOT NULL,
+  events {big} NOT NULL,
+  wall_time {real} NOT NULL,
+  state TEXT NOT NULL
+)""",
+    ]
+
+
+SAMPLE_COLUMNS = ("run", "seq", "t")
+REVOLUTION_COLUMNS = ("run", *SUMMARY_FIELDS)
+EVENT_COLUMNS = ("run", "seq", "t", "wall_time", "kind", "count", "message")

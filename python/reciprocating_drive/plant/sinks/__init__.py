@@ -1,0 +1,1 @@
+"""Database sinks of the twin (docs/plant.md, "Sinks")."""

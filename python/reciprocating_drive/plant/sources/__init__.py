@@ -1,0 +1,1 @@
+"""Sources of the twin's samples (docs/plant.md, "Sources")."""

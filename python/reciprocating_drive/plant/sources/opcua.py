@@ -1,0 +1,545 @@
+"""OPC UA as a source (docs/plant.md, "OPC UA source"), with asyncua.
+
+The client runs on its own thread and event loop and hands chunks of samples to the pipeline
+through a queue, so a slow database never stalls the subscription (the queue buffers).
+
+* **scalar** mode: the angle node (and speed, force) through a subscription; each value's
+  SourceTimestamp is its sample time, and values of the nodes with the same timestamp form one
+  sample. **block** mode: arrays of timestamps (DateTime[]) and values that the PLC rewrites every
+  N ms, each array of a block with the same SourceTimestamp.
+* Times: seconds from `time_origin`, the whole Unix second of the first sample (kept in the
+  checkpoint), so a resumed run continues the same time axis.
+* A value whose status is not Good, of a type that is not a number, or not finite is not fed to
+  the twin: the sample is dropped, counted, and reported as a data-health event ("dropped").
+* A lost connection is retried with a doubling delay (up to `reconnect_max` s, for at most
+  `reconnect_for` s in all). If the server keeps history, the samples since the last one received
+  are read back (HistoryRead) before the subscription's own; without, the interval is a gap, which
+  the twin reports like a gap in a file.
+* Security: Basic256Sha256 (Sign or SignAndEncrypt) with the client's certificate and key; the
+  server's certificate must be one of the `trust` files (DER or PEM); user name and password. A
+  refusal stops the run with one line; a password is never part of a message.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import datetime as dt
+import logging
+import math
+import queue
+import threading
+import time
+
+from ..samples import SAMPLE_HEADER, Chunk, Event, sample_lines
+
+EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.UTC)
+_NUMERIC = None  # the numeric VariantTypes (set on first use: asyncua imported lazily)
+
+
+class _Fatal(Exception):
+    pass
+
+
+def _numeric_types():
+    global _NUMERIC
+    if _NUMERIC is None:
+        from asyncua import ua
+
+        V = ua.VariantType
+        _NUMERIC = {
+            V.Double,
+            V.Float,
+            V.SByte,
+            V.Byte,
+            V.Int16,
+            V.UInt16,
+            V.Int32,
+            V.UInt32,
+            V.Int64,
+            V.UInt64,
+        }
+    return _NUMERIC
+
+
+def _der(path: str) -> bytes:
+    from cryptography import x509
+    from cryptography.hazmat.primitives.serialization import Encoding
+
+    data = open(path, "rb").read()
+    if b"-----BEGIN" in data:
+        return x509.load_pem_x509_certificate(data).public_bytes(Encoding.DER)
+    return x509.load_der_x509_certificate(data).public_bytes(Encoding.DER)
+
+
+def _application_uri(path: str) -> str | None:
+    """The application URI in a certificate's subject alternative names (None if absent)."""
+    from cryptography import x509
+
+    try:
+        data = open(path, "rb").read()
+        cert = (
+            x509.load_pem_x509_certificate(data)
+            if b"-----BEGIN" in data
+            else x509.load_der_x509_certificate(data)
+        )
+        san = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
+        uris = san.get_values_for_type(x509.UniformResourceIdentifier)
+        return uris[0] if uris else None
+    except (OSError, ValueError, x509.ExtensionNotFound):
+        return None
+
+
+class OpcUaSource:
+    rewindable = False
+
+    def __init__(self, settings: dict, password: str | None = None):
+        # asyncua logs warnings and tracebacks of its own; the twin reports in one line instead.
+        logging.getLogger("asyncua").setLevel(logging.CRITICAL)
+        self.s = settings
+        self._password = password
+        self.ended = False
+        self.time_origin = None
+        self.q: queue.Queue = queue.Queue()
+        self.thread = None
+        self.loop = None
+        self._stop = threading.Event()
+        self.roles = {"angle": settings["angle_node"]}
+        if settings.get("speed_node"):
+            self.roles["speed"] = settings["speed_node"]
+        if settings.get("force_node"):
+            self.roles["force"] = settings["force_node"]
+        if settings["mode"] == "block":
+            self.roles["time"] = settings["time_node"]
+        self.block = settings["mode"] == "block"
+
+    # ---- the pipeline's side --------------------------------------------------------------------
+    def start(self, lines_read: int = 0, last_t=None, time_origin=None) -> None:
+        self.need_header = lines_read == 0
+        self.last_t = last_t  # the last sample handed out (twin time)
+        self.time_origin = time_origin
+        if last_t is not None and time_origin is not None:
+            # Resumed: the samples after the checkpoint's last one are read back from the
+            # server's history at the first connection, as after a lost connection.
+            self._origin_dt = EPOCH + dt.timedelta(seconds=time_origin)
+            self.last_dt = self._origin_dt + dt.timedelta(microseconds=round(last_t * 1e6))
+            self._resumed = True
+        self.connected = threading.Event()
+        self.thread = threading.Thread(target=self._thread, name="opcua-source", daemon=True)
+        self.thread.start()
+        # The first connection's outcome: a refusal is an error of the start.
+        deadline = time.monotonic() + self.s["reconnect_for"] + self.s["timeout"] + 5
+        while not self.connected.wait(0.05):
+            if not self.thread.is_alive() or time.monotonic() > deadline:
+                break
+            try:
+                item = self.q.queue[0] if self.q.queue else None
+            except IndexError:
+                item = None
+            if isinstance(item, Exception):
+                break
+        if not self.q.empty() and isinstance(self.q.queue[0], Exception):
+            self._raise(self.q.get())
+
+    def _raise(self, e):
+        from ..pipeline import SourceError
+
+        raise SourceError(str(e)) from None
+
+    def get(self, timeout: float) -> Chunk | None:
+        try:
+            item = self.q.get(timeout=timeout)
+        except queue.Empty:
+            return None
+        if isinstance(item, Exception):
+            self._raise(item)
+        if item is None:
+            self.ended = True
+            return None
+        # Take whatever else is there too: one chunk per call.
+        while not self.q.empty():
+            more = self.q.queue[0]
+            if not isinstance(more, Chunk):
+                break
+            more = self.q.get()
+            item.lines += more.lines
+            item.events += more.events
+        return item
+
+    def close(self) -> None:
+        self._stop.set()
+        if self.thread is not None:
+            self.thread.join(timeout=self.s["timeout"] + 5)
+
+    # ---- the client's thread --------------------------------------------------------------------
+    def _thread(self) -> None:
+        try:
+            asyncio.run(self._main())
+        except _Fatal as e:
+            self.q.put(RuntimeError(str(e)))
+        except Exception as e:  # noqa: BLE001 - reported by the pipeline as one line
+            self.q.put(RuntimeError(f"OPC UA source {self.s['endpoint']}: {type(e).__name__}: {e}"))
+
+    def _emit(self, lines: list, events: list) -> None:
+        if self.need_header and lines:
+            lines = [SAMPLE_HEADER, *lines]
+            self.need_header = False
+        if lines or events:
+            self.q.put(Chunk(lines=list(lines), events=list(events)))
+
+    async def _main(self) -> None:
+        s = self.s
+        delay, lost_at, reason, first = 0.2, None, None, True
+        while not self._stop.is_set():
+            try:
+                client = await self._connect()
+            except _Fatal:
+                raise
+            except (TimeoutError, OSError, ConnectionError) as e:
+                reason = reason or (str(e).splitlines()[0] if str(e) else type(e).__name__)
+                lost_at = lost_at or time.monotonic()
+                if time.monotonic() - lost_at > s["reconnect_for"]:
+                    raise _Fatal(
+                        f"OPC UA source {s['endpoint']}: unreachable for {s['reconnect_for']:g} s "
+                        f"(reconnect_for): {reason}"
+                    ) from None
+                await asyncio.sleep(delay)
+                delay = min(delay * 2, s["reconnect_max"])
+                continue
+            self.connected.set()
+            delay = 0.2
+            try:
+                ended = await self._session(client, None if first else (lost_at, reason))
+            except (TimeoutError, OSError, ConnectionError, _Lost) as e:
+                reason = str(e).splitlines()[0] if str(e) else type(e).__name__
+                lost_at = time.monotonic()
+                first = False
+                try:
+                    await asyncio.wait_for(client.disconnect(), 1.0)
+                except Exception:  # noqa: BLE001 - the connection is gone anyway
+                    pass
+                continue
+            try:
+                await asyncio.wait_for(client.disconnect(), 2.0)
+            except Exception:  # noqa: BLE001
+                pass
+            if ended:
+                self.q.put(None)
+                return
+            return  # stopped by the pipeline
+
+    async def _connect(self):
+        from asyncua import Client, ua
+        from asyncua.crypto.security_policies import SecurityPolicyBasic256Sha256
+
+        s = self.s
+        client = Client(s["endpoint"], timeout=s["timeout"])
+        client.session_timeout = 30000
+        if s["username"]:
+            client.set_user(s["username"])
+            client.set_password(self._password or "")
+        where = f"OPC UA source {s['endpoint']}"
+        if s["security_policy"] == "Basic256Sha256":
+            trusted = {}
+            for p in s["trust"]:
+                try:
+                    trusted[_der(p)] = p
+                except (OSError, ValueError) as e:
+                    raise _Fatal(f"{where}: trust file {p}: not a certificate ({e})") from None
+
+            async def check(cert, _app):
+                from cryptography.hazmat.primitives import hashes
+                from cryptography.hazmat.primitives.serialization import Encoding
+
+                if cert.public_bytes(Encoding.DER) not in trusted:
+                    fp = cert.fingerprint(hashes.SHA256()).hex(":")
+                    raise _Fatal(
+                        f"{where}: the server's certificate ({cert.subject.rfc4514_string()}, "
+                        f"SHA-256 {fp}) is not in the trust list (source.trust); refused"
+                    )
+
+            client.certificate_validator = check
+            uri = _application_uri(s["certificate"])
+            if uri:
+                client.application_uri = uri  # as the client certificate says
+            mode = getattr(ua.MessageSecurityMode, s["security_mode"])
+            try:
+                await client.set_security(
+                    SecurityPolicyBasic256Sha256, s["certificate"], s["private_key"], mode=mode
+                )
+            except (TimeoutError, OSError, ConnectionError):
+                raise
+            except ua.UaError as e:
+                raise _Fatal(
+                    f"{where}: no {s['security_policy']} {s['security_mode']} endpoint ({e})"
+                ) from None
+            except Exception as e:  # noqa: BLE001 - a bad certificate or key file
+                raise _Fatal(
+                    f"{where}: the client certificate or key: {type(e).__name__}: {e}"
+                ) from None
+        try:
+            await client.connect()
+        except _Fatal:
+            raise
+        except (TimeoutError, OSError, ConnectionError):
+            raise
+        except ua.UaStatusCodeError as e:
+            raise _Fatal(self._refusal(e)) from None
+        except ua.UaError as e:
+            raise _Fatal(f"{where}: refused: {str(e).splitlines()[0]}") from None
+        return client
+
+    def _refusal(self, e) -> str:
+        s, where = self.s, f"OPC UA source {self.s['endpoint']}"
+        name = type(e).__name__
+        login = "set source.username and password_file or password_env"
+        if "UserAccessDenied" in name or "IdentityTokenRejected" in name:
+            if not s["username"]:
+                return f"{where}: the server refuses anonymous connections ({name}); {login}"
+            return (
+                f"{where}: the server refused user {s['username']!r} ({name}): "
+                "wrong user name or password"
+            )
+        if "IdentityTokenInvalid" in name:
+            return f"{where}: the server refuses this kind of login ({name}); {login}"
+        if "Security" in name or "Certificate" in name:
+            return (
+                f"{where}: the secure channel was refused ({name}); check security_policy, "
+                "security_mode and the certificates"
+            )
+        return f"{where}: refused ({name})"
+
+    async def _session(self, client, lost) -> bool:
+        """Subscribes, reads back what was missed, then hands out samples until the connection is
+        lost (raises) or the PLC says it has finished (returns True) or the pipeline stops."""
+        from asyncua import ua
+
+        notes: list = []  # (role, DataValue) in arrival order, from the subscription's handler
+        nodes = {role: client.get_node(nid) for role, nid in self.roles.items()}
+        by_node = {n.nodeid: role for role, n in nodes.items()}
+        end_node = client.get_node(self.s["end_node"]) if self.s.get("end_node") else None
+        finished = []  # the SourceTimestamp of the PLC's "finished"
+
+        class Handler:
+            def datachange_notification(self, node, val, data):
+                if end_node is not None and node.nodeid == end_node.nodeid:
+                    if val is True:
+                        finished.append(data.monitored_item.Value.SourceTimestamp)
+                    return
+                notes.append((by_node[node.nodeid], data.monitored_item.Value))
+
+        sub = await client.create_subscription(self.s["publishing_interval"] * 1000, Handler())
+        await sub.subscribe_data_change(list(nodes.values()), queuesize=10000)
+        if end_node is not None:
+            await sub.subscribe_data_change(end_node)
+        self.join = _Joiner(self)
+        events = []
+        if lost is None and getattr(self, "_resumed", False):
+            lost = (None, "the twin was restarted")
+            self._resumed = False
+        if lost is not None:
+            lost_at, reason = lost
+            if lost_at is None:
+                msg = f"resumed on {self.s['endpoint']} after the last checkpoint"
+            else:
+                down = time.monotonic() - lost_at
+                msg = f"connection to {self.s['endpoint']} lost ({reason}), back after {down:.3g} s"
+            if self.s["history"] and self.last_dt is not None:
+                got = 0
+                try:
+                    hist = {}
+                    for role, node in nodes.items():
+                        hist[role] = await node.read_raw_history(
+                            self.last_dt + dt.timedelta(microseconds=1), None
+                        )
+                    # Interleave the roles by timestamp, as the subscription would have.
+                    merged = sorted(
+                        (
+                            (dv.SourceTimestamp, i, role, dv)
+                            for role, dvs in hist.items()
+                            for i, dv in enumerate(dvs)
+                        ),
+                        key=lambda x: (x[0], x[1]),
+                    )
+                    before = self.samples_out
+                    self._process([(role, dv) for _ts, _i, role, dv in merged], events)
+                    got = self.samples_out - before
+                    msg += f"; {got} missed samples read back from the server's history"
+                except ua.UaStatusCodeError as e:
+                    msg += f"; history not available ({type(e).__name__}): the interval is a gap"
+            else:
+                msg += "; no history: the interval is a gap"
+            events.insert(
+                0, Event("reconnect", msg, t=self._t(self.last_dt) if self.last_dt else None)
+            )
+        last_probe = quiet = time.monotonic()
+        while not self._stop.is_set():
+            await asyncio.sleep(self.s["publishing_interval"] / 2)
+            if notes:
+                quiet = time.monotonic()
+                batch = notes[:]
+                del notes[: len(batch)]
+                self._process(batch, events)
+            elif events:
+                self._emit([], events)
+            events = []
+            if finished and (
+                (self.last_dt is not None and self.last_dt >= finished[0])
+                or time.monotonic() - quiet > 2.0
+            ):
+                # Every sample up to the PLC's end is out (or nothing came for 2 s after it).
+                self._process([], events, flush=True)
+                self._emit([], events)
+                return True
+            if time.monotonic() - last_probe > 0.5:
+                last_probe = time.monotonic()
+                try:
+                    await asyncio.wait_for(
+                        client.nodes.server_state.read_value(), self.s["timeout"]
+                    )
+                except (TimeoutError, OSError, ConnectionError, ua.UaError) as e:
+                    raise _Lost(str(e).splitlines()[0] if str(e) else type(e).__name__) from None
+        return False
+
+    # ---- samples --------------------------------------------------------------------------------
+    last_dt = None  # SourceTimestamp of the last sample handed out
+    samples_out = 0
+
+    def _t(self, ts: dt.datetime) -> float:
+        """Twin time of a timestamp: exact for whole microseconds (timedelta arithmetic)."""
+        return (ts - self._origin_dt).total_seconds()
+
+    def _process(self, batch, events, flush=False) -> None:
+        out_t, out_a, out_w, out_f = [], [], [], []
+        dropped: dict = {}
+        for ts, t_dt, a, w, f, bad in self.join.feed(batch, flush):
+            if bad:
+                dropped.setdefault(bad, []).append(ts)
+                continue
+            if self.time_origin is None:
+                self.time_origin = float(math.floor((t_dt - EPOCH).total_seconds()))
+            if not hasattr(self, "_origin_dt"):
+                self._origin_dt = EPOCH + dt.timedelta(seconds=self.time_origin)
+            t = self._t(t_dt)
+            if self.last_t is not None and t <= self.last_t:
+                continue  # already handed out (history overlap, or before a resume)
+            self.last_t, self.last_dt = t, t_dt
+            out_t.append(t)
+            out_a.append(a)
+            out_w.append(w)
+            out_f.append(f)
+        for why, stamps in dropped.items():
+            first = stamps[0]
+            at = self._t(first) if hasattr(self, "_origin_dt") else None
+            events.append(
+                Event(
+                    "dropped",
+                    f"{len(stamps)} sample(s) dropped: {why} (first at {first.isoformat()})",
+                    t=at,
+                    count=len(stamps),
+                )
+            )
+        self.samples_out += len(out_t)
+        lines = sample_lines(
+            out_t,
+            out_a,
+            out_w if "speed" in self.roles else None,
+            out_f if "force" in self.roles else None,
+        )
+        self._emit(lines, events)
+        events.clear()
+
+
+_WAITING = 0x80320000  # BadWaitingForInitialData
+
+
+class _Lost(Exception):
+    pass
+
+
+class _Joiner:
+    """Values of the nodes with the same SourceTimestamp make one sample (scalar mode) or one
+    block (block mode). A group is complete when every node has given its value; groups left
+    incomplete behind a complete one are dropped (a value never came)."""
+
+    def __init__(self, src: OpcUaSource):
+        self.src = src
+        self.roles = set(src.roles)
+        self.groups: dict = {}
+
+    def _check(self, role, dv, block):
+        from asyncua import ua
+
+        if not dv.StatusCode.is_good():
+            return None, f"status {ua.StatusCode(dv.StatusCode.value).name} on {role}"
+        var = dv.Value
+        if var is None:
+            return None, f"no value on {role}"
+        if role == "time":
+            if (
+                not block
+                or not isinstance(var.Value, list)
+                or not all(isinstance(x, dt.datetime) for x in var.Value)
+            ):
+                return None, "the time array is not DateTime[]"
+            return var.Value, None
+        if var.VariantType not in _numeric_types():
+            return None, f"{role} of type {var.VariantType.name}, not a number"
+        if block:
+            if not isinstance(var.Value, list):
+                return None, f"{role} is not an array"
+            return [float(x) for x in var.Value], None
+        v = float(var.Value)
+        if not math.isfinite(v):
+            return None, f"{role} not finite ({v})"
+        return v, None
+
+    def feed(self, batch, flush=False):
+        """(ts, sample time, angle, speed, force, why dropped or None) of completed samples."""
+        block = self.src.block
+        done = []
+        for role, dv in batch:
+            if dv.StatusCode.value == _WAITING:
+                continue  # the PLC has measured nothing yet: no sample
+            ts = dv.SourceTimestamp
+            g = self.groups.setdefault(ts, {})
+            value, bad = self._check(role, dv, block)
+            g[role] = value
+            if bad:
+                g.setdefault("_bad", bad)
+            if self.roles <= set(g):
+                done.append(ts)
+        out = []
+        if done:
+            newest = max(done)
+            for ts in sorted(t for t in self.groups if t <= newest or flush):
+                g = self.groups.pop(ts)
+                bad = g.get("_bad")
+                if not self.roles <= set(g):
+                    bad = bad or "a value never came for " + ", ".join(sorted(self.roles - set(g)))
+                out += self._samples(ts, g, bad, block)
+        elif flush:
+            for ts in sorted(self.groups):
+                g = self.groups.pop(ts)
+                out += self._samples(ts, g, g.get("_bad") or "incomplete at the end", block)
+        return out
+
+    def _samples(self, ts, g, bad, block):
+        if not block:
+            return [(ts, ts, g.get("angle"), g.get("speed"), g.get("force"), bad)]
+        times = g.get("time") or []
+        if bad:
+            return [(ts, ts, None, None, None, bad)] * max(1, len(times))
+        n = len(times)
+        arrays = {r: g[r] for r in ("angle", "speed", "force") if r in g}
+        if any(len(a) != n for a in arrays.values()):
+            return [(ts, ts, None, None, None, "arrays of a block differ in length")] * max(1, n)
+        out = []
+        for i in range(n):
+            a = arrays["angle"][i]
+            w = arrays["speed"][i] if "speed" in arrays else None
+            f = arrays["force"][i] if "force" in arrays else None
+            why = None
+            if not all(math.isfinite(x) for x in (a, w, f) if x is not None):
+                why = "a value of a block not finite"
+            out.append((times[i], times[i], a, w, f, why))
+        return out
