@@ -50,6 +50,11 @@ fn fmi3_declares_the_same_variables_as_fmi2() {
         // FMI 3.0's independent variable, after the table's value references.
         let n = M::table().variables.len().to_string();
         assert_eq!(b.remove(0), ("time".to_string(), n));
+        // Then the derivatives of the continuous states (Model Exchange), if any.
+        let ders: Vec<String> = b.split_off(a.len()).into_iter().map(|(name, _)| name).collect();
+        let expected: Vec<String> =
+            M::CONTINUOUS_STATES.iter().map(|(s, _)| format!("der({s})")).collect();
+        assert_eq!(ders, expected);
         assert_eq!(a, b);
         assert!(three.contains("fmiVersion=\"3.0\""));
         // The instantiation token differs from the 2.0 GUID (another interface).

@@ -2,8 +2,9 @@
 //! FMI 2.0 ([`Instance`]: state machine, get/set, FMU states, logging), so both standards run the
 //! same code and give the same numbers (docs/fmi-interface.md "FMI 3.0").
 //!
-//! The FMU is co-simulation only in 3.0 (no event mode, no clocks, one Float64/Int32/Boolean
-//! scalar per value reference). Every function of `fmi3Functions.h` is exported, so an importer
+//! Co-simulation for every FMU; Model Exchange for a model with continuous states
+//! ([`FmuModel::CONTINUOUS_STATES`], the DriveTrain); no event mode in co-simulation, no events,
+//! no clocks, one Float64/Int32/Boolean scalar per value reference. Every function of `fmi3Functions.h` is exported, so an importer
 //! that binds them all finds them; those of interfaces this FMU does not declare fail with a
 //! message saying why. [`export_fmu3!`](crate::export_fmu3) instantiates them for one model as
 //! `#[no_mangle] extern "C"` functions, their types checked at compile time against the types
@@ -22,7 +23,9 @@ use fmi_sys::fmi3::*;
 
 use crate::fmi2::abi::{opt_str, slice, snapshot_ref, store_snapshot};
 use crate::fmi2::fmu_state;
-use crate::fmi2::instance::{copy_name, snapshot_magic, Failure, Instance, Severity, Snapshot};
+use crate::fmi2::instance::{
+    copy_name, snapshot_magic, Failure, Instance, Mode, Severity, Snapshot,
+};
 use crate::fmi2::logging::{Category, Logger};
 use crate::fmi2::model::FmuModel;
 use crate::fmi2::variables::{Binding, VarType};
@@ -132,9 +135,10 @@ unsafe fn unsupported<M: FmuModel>(c: fmi3Instance, function: &str, why: &str) -
     call::<M>(c, function, |_| Err(Failure::error(format!("{function}: {why}"))))
 }
 
-const NOT_ME: &str = "this FMU is co-simulation only in FMI 3.0 (no <ModelExchange> element)";
+const NOT_ME: &str = "this FMU offers no Model Exchange (no <ModelExchange> element)";
 const NO_CLOCKS: &str = "this FMU has no clocks";
 const NO_EVENTS: &str = "this FMU has no event mode (hasEventMode=\"false\")";
+const NOT_ME_INSTANCE: &str = "not an instance for Model Exchange (fmi3InstantiateModelExchange)";
 
 // ------------------------------------------------------------------------------ common functions
 
@@ -187,6 +191,7 @@ unsafe fn instantiate<M: FmuModel>(
     instanceEnvironment: fmi3InstanceEnvironment,
     logMessage: fmi3LogMessageCallback,
     refusal: Option<String>,
+    model_exchange: bool,
 ) -> fmi3Instance {
     let result = catch_unwind(AssertUnwindSafe(|| {
         let name = opt_str(instanceName).unwrap_or("");
@@ -212,7 +217,8 @@ unsafe fn instantiate<M: FmuModel>(
             }
         }
         let dir = resource_path(opt_str(resourcePath));
-        let inst = Box::new(Instance::<M>::new(logger, dir));
+        let mut inst = Box::new(Instance::<M>::new(logger, dir));
+        inst.model_exchange = model_exchange;
         inst.log(
             fmi3Status_fmi3OK,
             Category::Events,
@@ -240,7 +246,8 @@ pub unsafe fn fmi3InstantiateModelExchange<M: FmuModel>(
         loggingOn,
         instanceEnvironment,
         logMessage,
-        Some(NOT_ME.into()),
+        M::CONTINUOUS_STATES.is_empty().then(|| NOT_ME.into()),
+        true,
     )
 }
 
@@ -278,6 +285,7 @@ pub unsafe fn fmi3InstantiateCoSimulation<M: FmuModel>(
         instanceEnvironment,
         logMessage,
         refusal,
+        false,
     )
 }
 
@@ -301,7 +309,8 @@ pub unsafe fn fmi3InstantiateScheduledExecution<M: FmuModel>(
         loggingOn,
         instanceEnvironment,
         logMessage,
-        Some("this FMU is co-simulation only (no <ScheduledExecution> element)".into()),
+        Some("this FMU has no <ScheduledExecution> element".into()),
+        false,
     )
 }
 
@@ -345,7 +354,9 @@ pub unsafe fn fmi3ExitInitializationMode<M: FmuModel>(c: fmi3Instance) -> fmi3St
 }
 
 pub unsafe fn fmi3EnterEventMode<M: FmuModel>(c: fmi3Instance) -> fmi3Status {
-    unsupported::<M>(c, "fmi3EnterEventMode", NO_EVENTS)
+    // Model Exchange: the FMU has no events, so event mode changes nothing (an importer enters
+    // it after initialization all the same).
+    me::<M>(c, "fmi3EnterEventMode", |_| Ok(()))
 }
 
 pub unsafe fn fmi3Terminate<M: FmuModel>(c: fmi3Instance) -> fmi3Status {
@@ -449,22 +460,50 @@ pub unsafe fn fmi3GetFloat64<M: FmuModel>(
             Err(_) => return panicked(inst, "fmi3GetFloat64"),
         }
     }
-    // The independent variable `time` is not in the table: read it from the instance core.
+    // The independent variable `time` and the state derivatives (Model Exchange) are not in the
+    // table: read them from the instance core.
+    let extra = time_vr::<M>();
     if let (false, Some(vrs)) = (c.is_null(), slice(vr, nvr)) {
-        if vrs.contains(&time_vr::<M>()) && nValues == nvr && !value.is_null() {
+        if vrs.iter().any(|&r| r >= extra) && nValues == nvr && !value.is_null() {
             return call::<M>(c, "fmi3GetFloat64", |inst| {
                 for (k, &r) in vrs.iter().enumerate() {
-                    if r == time_vr::<M>() {
-                        *value.add(k) = inst.time();
+                    *value.add(k) = if r >= extra {
+                        extra_value(inst, r)?
                     } else {
-                        inst.get("fmi3GetFloat64", VarType::Real, &[r], |_, v| *value.add(k) = v)?;
-                    }
+                        let mut x = f64::NAN;
+                        inst.get("fmi3GetFloat64", VarType::Real, &[r], |_, v| x = v)?;
+                        x
+                    };
                 }
                 Ok(())
             });
         }
     }
     get_values::<M, _>(c, "fmi3GetFloat64", VarType::Real, vr, nvr, value, nValues, |v| v)
+}
+
+/// `time`, or the derivative of a continuous state (after initialization).
+fn extra_value<M: FmuModel>(inst: &Instance<M>, vr: u32) -> Result<f64, Failure> {
+    let f = "fmi3GetFloat64";
+    let n = M::CONTINUOUS_STATES.len();
+    if vr == time_vr::<M>() {
+        return Ok(inst.time());
+    }
+    let k = (vr - time_vr::<M>() - 1) as usize;
+    if k >= n {
+        return Err(Failure::error(format!(
+            "{f}: value reference {vr} is not a variable of this FMU"
+        )));
+    }
+    let (built, values, state) = inst.me_parts().ok_or_else(|| {
+        Failure::error(format!(
+            "{f}: der({}) is not available before fmi3ExitInitializationMode",
+            M::CONTINUOUS_STATES[k].0
+        ))
+    })?;
+    let mut dx = vec![0.0; n];
+    M::derivatives(built, values, state, &mut dx)?;
+    Ok(dx[k])
 }
 
 pub unsafe fn fmi3SetFloat64<M: FmuModel>(
@@ -924,93 +963,220 @@ pub unsafe fn fmi3SetShiftFraction<M: FmuModel>(
 }
 
 pub unsafe fn fmi3EvaluateDiscreteStates<M: FmuModel>(c: fmi3Instance) -> fmi3Status {
-    unsupported::<M>(c, "fmi3EvaluateDiscreteStates", NO_EVENTS)
+    me::<M>(c, "fmi3EvaluateDiscreteStates", |_| Ok(()))
 }
 
 pub unsafe fn fmi3UpdateDiscreteStates<M: FmuModel>(
     c: fmi3Instance,
-    _discreteStatesNeedUpdate: *mut fmi3Boolean,
-    _terminateSimulation: *mut fmi3Boolean,
-    _nominalsOfContinuousStatesChanged: *mut fmi3Boolean,
-    _valuesOfContinuousStatesChanged: *mut fmi3Boolean,
-    _nextEventTimeDefined: *mut fmi3Boolean,
+    discreteStatesNeedUpdate: *mut fmi3Boolean,
+    terminateSimulation: *mut fmi3Boolean,
+    nominalsOfContinuousStatesChanged: *mut fmi3Boolean,
+    valuesOfContinuousStatesChanged: *mut fmi3Boolean,
+    nextEventTimeDefined: *mut fmi3Boolean,
     _nextEventTime: *mut fmi3Float64,
 ) -> fmi3Status {
-    unsupported::<M>(c, "fmi3UpdateDiscreteStates", NO_EVENTS)
+    // No discrete states and no events: nothing to update, no time event.
+    me::<M>(c, "fmi3UpdateDiscreteStates", |_| {
+        for p in [
+            discreteStatesNeedUpdate,
+            terminateSimulation,
+            nominalsOfContinuousStatesChanged,
+            valuesOfContinuousStatesChanged,
+            nextEventTimeDefined,
+        ] {
+            if p.is_null() {
+                return Err(null_argument("fmi3UpdateDiscreteStates", "an output argument"));
+            }
+            *p = false;
+        }
+        Ok(())
+    })
 }
 
 // ------------------------------------------------------------------------------ model exchange:
 // not declared in FMI 3.0 by this FMU
 
+/// Runs a Model Exchange function: the instance must have been instantiated for Model Exchange
+/// and be initialized (the core's step mode stands for event and continuous-time mode: without
+/// events the two differ in nothing this FMU does).
+unsafe fn me<M: FmuModel>(
+    c: fmi3Instance,
+    function: &str,
+    f: impl FnOnce(&mut Instance<M>) -> Result<(), Failure>,
+) -> fmi3Status {
+    call::<M>(c, function, |inst| {
+        if !inst.model_exchange {
+            return Err(Failure::error(format!("{function}: {NOT_ME_INSTANCE}")));
+        }
+        if inst.mode() != Mode::StepComplete {
+            return Err(Failure::illegal(function, inst.mode()));
+        }
+        f(inst)
+    })
+}
+
+fn state_count(function: &str, n: usize, nx: usize) -> Result<(), Failure> {
+    if n != nx {
+        return Err(Failure::error(format!(
+            "{function}: nContinuousStates = {nx}; this FMU has {n} continuous states"
+        )));
+    }
+    Ok(())
+}
+
 pub unsafe fn fmi3EnterContinuousTimeMode<M: FmuModel>(c: fmi3Instance) -> fmi3Status {
-    unsupported::<M>(c, "fmi3EnterContinuousTimeMode", NOT_ME)
+    me::<M>(c, "fmi3EnterContinuousTimeMode", |_| Ok(()))
 }
 
 pub unsafe fn fmi3CompletedIntegratorStep<M: FmuModel>(
     c: fmi3Instance,
     _noSetFMUStatePriorToCurrentPoint: fmi3Boolean,
-    _enterEventMode: *mut fmi3Boolean,
-    _terminateSimulation: *mut fmi3Boolean,
+    enterEventMode: *mut fmi3Boolean,
+    terminateSimulation: *mut fmi3Boolean,
 ) -> fmi3Status {
-    unsupported::<M>(c, "fmi3CompletedIntegratorStep", NOT_ME)
+    me::<M>(c, "fmi3CompletedIntegratorStep", |_| {
+        if enterEventMode.is_null() || terminateSimulation.is_null() {
+            return Err(null_argument(
+                "fmi3CompletedIntegratorStep",
+                "enterEventMode or terminateSimulation",
+            ));
+        }
+        *enterEventMode = false;
+        *terminateSimulation = false;
+        Ok(())
+    })
 }
 
-pub unsafe fn fmi3SetTime<M: FmuModel>(c: fmi3Instance, _time: fmi3Float64) -> fmi3Status {
-    unsupported::<M>(c, "fmi3SetTime", NOT_ME)
+pub unsafe fn fmi3SetTime<M: FmuModel>(c: fmi3Instance, time: fmi3Float64) -> fmi3Status {
+    me::<M>(c, "fmi3SetTime", |inst| {
+        if !time.is_finite() {
+            return Err(Failure::error(format!(
+                "fmi3SetTime: time = {time}; allowed: a finite number"
+            )));
+        }
+        inst.me_update(|t, _| *t = time);
+        Ok(())
+    })
 }
 
 pub unsafe fn fmi3SetContinuousStates<M: FmuModel>(
     c: fmi3Instance,
-    _x: *const fmi3Float64,
-    _nx: usize,
+    x: *const fmi3Float64,
+    nx: usize,
 ) -> fmi3Status {
-    unsupported::<M>(c, "fmi3SetContinuousStates", NOT_ME)
+    let f = "fmi3SetContinuousStates";
+    me::<M>(c, f, |inst| {
+        let n = M::CONTINUOUS_STATES.len();
+        state_count(f, n, nx)?;
+        let x = slice(x, nx).ok_or_else(|| null_argument(f, "continuousStates"))?;
+        if let Some(k) = x.iter().position(|v| !v.is_finite()) {
+            return Err(Failure::error(format!(
+                "{f}: {} = {}; allowed: a finite number",
+                M::CONTINUOUS_STATES[k].0,
+                x[k]
+            )));
+        }
+        inst.me_update(|_, state| M::set_continuous_states(state, x));
+        Ok(())
+    })
 }
 
 pub unsafe fn fmi3GetContinuousStateDerivatives<M: FmuModel>(
     c: fmi3Instance,
-    _derivatives: *mut fmi3Float64,
-    _nx: usize,
+    derivatives: *mut fmi3Float64,
+    nx: usize,
 ) -> fmi3Status {
-    unsupported::<M>(c, "fmi3GetContinuousStateDerivatives", NOT_ME)
+    let f = "fmi3GetContinuousStateDerivatives";
+    me::<M>(c, f, |inst| {
+        state_count(f, M::CONTINUOUS_STATES.len(), nx)?;
+        if nx > 0 && derivatives.is_null() {
+            return Err(null_argument(f, "derivatives"));
+        }
+        let (built, values, state) =
+            inst.me_parts().ok_or_else(|| Failure::illegal(f, inst.mode()))?;
+        let dx =
+            if nx == 0 { &mut [][..] } else { std::slice::from_raw_parts_mut(derivatives, nx) };
+        M::derivatives(built, values, state, dx)?;
+        Ok(())
+    })
 }
 
 pub unsafe fn fmi3GetEventIndicators<M: FmuModel>(
     c: fmi3Instance,
     _indicators: *mut fmi3Float64,
-    _n: usize,
+    n: usize,
 ) -> fmi3Status {
-    unsupported::<M>(c, "fmi3GetEventIndicators", NOT_ME)
+    // No event indicators: the motor's torque curve and the load are smooth in the states.
+    me::<M>(c, "fmi3GetEventIndicators", |_| {
+        if n != 0 {
+            return Err(Failure::error(format!(
+                "fmi3GetEventIndicators: nEventIndicators = {n}; this FMU has none"
+            )));
+        }
+        Ok(())
+    })
 }
 
 pub unsafe fn fmi3GetContinuousStates<M: FmuModel>(
     c: fmi3Instance,
-    _x: *mut fmi3Float64,
-    _nx: usize,
+    x: *mut fmi3Float64,
+    nx: usize,
 ) -> fmi3Status {
-    unsupported::<M>(c, "fmi3GetContinuousStates", NOT_ME)
+    let f = "fmi3GetContinuousStates";
+    me::<M>(c, f, |inst| {
+        state_count(f, M::CONTINUOUS_STATES.len(), nx)?;
+        if nx > 0 && x.is_null() {
+            return Err(null_argument(f, "continuousStates"));
+        }
+        let (_, _, state) = inst.me_parts().ok_or_else(|| Failure::illegal(f, inst.mode()))?;
+        let out = if nx == 0 { &mut [][..] } else { std::slice::from_raw_parts_mut(x, nx) };
+        M::continuous_states(state, out);
+        Ok(())
+    })
 }
 
 pub unsafe fn fmi3GetNominalsOfContinuousStates<M: FmuModel>(
     c: fmi3Instance,
-    _nominals: *mut fmi3Float64,
-    _nx: usize,
+    nominals: *mut fmi3Float64,
+    nx: usize,
 ) -> fmi3Status {
-    unsupported::<M>(c, "fmi3GetNominalsOfContinuousStates", NOT_ME)
+    let f = "fmi3GetNominalsOfContinuousStates";
+    me::<M>(c, f, |_| {
+        state_count(f, M::CONTINUOUS_STATES.len(), nx)?;
+        if nx > 0 && nominals.is_null() {
+            return Err(null_argument(f, "nominals"));
+        }
+        for k in 0..nx {
+            *nominals.add(k) = 1.0;
+        }
+        Ok(())
+    })
 }
 
 pub unsafe fn fmi3GetNumberOfEventIndicators<M: FmuModel>(
     c: fmi3Instance,
-    _n: *mut usize,
+    n: *mut usize,
 ) -> fmi3Status {
-    unsupported::<M>(c, "fmi3GetNumberOfEventIndicators", NOT_ME)
+    call::<M>(c, "fmi3GetNumberOfEventIndicators", |_| {
+        if n.is_null() {
+            return Err(null_argument("fmi3GetNumberOfEventIndicators", "nEventIndicators"));
+        }
+        *n = 0;
+        Ok(())
+    })
 }
 
 pub unsafe fn fmi3GetNumberOfContinuousStates<M: FmuModel>(
     c: fmi3Instance,
-    _n: *mut usize,
+    n: *mut usize,
 ) -> fmi3Status {
-    unsupported::<M>(c, "fmi3GetNumberOfContinuousStates", NOT_ME)
+    call::<M>(c, "fmi3GetNumberOfContinuousStates", |_| {
+        if n.is_null() {
+            return Err(null_argument("fmi3GetNumberOfContinuousStates", "nContinuousStates"));
+        }
+        *n = M::CONTINUOUS_STATES.len();
+        Ok(())
+    })
 }
 
 // ------------------------------------------------------------------------------ co-simulation
@@ -1043,6 +1209,12 @@ pub unsafe fn fmi3DoStep<M: FmuModel>(
         fmi3Status_fmi3OK
     } else {
         call::<M>(c, "fmi3DoStep", |inst| {
+            if inst.model_exchange {
+                return Err(Failure::error(
+                    "fmi3DoStep: an instance for Model Exchange does not step (fmi3DoStep is \
+                     co-simulation's)",
+                ));
+            }
             if !outs_ok {
                 return Err(null_argument(
                     "fmi3DoStep",

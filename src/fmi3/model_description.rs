@@ -42,6 +42,13 @@ fn body<M: FmuModel>() -> String {
         env!("CARGO_PKG_VERSION"),
         env!("CARGO_PKG_VERSION")
     );
+    if !M::CONTINUOUS_STATES.is_empty() {
+        let _ = writeln!(
+            w,
+            r#"  <ModelExchange modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="false" providesAdjointDerivatives="false" needsCompletedIntegratorStep="false" providesEvaluateDiscreteStates="false"/>"#,
+            info.model_identifier
+        );
+    }
     let _ = writeln!(
         w,
         r#"  <CoSimulation modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="false" providesAdjointDerivatives="false" canHandleVariableCommunicationStepSize="true" maxOutputDerivativeOrder="0" providesIntermediateUpdate="false" mightReturnEarlyFromDoStep="false" canReturnEarlyAfterIntermediateUpdate="false" hasEventMode="false"/>"#,
@@ -138,6 +145,18 @@ fn body<M: FmuModel>() -> String {
             esc(v.description)
         );
     }
+    // Model Exchange: the derivative of each continuous state, after `time`.
+    for (k, (state, unit)) in M::CONTINUOUS_STATES.iter().enumerate() {
+        let _ = writeln!(
+            w,
+            r#"    <Float64 name="der({})" valueReference="{}" causality="local" variability="continuous" description="Derivative of {} (Model Exchange)" unit="{}" derivative="{}"/>"#,
+            esc(state),
+            derivative_vr::<M>(k),
+            esc(state),
+            esc(unit),
+            state_vr::<M>(k)
+        );
+    }
     let _ = writeln!(w, "  </ModelVariables>");
     let _ = writeln!(w, "  <ModelStructure>");
     for (vr, v) in table.variables.iter().enumerate() {
@@ -156,12 +175,22 @@ fn body<M: FmuModel>() -> String {
             );
         }
     }
+    for k in 0..M::CONTINUOUS_STATES.len() {
+        let _ = writeln!(
+            w,
+            r#"    <ContinuousStateDerivative valueReference="{}"/>"#,
+            derivative_vr::<M>(k)
+        );
+    }
     // Outputs and calculated parameters are computed at initialization from all knowns (inputs
     // and parameters): no `dependencies` attribute means exactly that (as in the 2.0 file).
     for (vr, v) in table.variables.iter().enumerate() {
         if matches!(v.causality, Causality::Output | Causality::CalculatedParameter) {
             let _ = writeln!(w, r#"    <InitialUnknown valueReference="{vr}"/>"#);
         }
+    }
+    for k in 0..M::CONTINUOUS_STATES.len() {
+        let _ = writeln!(w, r#"    <InitialUnknown valueReference="{}"/>"#, derivative_vr::<M>(k));
     }
     let _ = writeln!(w, "  </ModelStructure>");
     let _ = writeln!(w, "</fmiModelDescription>");
@@ -171,6 +200,18 @@ fn body<M: FmuModel>() -> String {
 /// The value reference of the independent variable `time`: the first after the table's.
 pub fn time_vr<M: FmuModel>() -> u32 {
     M::table().variables.len() as u32
+}
+
+/// The value reference of the derivative of the k-th continuous state (Model Exchange): after
+/// `time`'s.
+pub fn derivative_vr<M: FmuModel>(k: usize) -> u32 {
+    time_vr::<M>() + 1 + k as u32
+}
+
+/// The value reference of the table's variable that is the k-th continuous state.
+pub fn state_vr<M: FmuModel>(k: usize) -> usize {
+    let name = M::CONTINUOUS_STATES[k].0;
+    M::table().variables.iter().position(|v| v.name == name).unwrap_or(usize::MAX)
 }
 
 /// The instantiationToken, derived from the 3.0 interface itself (as the 2.0 GUID is from the

@@ -70,13 +70,19 @@ def test_same_variables_as_fmi2(fmu_path, model):
     md2 = read_model_description(str(fmu2(fmu_path, model)))
     md3 = read_model_description(str(fmu3(fmu_path, model)))
     assert md3.fmiVersion == "3.0" and md3.coSimulation.modelIdentifier == model
-    assert md3.modelExchange is None
+    # Model Exchange where the model has continuous states (the drive train's θ and ω).
+    assert (md3.modelExchange is not None) == (model == "DriveTrain")
     assert md3.coSimulation.canGetAndSetFMUstate and md3.coSimulation.canSerializeFMUstate
-    # FMI 3.0's independent variable comes first, with the value reference after the table's.
+    # FMI 3.0's independent variable comes first, with the value reference after the table's,
+    # then the state derivatives (Model Exchange).
     time = md3.modelVariables[0]
     assert (time.name, time.causality, time.unit) == ("time", "independent", "s")
     assert time.valueReference == len(md2.modelVariables)
-    assert len(md2.modelVariables) + 1 == len(md3.modelVariables)
+    ders = [v for v in md3.modelVariables if v.valueReference > time.valueReference]
+    assert [v.name for v in ders] == (
+        ["der(crank.angle)", "der(crank.speed)"] if model == "DriveTrain" else []
+    )
+    assert len(md2.modelVariables) + 1 + len(ders) == len(md3.modelVariables)
     types = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
     for a, b in zip(md2.modelVariables, md3.modelVariables[1:]):
         assert (a.name, a.valueReference, a.causality, a.description) == (
@@ -101,7 +107,8 @@ def test_same_variables_as_fmi2(fmu_path, model):
     deps3 = {o.variable.name: sorted(d.name for d in o.dependencies) for o in md3.outputs}
     assert deps2 == deps3
     init2 = sorted(u.variable.name for u in md2.initialUnknowns)
-    init3 = sorted(u.variable.name for u in md3.initialUnknowns)
+    # FMI 3.0 also lists the state derivatives (Model Exchange) as initial unknowns.
+    init3 = sorted(u.variable.name for u in md3.initialUnknowns if u.variable not in ders)
     assert init2 == init3
 
 
@@ -520,3 +527,137 @@ def test_aarch64_under_qemu_matches_x86_64(fmu_path, hosts, tmp_path, machine, s
         f"worst {names[worst]} {rel[worst]:.3g} of its scale"
     )
     assert rel[worst] <= tol, f"{names[worst]} differs by {rel[worst]:.3g} of its scale"
+
+
+# ------------------------------------------------------------------------------ Model Exchange
+
+J = 50.0 + 23.0**2 * 0.5  # J_c + i²·J_m of the default drive train [kg·m²]
+
+
+def kloss_acceleration(w, load):
+    """(i·T_m(ω) − T_L)/J with Kloss's curve and the default parameters (docs/closed-loop.md),
+    written here from the formulas, not from the FMU."""
+    i, ws, tb, sb = 23.0, 2 * np.pi * 1500 / 60, 200.0, 0.15
+    s = 1 - i * w / ws
+    return (i * 2 * tb * s * sb / (s * s + sb * sb) - load) / J
+
+
+def test_drive_train_model_exchange_cvode_matches_co_simulation(fmu_path):
+    """The DriveTrain as Model Exchange (its θ and ω are the continuous states) integrated by
+    fmpy's CVODE at rtol 1e-10 against the co-simulation FMU (its own integrator at 1e-8) and
+    against scipy's solution of J·ω̇ = i·T_m(ω) − T_L written here: run-up under 600 N·m over 3 s.
+    The bound is the co-simulation's: 1e-6 of the synchronous crank speed (test_drive_train.py)."""
+    from fmpy import simulate_fmu
+    from scipy.integrate import solve_ivp
+
+    start = {"crank.speed_start": 0.0, "load.torque": 600.0}
+    stop, h = 3.0, 1e-3
+    me = simulate_fmu(
+        str(fmu3(fmu_path, "DriveTrain")),
+        fmi_type="ModelExchange",
+        solver="CVode",
+        relative_tolerance=1e-10,
+        stop_time=stop,
+        output_interval=h,
+        start_values=start,
+        output=["crank.angle", "crank.speed", "crank.acceleration", "motor.torque"],
+    )
+    cs = simulate_fmu(
+        str(fmu2(fmu_path, "DriveTrain")),
+        stop_time=stop,
+        output_interval=h,
+        start_values=start,
+        output=["crank.angle", "crank.speed", "crank.acceleration", "motor.torque"],
+    )
+    t = me["time"]
+    assert np.allclose(t, cs["time"][: len(t)]) and len(t) == len(cs["time"])
+    w0 = 2 * np.pi * 1500 / 60 / 23.0
+    dw = np.max(np.abs(me["crank.speed"] - cs["crank.speed"]))
+    assert dw <= 1e-6 * w0, f"crank speed: ME - CS = {dw:.3g} rad/s"
+    da = np.max(np.abs(me["crank.angle"] - cs["crank.angle"]))
+    assert da <= 1e-6, f"crank angle: ME - CS = {da:.3g} rad"
+    ref = solve_ivp(
+        lambda _, y: [y[1], kloss_acceleration(y[1], 600.0)],
+        (0, stop),
+        [0.0, 0.0],
+        method="DOP853",
+        rtol=1e-12,
+        atol=1e-12,
+        t_eval=t,
+    ).y
+    assert np.max(np.abs(me["crank.speed"] - ref[1])) <= 1e-7 * w0
+    # The acceleration output is the state derivative at the recorded state.
+    assert np.allclose(
+        me["crank.acceleration"],
+        kloss_acceleration(me["crank.speed"], 600.0),
+        rtol=1e-12,
+        atol=1e-12,
+    )
+    # Not a trivial run: the motor runs up to near its synchronous speed.
+    assert 0.8 * w0 < me["crank.speed"][-1] < w0
+
+
+def test_model_exchange_calls_and_refusals(fmu_path, tmp_path):
+    """The Model Exchange calls directly: states in and out, derivatives from the formulas, the
+    derivative variables readable, no event indicators; fmi3DoStep refused on an ME instance and
+    Model Exchange refused by the pump FMU (no continuous states in FMI 3.0), each with a message."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi3 import FMU3Model
+
+    p = fmu3(fmu_path, "DriveTrain")
+    md = read_model_description(str(p))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    d = extract(str(p), unzipdir=str(tmp_path / "me"))
+    m = FMU3Model(guid=md.guid, unzipDirectory=d, modelIdentifier="DriveTrain", instanceName="m")
+    messages = []
+    m.instantiate(logMessage=lambda e, st, c, msg: messages.append(msg.decode()))
+    m.enterInitializationMode()
+    m.setFloat64([vr["load.torque"]], [300.0])
+    m.exitInitializationMode()
+    m.updateDiscreteStates()
+    m.enterContinuousTimeMode()
+    assert m.getNumberOfContinuousStates() == 2 and m.getNumberOfEventIndicators() == 0
+    x = (ctypes.c_double * 2)()
+    m.getContinuousStates(x, 2)
+    assert list(x) == [
+        0.0,
+        float(
+            md.modelVariables[[v.name for v in md.modelVariables].index("crank.speed_start")].start
+        ),
+    ]
+    m.setTime(0.25)
+    m.setContinuousStates((ctypes.c_double * 2)(1.5, 5.0), 2)
+    m.getContinuousStates(x, 2)
+    assert list(x) == [1.5, 5.0]
+    dx = (ctypes.c_double * 2)()
+    m.getContinuousStateDerivatives(dx, 2)
+    assert dx[0] == 5.0
+    assert abs(dx[1] - kloss_acceleration(5.0, 300.0)) <= 1e-13 * abs(dx[1])
+    got = m.getFloat64(
+        [vr["der(crank.angle)"], vr["der(crank.speed)"], vr["crank.speed"], vr["time"]]
+    )
+    assert got == [dx[0], dx[1], 5.0, 0.25]
+    flags = [ctypes.c_bool() for _ in range(3)]
+    last = ctypes.c_double()
+    st = m.dll.fmi3DoStep(
+        m.component, ctypes.c_double(0.25), ctypes.c_double(1e-3), ctypes.c_bool(True),
+        *[ctypes.byref(f) for f in flags], ctypes.byref(last),
+    )  # fmt: skip
+    assert st == 3
+    assert any("fmi3DoStep: an instance for Model Exchange" in msg for msg in messages), messages
+    m.terminate()
+    m.freeInstance()
+
+    p = fmu3(fmu_path, "ReciprocatingDrive")
+    d = extract(str(p), unzipdir=str(tmp_path / "pump"))
+    mdp = read_model_description(str(p))
+    assert mdp.modelExchange is None
+    pm = FMU3Model(
+        guid=mdp.guid, unzipDirectory=d, modelIdentifier="ReciprocatingDrive", instanceName="p"
+    )
+    messages.clear()
+    with pytest.raises(Exception, match="Failed to instantiate"):
+        pm.instantiate(logMessage=lambda e, st, c, msg: messages.append(msg.decode()))
+    assert any(
+        "fmi3InstantiateModelExchange: this FMU offers no Model Exchange" in msg for msg in messages
+    ), messages
