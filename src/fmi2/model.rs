@@ -193,6 +193,17 @@ pub trait FmuModel: Sized + 'static {
     /// offer Model Exchange. The number of states must not depend on the parameters.
     const CONTINUOUS_STATES: &'static [(&'static str, &'static str)] = &[];
 
+    /// Model Exchange (FMI 3.0) is declared: by default when the model has continuous states; a
+    /// model without any (outputs functions of the inputs) may declare it too.
+    const MODEL_EXCHANGE: bool = !Self::CONTINUOUS_STATES.is_empty();
+
+    /// Model Exchange: why this built machine cannot run as Model Exchange (e.g. it would need
+    /// continuous states the FMU does not declare); None: it can. Checked at
+    /// fmi3ExitInitializationMode of a Model Exchange instance.
+    fn model_exchange_refusal(_built: &Self::Built) -> Option<String> {
+        None
+    }
+
     /// Model Exchange: the continuous states of `state`, in the order of `CONTINUOUS_STATES`.
     fn continuous_states(_state: &Self::State, _x: &mut [f64]) {}
 

@@ -2,8 +2,9 @@
 //! FMI 2.0 ([`Instance`]: state machine, get/set, FMU states, logging), so both standards run the
 //! same code and give the same numbers (docs/fmi-interface.md "FMI 3.0").
 //!
-//! Co-simulation for every FMU; Model Exchange for a model with continuous states
-//! ([`FmuModel::CONTINUOUS_STATES`], the DriveTrain); no event mode in co-simulation, no events,
+//! Co-simulation for every FMU; Model Exchange where the model declares it
+//! ([`FmuModel::MODEL_EXCHANGE`]: the DriveTrain with its states, the pump's rigid mechanisms
+//! without any); no event mode in co-simulation, no events,
 //! no clocks, one Float64/Int32/Boolean scalar per value reference. Every function of `fmi3Functions.h` is exported, so an importer
 //! that binds them all finds them; those of interfaces this FMU does not declare fail with a
 //! message saying why. [`export_fmu3!`](crate::export_fmu3) instantiates them for one model as
@@ -246,7 +247,7 @@ pub unsafe fn fmi3InstantiateModelExchange<M: FmuModel>(
         loggingOn,
         instanceEnvironment,
         logMessage,
-        M::CONTINUOUS_STATES.is_empty().then(|| NOT_ME.into()),
+        (!M::MODEL_EXCHANGE).then(|| NOT_ME.into()),
         true,
     )
 }
@@ -350,7 +351,20 @@ pub unsafe fn fmi3EnterInitializationMode<M: FmuModel>(
 }
 
 pub unsafe fn fmi3ExitInitializationMode<M: FmuModel>(c: fmi3Instance) -> fmi3Status {
-    call::<M>(c, "fmi3ExitInitializationMode", |inst| inst.exit_initialization_mode())
+    call::<M>(c, "fmi3ExitInitializationMode", |inst| {
+        if !inst.model_exchange {
+            return inst.exit_initialization_mode();
+        }
+        // A failed call leaves the instance as it was (in initialization mode, with its values).
+        let before = inst.snapshot();
+        inst.exit_initialization_mode()?;
+        let refusal = inst.me_parts().and_then(|(built, _, _)| M::model_exchange_refusal(built));
+        if let Some(why) = refusal {
+            inst.restore(&before)?;
+            return Err(Failure::error(format!("fmi3ExitInitializationMode: {why}")));
+        }
+        Ok(())
+    })
 }
 
 pub unsafe fn fmi3EnterEventMode<M: FmuModel>(c: fmi3Instance) -> fmi3Status {

@@ -42,7 +42,7 @@ fn body<M: FmuModel>() -> String {
         env!("CARGO_PKG_VERSION"),
         env!("CARGO_PKG_VERSION")
     );
-    if !M::CONTINUOUS_STATES.is_empty() {
+    if M::MODEL_EXCHANGE {
         let _ = writeln!(
             w,
             r#"  <ModelExchange modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="false" providesAdjointDerivatives="false" needsCompletedIntegratorStep="false" providesEvaluateDiscreteStates="false"/>"#,
