@@ -716,3 +716,81 @@ def test_rigid_pump_model_exchange_matches_co_simulation(fmu_path, machine):
         d = np.max(np.abs(me[name] - cs[name])) / scale
         assert d <= 1e-9, f"{name}: Model Exchange and co-simulation differ by {d:.3g} of its scale"
     assert np.ptp(me["suspension.position"]) > 0
+
+
+def test_hostile_calls_are_refused_with_one_line_naming_the_function(fmu_path, tmp_path):
+    """Bad arguments through the FMI 3.0 ABI (C calls, no fmpy wrapper): each returns fmi3Error
+    and logs one line that names the function and what is wrong; the instance stays usable."""
+    C = ctypes
+    md, s = _slave3(fmu3(fmu_path, "DriveTrain"), tmp_path)
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    messages = []
+    s.instantiate(logMessage=lambda e, st, c, m: messages.append(m.decode()))
+    s.enterInitializationMode()
+    s.exitInitializationMode()
+    dll, c = s.dll, s.component
+    u32 = C.c_uint32 * 1
+    d1 = C.c_double * 1
+
+    def refused(status, *needles):
+        assert status == 3, (status, messages[-1:])
+        last = messages[-1]
+        assert "\n" not in last and all(n in last for n in needles), last
+
+    one = u32(vr["crank.speed"])
+    refused(
+        dll.fmi3GetFloat64(c, one, C.c_size_t(1), d1(), C.c_size_t(2)),
+        "fmi3GetFloat64",
+        "nValues = 2",
+    )
+    refused(
+        dll.fmi3GetFloat64(c, one, C.c_size_t(1), None, C.c_size_t(1)), "fmi3GetFloat64", "NULL"
+    )
+    refused(
+        dll.fmi3GetFloat64(c, u32(999), C.c_size_t(1), d1(), C.c_size_t(1)), "fmi3GetFloat64", "999"
+    )
+    refused(
+        dll.fmi3SetFloat64(
+            c, u32(vr["load.torque"]), C.c_size_t(1), d1(float("nan")), C.c_size_t(1)
+        ),
+        "fmi3SetFloat64",
+        "load.torque",
+    )
+    refused(
+        dll.fmi3GetInt8(c, one, C.c_size_t(1), (C.c_int8 * 1)(), C.c_size_t(1)),
+        "fmi3GetInt8",
+        "not a Int8 variable",
+    )
+    refused(
+        dll.fmi3GetString(c, one, C.c_size_t(1), (C.c_char_p * 1)(), C.c_size_t(1)), "fmi3GetString"
+    )
+    refused(
+        dll.fmi3DeserializeFMUState(
+            c, (C.c_uint8 * 8)(*b"garbage!"), C.c_size_t(8), C.byref(C.c_void_p())
+        ),
+        "fmi3DeserializeFMUState",
+    )
+    refused(dll.fmi3SetFMUState(c, C.c_void_p(0)), "fmi3SetFMUState", "NULL")
+    refused(
+        dll.fmi3SetTime(c, C.c_double(1.0)), "fmi3SetTime", "not an instance for Model Exchange"
+    )
+    refused(
+        dll.fmi3GetVariableDependencies(
+            c, C.c_uint32(vr["motor.inertia"]), None, None, None, None, C.c_size_t(0)
+        ),
+        "fmi3GetVariableDependencies",
+        "not an output",
+    )
+    refused(dll.fmi3EnterConfigurationMode(c), "fmi3EnterConfigurationMode", "structural")
+    # Still usable: a step, and the dependencies of an output from the table.
+    s.doStep(0.0, 1e-3)
+    n = C.c_size_t()
+    assert (
+        dll.fmi3GetNumberOfVariableDependencies(c, C.c_uint32(vr["crank.acceleration"]), C.byref(n))
+        == 0
+    )
+    assert n.value == 1
+    s.terminate()
+    s.freeInstance()
+    # fmpy's error messages never carry FMI 2.0 names.
+    assert not any("fmi2" in m for m in messages), messages
