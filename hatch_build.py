@@ -1,5 +1,5 @@
 """The wheel's build hook (hatchling, pyproject.toml): puts the binaries that scripts/build-fmu.sh
-built, and the data the workflows ship with, into reciprocating_drive/_data/ (the layout
+built, and the data the workflows ship with (presets, SSP system, studies, twin sample), into reciprocating_drive/_data/ (the layout
 python/reciprocating_drive/artifacts.py reads), and tags the wheel for the platform of its native
 code.
 
@@ -29,6 +29,8 @@ class CustomBuildHook(BuildHookInterface):
         files[root / "data" / "twin" / "pump_encoder.csv"] = "twin/pump_encoder.csv"
         for src in sorted((root / "ssp" / "ClosedLoop").iterdir()):
             files[src] = f"ssp/ClosedLoop/{src.name}"
+        for src in sorted((root / "resources" / "presets").glob("*.ssv")):
+            files[src] = f"presets/{src.name}"
         for src in sorted((root / "studies").glob("*.toml")):
             files[src] = f"studies/{src.name}"
         missing = [str(p.relative_to(root)) for p in files if not p.is_file()]

@@ -12,13 +12,19 @@ Ratios hold across machines; absolute times do not (the machines are noisy). Wit
 the same loop runs under valgrind's callgrind, which counts the instructions each FMU's functions
 execute per step: repeatable to the instruction, whatever else the machine is doing.
 
-    python3 scripts/bench_ratio.py [--steps 200000] [--rounds 9] [--instructions] [--fmu LIB] [filter]
+With --step H the communication step is H seconds instead of 1 ms; with --instances N the host
+steps N instances of each FMU in turn at every communication point (STEPS/N steps each, at least
+10), and the figures are per instance and step.
+
+    python3 scripts/bench_ratio.py [--steps 200000] [--rounds 9] [--instructions] [--fmu LIB]
+                                   [--step H] [--instances N] [filter]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import pathlib
 import re
 import subprocess
@@ -116,7 +122,7 @@ def preset(name: str) -> dict:
     return out
 
 
-def _fmi_instructions(cmd: list[str]) -> dict:
+def _fmi_instructions(cmd: list[str], env: dict) -> dict:
     """Inclusive instructions of fmi2SetReal, fmi2DoStep and fmi2GetReal in one callgrind run of
     the host (callgrind_annotate adds up same-named functions of both libraries)."""
     with tempfile.TemporaryDirectory() as d:
@@ -125,6 +131,7 @@ def _fmi_instructions(cmd: list[str]) -> dict:
             ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *cmd],
             check=True,
             capture_output=True,
+            env=env,
         )
         text = subprocess.run(
             ["callgrind_annotate", "--inclusive=yes", "--threshold=100", str(out)],
@@ -139,14 +146,16 @@ def _fmi_instructions(cmd: list[str]) -> dict:
     return count
 
 
-def instructions(base_cmd: list[str], cmd: list[str], steps: int) -> tuple:
+def instructions(
+    base_cmd: list[str], cmd: list[str], steps: int, env: dict, instances: int
+) -> tuple:
     """Instructions per step of the loop (fmi2SetReal + fmi2DoStep + fmi2GetReal) and of
     fmi2DoStep alone, for the baseline and the FMU. The host makes steps/10 warm-up steps and one
     round of `steps` in each mode (loop, then fmi2DoStep alone) on each of its two libraries;
     `base_cmd` runs the baseline twice, `cmd` the baseline and the FMU, and the FMU's counts are
     the difference."""
-    both_base, mixed = _fmi_instructions(base_cmd), _fmi_instructions(cmd)
-    calls = steps + steps // 10
+    both_base, mixed = _fmi_instructions(base_cmd, env), _fmi_instructions(cmd, env)
+    calls = (steps + steps // 10) * instances
 
     def per_step(c):
         dostep = c["fmi2DoStep"] / (2 * calls)
@@ -173,7 +182,13 @@ def main(argv=None) -> int:
         default=None,
         help="another build of libReciprocatingDrive.so to measure (e.g. of an earlier commit)",
     )
+    ap.add_argument("--step", type=float, default=1e-3, help="communication step [s]")
+    ap.add_argument("--instances", type=int, default=1, help="instances stepped in turn")
     a = ap.parse_args(argv)
+    if not a.step > 0 or a.instances < 1:
+        ap.error(f"--step must be > 0 and --instances >= 1 (got {a.step}, {a.instances})")
+    env = dict(os.environ, HOST_H=repr(a.step), HOST_INSTANCES=str(a.instances))
+    steps = max(a.steps // a.instances, 10)
     host, base, lib = build()
     lib = a.fmu.resolve() if a.fmu else lib
     guid, kinds = model_description()
@@ -183,7 +198,7 @@ def main(argv=None) -> int:
         a.rounds = 1
         print(
             f"baseline: {base.relative_to(ROOT)} (gcc -O3); FMU: {lib}; instructions per step (callgrind), "
-            f"{a.steps} steps"
+            f"{steps} steps of {a.step:g} s, {a.instances} instance(s)"
         )
         print(
             "| scenario | loop instructions/step (Feedthrough / FMU) | loop ratio | target "
@@ -192,7 +207,8 @@ def main(argv=None) -> int:
     else:
         print(
             f"baseline: {base.relative_to(ROOT)} (gcc -O3); FMU: {lib}; "
-            f"{a.rounds} alternating runs of {a.steps} steps, medians"
+            f"{a.rounds} alternating runs of {steps} steps of {a.step:g} s, {a.instances} instance(s), "
+            "medians"
         )
         print(
             "| scenario | loop ns/step (Feedthrough / FMU) | loop ratio | target "
@@ -226,18 +242,18 @@ def main(argv=None) -> int:
             inputs,
             ",".join(str(vr[n]) for n in outputs),
             repr(speed),
-            str(a.steps),
+            str(steps),
             str(a.rounds),
             *sets,
         ]
         if a.instructions:
             base_cmd = cmd[:5] + cmd[1:5] + cmd[9:12]
-            (lb, db), (lf, df) = instructions(base_cmd, cmd, a.steps)
+            (lb, db), (lf, df) = instructions(base_cmd, cmd, steps, env, a.instances)
             lr, dr = lf / lb, df / db
         else:
             res = {}
             for line in subprocess.run(
-                cmd, check=True, capture_output=True, text=True
+                cmd, check=True, capture_output=True, text=True, env=env
             ).stdout.splitlines():
                 mode, _, b, _, f, _, r = line.split()
                 res[mode] = (float(b), float(f), float(r))

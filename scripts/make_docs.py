@@ -415,20 +415,89 @@ def closed_loop_figure(out: pathlib.Path) -> None:
     (out / "ClosedLoop.ssp").unlink(missing_ok=True)
 
 
+# Sections of the variable table, in order: (title, which variables). A variable goes to the
+# first section that takes it; the connecting rod's outputs have their own section (rod.angle is a
+# rigid rod's swing angle but an elastic rod's cage rotation, its angular oscillation).
+TABLE_SECTIONS = [
+    ("Inputs", lambda v: v.causality == "input"),
+    (
+        "Outputs: kinematics",
+        lambda v: (
+            v.causality == "output"
+            and v.name.split(".")[0] in ("suspension", "kinematics")
+            or v.name in ("crank.model_angle", "crank.model_speed")
+        ),
+    ),
+    (
+        "Outputs: connecting rod (rigid: its swing; elastic: the cage's angular oscillation)",
+        lambda v: v.causality == "output" and v.name.startswith("rod.") and v.name != "rod.force",
+    ),
+    (
+        "Outputs: loads",
+        lambda v: (
+            v.causality == "output"
+            and (
+                v.name.split(".")[0] in ("inertia", "balancer")
+                or v.name in ("rod.force", "crank.torque")
+            )
+        ),
+    ),
+    (
+        "Outputs: guide friction",
+        lambda v: (
+            v.causality == "output"
+            and v.name.split(".")[0] in ("guide", "link", "support_A", "support_B", "support_C")
+        ),
+    ),
+    ("Outputs", lambda v: v.causality == "output"),
+    (
+        "Parameters: mechanism, geometry, mass, process load",
+        lambda v: (
+            v.name.split(".")[0] in ("mechanism", "rotation", "crank", "geometry", "mass", "load")
+        ),
+    ),
+    (
+        "Parameters: elastic rod (rod.kind 1 or 2)",
+        lambda v: v.name.startswith("rod.") or v.name == "solver.tolerance",
+    ),
+    ("Parameters: balancer", lambda v: v.name.startswith("balancer.")),
+    (
+        "Parameters: link, supports and guide friction",
+        lambda v: v.name.split(".")[0] in ("link", "guide", "support_A", "support_B", "support_C"),
+    ),
+    ("Other variables", lambda v: True),
+]
+
+
 def variable_table(fmu: pathlib.Path) -> str:
+    """The variables of the model description by section, each with its description (the one
+    variable table, src/fmus/*/variables.rs, writes both)."""
     from fmpy import read_model_description
 
     md = read_model_description(str(fmu))
-    rows = [
-        "| name | causality | variability | type | unit | value reference |",
-        "|---|---|---|---|---|---|",
-    ]
+    sections: dict[str, list] = {title: [] for title, _ in TABLE_SECTIONS}
     for v in md.modelVariables:
-        unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None) or ""
-        rows.append(
-            f"| `{v.name}` | {v.causality} | {v.variability} | {v.type} | {unit} | {v.valueReference} |"
-        )
-    return "\n".join(rows)
+        title = next(t for t, takes in TABLE_SECTIONS if takes(v))
+        sections[title].append(v)
+    out = []
+    for title, members in sections.items():
+        if not members:
+            continue
+        out += [
+            f"**{title}**",
+            "",
+            "| name | causality | variability | type | unit | value reference | description |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for v in members:
+            unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None) or ""
+            desc = (v.description or "").replace("|", "\\|")
+            out.append(
+                f"| `{v.name}` | {v.causality} | {v.variability} | {v.type} | {unit} "
+                f"| {v.valueReference} | {desc} |"
+            )
+        out.append("")
+    return "\n".join(out).rstrip("\n")
 
 
 def write_table(fmu: pathlib.Path, doc: pathlib.Path = INTERFACE) -> None:

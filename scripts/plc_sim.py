@@ -1,139 +1,15 @@
 #!/usr/bin/env python3
-"""A simulated pump PLC (docs/plant.md): an OPC UA server on 127.0.0.1 playing a crank data file
-(data/twin/pump_encoder.csv by default) in real time or faster, with scalar and block nodes and
-history, optionally secured.
+"""A simulated pump PLC: an OPC UA server playing crank data (docs/plant.md).
 
-    .venv/bin/python scripts/plc_sim.py                       # real time, no security
-    .venv/bin/python scripts/plc_sim.py --port 4840 --speed 4 --security SignAndEncrypt \\
-        --cert-dir /tmp/plc --user operator --password-env PLC_PASSWORD
-
-Prints "plc_sim: listening on opc.tcp://..." when ready. With --cert-dir the server's certificate
-is written there (plc-sim.der), for the twin's trust list.
+The same command as `rdrive plc-sim` of the installed package: python/reciprocating_drive/commands/plc_sim.py
+(`--help` describes it).
 """
 
-from __future__ import annotations
-
-import argparse
-import asyncio
-import math
-import os
 import pathlib
 import sys
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "python"))
-
-FAULTS = ("bad_status", "nan", "wrong_type")
-
-
-def fault(text: str):
-    try:
-        i, kind = text.split(":")
-        if kind not in FAULTS:
-            raise ValueError
-        return int(i), kind
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"--fault {text!r}: give SAMPLE:KIND, KIND one of {', '.join(FAULTS)}"
-        ) from None
-
-
-def outage(text: str):
-    try:
-        t, s = (float(x) for x in text.split(":"))
-        if not (math.isfinite(t) and math.isfinite(s) and t >= 0 and s > 0):
-            raise ValueError
-        return t, s
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"--outage {text!r}: give T:SECONDS (data time t >= 0, seconds > 0)"
-        ) from None
-
-
-def positive(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        v = math.nan
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number > 0")
-    return v
-
-
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    ap.add_argument("--data", default=str(ROOT / "data" / "twin" / "pump_encoder.csv"))
-    ap.add_argument("--port", type=int, default=0, help="default: a free port")
-    ap.add_argument("--speed", type=positive, default=1.0, help="multiple of real time")
-    ap.add_argument("--block-ms", type=positive, default=50.0)
-    ap.add_argument("--no-history", action="store_true")
-    ap.add_argument(
-        "--nodes", choices=("scalar", "block", "both"), default="both", help="which nodes to write"
-    )
-    ap.add_argument("--security", choices=("Sign", "SignAndEncrypt"), default=None)
-    ap.add_argument("--cert-dir", default=None)
-    ap.add_argument("--user", default=None)
-    ap.add_argument("--password-file", default=None)
-    ap.add_argument("--password-env", default=None)
-    ap.add_argument("--fault", type=fault, action="append", default=[])
-    ap.add_argument("--outage", type=outage, default=None)
-    ap.add_argument("--origin", type=float, default=None, help="Unix seconds of t = 0")
-    ap.add_argument(
-        "--start-delay", type=float, default=0.0, help="seconds from listening to the first sample"
-    )
-    ap.add_argument(
-        "--linger", type=float, default=math.inf, help="seconds to stay up after the end"
-    )
-    a = ap.parse_args(argv)
-    password = None
-    if a.user:
-        if a.password_file:
-            try:
-                password = pathlib.Path(a.password_file).read_text().strip("\r\n")
-            except OSError as e:
-                print(
-                    f"plc_sim.py: --password-file {a.password_file}: {e.strerror}", file=sys.stderr
-                )
-                return 2
-        elif a.password_env and a.password_env in os.environ:
-            password = os.environ[a.password_env]
-        else:
-            print(
-                "plc_sim.py: --user needs --password-file or --password-env (set)", file=sys.stderr
-            )
-            return 2
-    if a.cert_dir:
-        pathlib.Path(a.cert_dir).mkdir(parents=True, exist_ok=True)
-    from reciprocating_drive.plant.plc_sim import PlcSim, serve
-
-    try:
-        sim = PlcSim(
-            data=a.data,
-            port=a.port,
-            speed=a.speed,
-            block_ms=a.block_ms,
-            history=not a.no_history,
-            security=a.security,
-            user=a.user,
-            password=password,
-            cert_dir=a.cert_dir,
-            faults=dict(a.fault),
-            outage=a.outage,
-            origin=a.origin,
-            start_delay=a.start_delay,
-            written=a.nodes,
-        )
-    except (OSError, ValueError) as e:
-        print(f"plc_sim.py: --data {a.data}: {e}", file=sys.stderr)
-        return 2
-    try:
-        asyncio.run(serve(sim, a.linger))
-    except KeyboardInterrupt:
-        pass
-    return 0
-
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "python"))
+from reciprocating_drive.commands import run_script  # noqa: E402
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script("plc_sim")

@@ -1,113 +1,15 @@
 #!/usr/bin/env python3
-"""The main job's simulation (called by scripts/run.sh): runs one machine at constant crank speed
-with fmpy and writes, in results/ (or --out-dir):
+"""The main job: simulate a machine over whole crank revolutions (docs/results.md).
 
-  <preset>.csv    time, the model angle (crank.model_angle, rad and deg) and the outputs
-  <preset>.png    the mission plot (python/reciprocating_drive/plots.py)
-  <preset>.json   the summary of a steady revolution (keys: docs/results.md)
-
-and prints the summary. The work is done by python/reciprocating_drive/mission.py.
-
-Presets: "default" is the FMU's own start values (docs/model.md §8); any other NAME is the
-parameter set resources/presets/NAME.ssv, or a path to an .ssv file.
+The same command as `rdrive run` of the installed package: python/reciprocating_drive/commands/simulate.py
+(`--help` describes it).
 """
 
-from __future__ import annotations
-
-import argparse
-import csv
-import math
 import pathlib
 import sys
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "python"))
-from reciprocating_drive.mission import OUTPUTS, format_summary, run_mission, write_summary  # noqa: E402
-from reciprocating_drive.plots import plot_mission  # noqa: E402
-from reciprocating_drive.presets import PRESET_DIR, available_presets, preset_values  # noqa: E402
-
-UNITS = {
-    "crank.model_speed": "rad/s",
-    "suspension.position": "m",
-    "suspension.velocity": "m/s",
-    "suspension.acceleration": "m/s2",
-    "kinematics.torque_factor": "m",
-    "inertia.force": "N",
-    "guide.friction": "N",
-    "link.friction_total": "N",
-    "rod.force": "N",
-    "crank.torque": "N.m",
-    "rod.angle": "rad",
-    "rod.angular_velocity": "rad/s",
-    "rod.stress_max": "Pa",
-}
-CSV_OUTPUTS = [(n, UNITS[n]) for n in OUTPUTS if n != "crank.model_angle"]
-
-
-def write_csv(path: pathlib.Path, data: dict) -> None:
-    with open(path, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(
-            ["time [s]", "crank angle [rad]", "crank angle [deg]"]
-            + [f"{n} [{u}]" for n, u in CSV_OUTPUTS]
-        )
-        for i in range(len(data["time"])):
-            th = float(data["crank.model_angle"][i])
-            w.writerow(
-                [repr(float(data["time"][i])), repr(th), repr(math.degrees(th))]
-                + [repr(float(data[n][i])) for n, _ in CSV_OUTPUTS]
-            )
-
-
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    ap.add_argument("preset", nargs="?", default="default")
-    ap.add_argument("--fmu", default=str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
-    ap.add_argument("--resources", default=str(PRESET_DIR), help="folder of the .ssv presets")
-    ap.add_argument("--out-dir", default=str(ROOT / "results"))
-    ap.add_argument(
-        "--revolutions",
-        type=int,
-        default=None,
-        help="revolutions to simulate (default 2, 30 for an elastic rod)",
-    )
-    ap.add_argument(
-        "--step", type=float, default=None, help="communication step [s] (default 1/900 revolution)"
-    )
-    a = ap.parse_args(argv)
-
-    resources = pathlib.Path(a.resources)
-    try:
-        preset_values(a.preset, resources)
-    except KeyError:
-        print(
-            f'simulate.py: unknown preset "{a.preset}"; available: '
-            f"{', '.join(available_presets(resources))}",
-            file=sys.stderr,
-        )
-        return 2
-    if (a.step is not None and not a.step > 0) or (a.revolutions is not None and a.revolutions < 1):
-        print("simulate.py: --step must be positive and --revolutions at least 1", file=sys.stderr)
-        return 2
-    try:
-        m = run_mission(
-            a.fmu, a.preset, step=a.step, revolutions=a.revolutions, preset_dir=resources
-        )
-    except Exception as e:  # an FMU error or an invalid preset: a message, not a traceback
-        print(f"simulate.py: {e}", file=sys.stderr)
-        return 2
-    out = pathlib.Path(a.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    stem = pathlib.Path(a.preset).stem if a.preset.endswith(".ssv") else a.preset
-    write_csv(out / f"{stem}.csv", m.data)
-    plot_mission(m, out / f"{stem}.png")
-    write_summary(m, out / f"{stem}.json")
-    print(format_summary(m.summary))
-    print(f"wrote {out / stem}.csv, .png and .json")
-    return 0
-
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "python"))
+from reciprocating_drive.commands import run_script  # noqa: E402
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_script("simulate")

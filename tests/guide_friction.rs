@@ -164,10 +164,10 @@ fn rejected_support_configurations_fail_initialization_with_precise_messages() {
             &["link.l1 + link.l2 + link.l3 + link.l4 = 0"],
         ),
         // Young's modulus.
-        (&[("link.E", 0.0)], &["link.E = 0", "(0, 10000000000000] Pa"]),
-        (&[("link.E", -2.1e11)], &["link.E = -210000000000", "(0, 10000000000000] Pa"]),
+        (&[("link.E", 0.0)], &["link.E = 0", "(0, 1e+13] Pa"]),
+        (&[("link.E", -2.1e11)], &["link.E = -210000000000", "(0, 1e+13] Pa"]),
         // Negative stiffness and friction coefficients, non-finite values.
-        (&[("support_C.stiffness", -1.0)], &["support_C.stiffness = -1", "[0, 1e15] N/m"]),
+        (&[("support_C.stiffness", -1.0)], &["support_C.stiffness = -1", "[0, 1e+15] N/m"]),
         (
             &[("guide.friction_coefficient", -0.1)],
             &["guide.friction_coefficient = -0.1", "[0, 10]"],

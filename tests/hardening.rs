@@ -51,11 +51,11 @@ fn deserialized_states_are_validated_like_set_calls() {
     >;
     let cases: Vec<(Corrupt, &str)> = vec![
         (Box::new(|c| c.tolerance = Some(f64::NAN)), "tolerance = NaN"),
-        (Box::new(|c| c.tolerance = Some(-1e-8)), "tolerance = -1e-8"),
+        (Box::new(|c| c.tolerance = Some(-1e-8)), "tolerance = -1e-08"),
         (Box::new(|c| c.values[vr("crank.speed") as usize] = f64::NAN), "crank.speed = NaN"),
         (
             Box::new(|c| c.values[vr("support_B.offset") as usize] = 1e308),
-            "support_B.offset = 1e308",
+            "support_B.offset = 1e+308",
         ),
         (
             Box::new(|c| c.values[vr("guide.friction_coefficient") as usize] = -1.0),
@@ -93,4 +93,279 @@ fn a_crank_carried_forward_past_the_largest_double_fails_the_step_and_changes_no
     assert_eq!(f.set("crank.speed", 6.8), OK);
     assert_eq!(f.get("crank.model_angle"), before);
     assert_eq!(f.step(5e-3, 1e-3), OK);
+}
+
+/// The per-call trace is opt-in by name (docs/fmi-interface.md "Logging categories"): debug
+/// logging switched on at instantiation, or by fmi2SetDebugLogging with no categories, logs the
+/// model's events and warnings but not one line per call; naming logCalls or logAll adds exactly
+/// one line per call, in category logCalls.
+#[test]
+fn per_call_trace_only_when_its_category_is_named() {
+    let api = Api::load();
+    // A trace line is the bare name of the function called, whatever its category.
+    let calls = |f: &Inst| {
+        let lines = f.log.lines.lock().unwrap();
+        lines.iter().filter(|l| l.3 == "fmi2DoStep" || l.3 == "fmi2GetReal").count()
+    };
+    let set_logging = |f: &Inst, names: &[&str]| {
+        let cats: Vec<_> = names.iter().map(|n| std::ffi::CString::new(*n).unwrap()).collect();
+        let ptrs: Vec<_> = cats.iter().map(|c| c.as_ptr()).collect();
+        unsafe { (api.fmi2SetDebugLogging)(f.c, 1, ptrs.len(), ptrs.as_ptr()) }
+    };
+    // loggingOn = true at fmi2Instantiate (Inst::new), as the FMI Library does for libcosim.
+    let f = running(&api);
+    for k in 5..1005 {
+        assert_eq!(f.step(k as f64 * 1e-3, 1e-3), OK);
+    }
+    assert_eq!(calls(&f), 0, "{:?}", f.log.messages().last());
+    // fmi2SetDebugLogging(loggingOn = true, nCategories = 0).
+    assert_eq!(set_logging(&f, &[]), OK);
+    for k in 1005..2005 {
+        assert_eq!(f.step(k as f64 * 1e-3, 1e-3), OK);
+        let _ = f.get("rod.force");
+    }
+    assert_eq!(calls(&f), 0);
+    // Named: one line per call (1000 steps and 1000 reads), whichever of the two names.
+    for (names, t0) in [(&["logCalls"][..], 2005), (&["logAll"][..], 3005)] {
+        f.log.clear();
+        assert_eq!(set_logging(&f, names), OK);
+        for k in t0..t0 + 1000 {
+            assert_eq!(f.step(k as f64 * 1e-3, 1e-3), OK);
+            let _ = f.get("rod.force");
+        }
+        let lines = f.log.lines.lock().unwrap().clone();
+        let steps = lines.iter().filter(|l| l.2 == "logCalls" && l.3 == "fmi2DoStep").count();
+        let reads = lines.iter().filter(|l| l.2 == "logCalls" && l.3 == "fmi2GetReal").count();
+        assert_eq!((steps, reads), (1000, 1000), "{names:?}");
+    }
+    // Only logEvents named: no trace.
+    f.log.clear();
+    assert_eq!(set_logging(&f, &["logEvents"]), OK);
+    assert_eq!(f.step(4.005, 1e-3), OK);
+    assert_eq!(calls(&f), 0);
+}
+
+/// The numbers of a message with more than 6 significant digits (docs/hardening.md
+/// "Messages"): a number is a run of digits with an optional point, exponent and sign.
+fn long_numbers(message: &str) -> Vec<String> {
+    let b = message.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < b.len() {
+        let starts = b[i].is_ascii_digit() && (i == 0 || !(b[i - 1].is_ascii_alphanumeric()));
+        if !starts {
+            i += 1;
+            continue;
+        }
+        let start = i;
+        while i < b.len() && (b[i].is_ascii_digit() || b[i] == b'.') {
+            i += 1;
+        }
+        let mantissa = message[start..i].trim_end_matches('.');
+        if i + 1 < b.len() && b[i] == b'e' && (b[i + 1] == b'+' || b[i + 1] == b'-') {
+            i += 2;
+            while i < b.len() && b[i].is_ascii_digit() {
+                i += 1;
+            }
+        }
+        let digits: String = mantissa.chars().filter(|c| c.is_ascii_digit()).collect();
+        let digits = digits.trim_start_matches('0');
+        // Trailing zeros of an integer are not significant (1000000 has 1 significant digit).
+        let digits = if mantissa.contains('.') { digits } else { digits.trim_end_matches('0') };
+        if digits.len() > 6 {
+            out.push(message[start..i].to_string());
+        }
+    }
+    out
+}
+
+#[test]
+fn long_numbers_finds_what_it_should() {
+    assert_eq!(
+        long_numbers("h = 1e+300 s, 0.357516 s, 592.25 N, -5.91963e-16, 0 s"),
+        Vec::<String>::new()
+    );
+    assert_eq!(long_numbers("1000000 and 100000000000000000000"), Vec::<String>::new());
+    assert_eq!(long_numbers("a = 0.3575157167540676 s"), vec!["0.3575157167540676"]);
+    assert_eq!(long_numbers("K = -5.919626723903517e-16 N"), vec!["5.919626723903517e-16"]);
+    assert_eq!(
+        long_numbers("z = 0.000000000000000000001 m; link.l4 = 592.2499999999999"),
+        vec!["592.2499999999999"]
+    );
+    assert_eq!(long_numbers("x = 1234567"), vec!["1234567"]);
+}
+
+/// Issue: numbers of 300 digits and odd forms in the FMU's messages. Every Real parameter at
+/// ±1e300, ±1e-300 and 0.30000000000000004, every integer parameter at 2147483647, steps of
+/// 1e300 and 1e-300 s and a mismatched communication point, on the default machine and on the
+/// kvo630 preset (elastic rod, whose buckling message printed K_theta with 31 digits): every
+/// number a message prints has at most 6 significant digits, except the value the case set,
+/// echoed as given; integer ranges read as integers.
+#[test]
+fn every_number_an_fmu_prints_has_at_most_six_digits_unless_it_is_the_value_set() {
+    use reciprocating_drive::fmi2::variables::{Causality, VarType};
+    use reciprocating_drive::model::error::given;
+    let api = Api::load();
+    let table = ReciprocatingDrive::table();
+    let mut failures = Vec::new();
+    let mut messages = 0;
+    let mut check = |case: &str, echoed: Option<f64>, f: &Inst| {
+        for m in f.log.messages() {
+            messages += 1;
+            let echo = echoed.map(given);
+            for n in long_numbers(&m) {
+                if Some(&n) != echo.as_ref() && Some(n.trim_start_matches('-')) != echo.as_deref() {
+                    failures.push(format!("{case}: {n} in {m}"));
+                }
+            }
+            if m.contains(" is out of range; allowed: a finite number in [0, 3]")
+                || m.contains("allowed: a finite number in [1, 3]")
+            {
+                failures.push(format!("{case}: integer range as a real: {m}"));
+            }
+        }
+    };
+    for machine in ["default", "kvo630"] {
+        for v in table.variables.iter().filter(|v| v.causality == Causality::Parameter) {
+            let values: &[f64] = match v.ty {
+                VarType::Real => &[1e300, -1e300, 1e-300, -1e-300, 0.30000000000000004],
+                VarType::Integer => &[2147483647.0],
+                VarType::Boolean => &[],
+            };
+            for &x in values {
+                let f = Inst::new(&api, "digits");
+                assert_eq!(f.setup(0.0), OK);
+                assert_eq!(f.enter(), OK);
+                if machine == "kvo630" {
+                    f.apply_preset(&preset("kvo630"));
+                }
+                let st = if v.ty == VarType::Integer {
+                    f.set_int(v.name, x as i32)
+                } else {
+                    f.set(v.name, x)
+                };
+                assert_eq!(st, OK);
+                if f.exit() == OK {
+                    for k in 0..3 {
+                        let _ = f.step(k as f64 * 1e-3, 1e-3);
+                    }
+                    let _ = f.get_many(&["rod.force", "crank.torque", "link.friction_total"]);
+                }
+                check(&format!("{machine}: {} = {}", v.name, given(x)), Some(x), &f);
+            }
+        }
+        // Step sizes and a communication point off the FMU's time.
+        for (t, h) in [(0.0, 1e300), (0.0, 1e-300), (0.0010000001, 1e-3)] {
+            let f = Inst::new(&api, "digits");
+            assert_eq!(f.setup(0.0), OK);
+            assert_eq!(f.enter(), OK);
+            if machine == "kvo630" {
+                f.apply_preset(&preset("kvo630"));
+            }
+            assert_eq!(f.exit(), OK);
+            let _ = f.step(0.0, 1e-3);
+            let _ = f.step(t, h);
+            let _ = f.get("rod.force");
+            let echoed = if h == 1e-3 { t } else { h };
+            check(&format!("{machine}: step ({t}, {h})"), Some(echoed), &f);
+        }
+        // Buckling of the elastic rod: a process force far above the buckling load.
+        if machine == "kvo630" {
+            let f = Inst::new(&api, "digits");
+            assert_eq!(f.setup(0.0), OK);
+            assert_eq!(f.enter(), OK);
+            f.apply_preset(&preset("kvo630"));
+            assert_eq!(f.set("load.mean", 2000.0), OK);
+            let st = f.exit();
+            let m = f.log.last();
+            assert!(st == ERROR && m.contains("buckl"), "{m}");
+            check("kvo630 buckled", None, &f);
+        }
+    }
+    assert!(messages > 300, "{messages} messages only");
+    assert!(
+        failures.is_empty(),
+        "{} of {messages} messages:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
+}
+
+/// Integer parameters' ranges read as integers, the tolerance's bound is refused where it is
+/// given (fmi2SetupExperiment) or at initialization (solver.tolerance), with its range.
+#[test]
+fn integer_ranges_and_the_tolerance_bound_in_messages() {
+    let api = Api::load();
+    let f = Inst::new(&api, "ranges");
+    assert_eq!(f.setup(0.0), OK);
+    assert_eq!(f.enter(), OK);
+    assert_eq!(f.set_int("mechanism", 7), OK);
+    assert_eq!(f.exit(), ERROR);
+    assert!(
+        f.log.last().ends_with("mechanism = 7 is out of range; allowed: an integer in [1, 3]"),
+        "{}",
+        f.log.last()
+    );
+    let f = Inst::new(&api, "tolerance");
+    assert_eq!(unsafe { (api.fmi2SetupExperiment)(f.c, 1, 1e-300, 0.0, 0, 0.0) }, ERROR);
+    assert!(
+        f.log.last().ends_with("tolerance = 1e-300; allowed: a finite number in [1e-13, 1)"),
+        "{}",
+        f.log.last()
+    );
+    assert_eq!(unsafe { (api.fmi2SetupExperiment)(f.c, 1, 1e-13, 0.0, 0, 0.0) }, OK);
+    let f = Inst::new(&api, "solver.tolerance");
+    assert_eq!(f.setup(0.0), OK);
+    assert_eq!(f.enter(), OK);
+    assert_eq!(f.set("solver.tolerance", 1e-300), OK);
+    assert_eq!(f.exit(), ERROR);
+    assert!(
+        f.log.last().ends_with(
+            "solver.tolerance = 1e-300 is out of range; allowed: a finite number in [1e-13, 1)"
+        ),
+        "{}",
+        f.log.last()
+    );
+    // A support so soft that the link is barely held names its stiffness (it read only
+    // "singular ... supports nearly coincide or do not hold the link").
+    let f = Inst::new(&api, "soft");
+    assert_eq!(f.setup(0.0), OK);
+    assert_eq!(f.enter(), OK);
+    assert_eq!(f.set("support_A.stiffness", 1e-300), OK);
+    assert_eq!(f.exit(), ERROR);
+    let m = f.log.last();
+    assert!(m.contains("support_A.stiffness = 1e-300 N/m") && m.contains("EJ/L³ = "), "{m}");
+    // A call out of sequence says what state the instance is in and what to do.
+    let f = Inst::new(&api, "sequence");
+    assert_eq!(f.step(0.0, 1e-3), ERROR);
+    assert!(
+        f.log.last().contains("not allowed in state instantiated: initialize first"),
+        "{}",
+        f.log.last()
+    );
+}
+
+/// The kvo630 elastic rod at the smallest tolerance accepted still steps, so the bound refuses
+/// nothing that works: 1e-13 is met (and the result agrees with 1e-10 to 1e-7 of its scale,
+/// the error of the run at 1e-10).
+#[test]
+fn the_smallest_tolerance_accepted_works() {
+    let api = Api::load();
+    let run = |tol: f64| {
+        let f = Inst::new(&api, "tol");
+        assert_eq!(unsafe { (api.fmi2SetupExperiment)(f.c, 1, tol, 0.0, 0, 0.0) }, OK);
+        assert_eq!(f.enter(), OK);
+        f.apply_preset(&preset("kvo630"));
+        assert_eq!(f.exit(), OK, "{}", f.log.last());
+        let w = 157.07963267948966;
+        for k in 0..40 {
+            let t = k as f64 * 1e-3;
+            assert_eq!(f.set("crank.angle", w * t), OK);
+            assert_eq!(f.set("crank.speed", w), OK);
+            assert_eq!(f.step(t, 1e-3), OK, "tol {tol}: {}", f.log.last());
+        }
+        f.get("rod.angle")
+    };
+    let (a, b) = (run(1e-13), run(1e-10));
+    assert!((a - b).abs() <= 1e-7 * a.abs().max(1e-6), "{a} vs {b}");
 }

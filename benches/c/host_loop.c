@@ -4,6 +4,9 @@
  *   loop:   per step fmi2SetReal of 3 inputs, fmi2DoStep (h = 1 ms), fmi2GetReal of N outputs
  *   dostep: fmi2DoStep alone
  * It prints the median ns per step of each and their ratio. Written for this project.
+ * Environment: HOST_H = the communication step h [s] (default 1e-3); HOST_INSTANCES = the number
+ * of instances of each FMU (default 1), stepped in turn at every communication point, as one host
+ * steps many machines; the figures are then per instance and step.
  *
  * usage: host_loop BASE.so BASE_GUID BASE_IN BASE_OUT  FMU.so FMU_GUID FMU_IN FMU_OUT  SPEED STEPS ROUNDS [SET...]
  *   *_IN, *_OUT: comma-separated value references (3 inputs; the outputs read each step)
@@ -107,28 +110,36 @@ static double now(void) {
 
 static volatile double sink;
 
-/* ns per step of one run from a fresh instance. */
+static double h = 1e-3;
+static long instances = 1;
+
+/* ns per instance and step of one run from fresh instances. */
 static double run(Fmu *f, int nset, char **set, double speed, long steps, int dostep_only) {
-    fmi2Component c = start(f, nset, set);
+    fmi2Component *cs = malloc(instances * sizeof *cs);
+    if (!cs) exit(2);
+    for (long i = 0; i < instances; i++) cs[i] = start(f, nset, set);
     double out[64], acc = 0.0;
-    const double h = 1e-3;
     double t0 = now();
     for (long k = 0; k < steps; k++) {
         double t = k * h;
-        if (!dostep_only) {
-            double in[3] = { speed * t, speed, 0.0 };
-            fmi2Status s1 = f->set_real(c, f->in, 3, in);
-            fmi2Status s2 = f->do_step(c, t, h, fmi2True);
-            fmi2Status s3 = f->get_real(c, f->out, f->n_out, out);
-            if (s1 | s2 | s3) { fprintf(stderr, "step %ld failed (set %d, step %d, get %d)\n", k, (int)s1, (int)s2, (int)s3); exit(4); }
-            acc += out[f->n_out - 1];
-        } else if (f->do_step(c, t, h, fmi2True) != fmi2OK) {
-            fprintf(stderr, "step %ld failed\n", k); exit(4);
+        for (long i = 0; i < instances; i++) {
+            fmi2Component c = cs[i];
+            if (!dostep_only) {
+                double in[3] = { speed * t, speed, 0.0 };
+                fmi2Status s1 = f->set_real(c, f->in, 3, in);
+                fmi2Status s2 = f->do_step(c, t, h, fmi2True);
+                fmi2Status s3 = f->get_real(c, f->out, f->n_out, out);
+                if (s1 | s2 | s3) { fprintf(stderr, "step %ld failed (set %d, step %d, get %d)\n", k, (int)s1, (int)s2, (int)s3); exit(4); }
+                acc += out[f->n_out - 1];
+            } else if (f->do_step(c, t, h, fmi2True) != fmi2OK) {
+                fprintf(stderr, "step %ld failed\n", k); exit(4);
+            }
         }
     }
-    double ns = (now() - t0) / steps;
+    double ns = (now() - t0) / ((double)steps * instances);
     sink = acc;
-    f->free_instance(c);
+    for (long i = 0; i < instances; i++) f->free_instance(cs[i]);
+    free(cs);
     return ns;
 }
 
@@ -148,6 +159,9 @@ int main(int argc, char **argv) {
     int nset = argc - 12;
     char **set = argv + 12;
     if (rounds < 1 || rounds > 99) return 2;
+    if (getenv("HOST_H")) h = strtod(getenv("HOST_H"), NULL);
+    if (getenv("HOST_INSTANCES")) instances = strtol(getenv("HOST_INSTANCES"), NULL, 10);
+    if (!(h > 0.0) || instances < 1) { fprintf(stderr, "bad HOST_H or HOST_INSTANCES\n"); return 2; }
     for (int mode = 0; mode < 2; mode++) {
         double b[99], f[99];
         run(&base, 0, NULL, speed, steps / 10, mode);  /* warm-up */

@@ -64,6 +64,17 @@ def studies_dir() -> pathlib.Path:
     return _pick(DATA / "studies", ROOT / "studies")
 
 
+def presets_dir() -> pathlib.Path:
+    """The presets of docs/model.md §8 as SSP parameter-value files (also inside the FMU)."""
+    return _pick(DATA / "presets", ROOT / "resources" / "presets")
+
+
+def results_dir() -> pathlib.Path:
+    """Where the commands write by default: `results/` of the checkout, or of the current folder
+    when the package is installed."""
+    return pathlib.Path.cwd() / "results" if installed() else ROOT / "results"
+
+
 def twin_sample() -> pathlib.Path:
     """The twin's sample data (a 4096-count encoder at 1 kHz, docs/twin.md)."""
     return _pick(DATA / "twin", ROOT / "data" / "twin") / "pump_encoder.csv"

@@ -17,8 +17,9 @@ import pathlib
 
 import numpy as np
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
-DEFAULT_LIB = ROOT / "target" / "release" / "libfmi2_batch.so"
+from . import artifacts
+
+DEFAULT_LIB = artifacts.batch_library()
 
 #: Call order at each communication point (tools/fmi2-batch/src/lib.rs).
 ORDER_STEP_SET_GET = 0

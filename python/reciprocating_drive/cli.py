@@ -2,14 +2,17 @@
 
     rdrive run [PRESET]          the main job: simulate a machine over whole revolutions
     rdrive twin ...              the digital twin (measured crank data in, loads out)
+    rdrive plant --config F      the twin in a plant (OPC UA, SQLite/PostgreSQL, live page)
+    rdrive plc-sim ...           a simulated pump PLC (OPC UA server) for demos and tests
     rdrive sweep STUDY ...       a design sweep on Dask
     rdrive closed-loop ...       the pump and its drive train in one system
     rdrive fmu-path [MODEL]      the path of an FMU, for other importers
 
 `rdrive --version`, and `--help` on each. Exit codes (docs/install.md): 0 success, 1 a run that
-failed (the FMU refused, a case failed, the data stopped the run), 2 a usage or input error (a bad
-option, file or value: one line saying which), 130 stopped by Ctrl-C (a resumable run says how to
-resume).
+failed (the FMU refused, every case was rejected, the data stopped the run), 2 a usage or input
+error (a bad option, file or value: one line saying which), 70 an internal error (one line saying
+where its details were written), 128 + N stopped by signal N (130 Ctrl-C, 143 SIGTERM; a resumable
+run says how to resume).
 """
 
 from __future__ import annotations
@@ -24,6 +27,8 @@ from . import __version__, artifacts
 COMMANDS = {
     "run": ("simulate", "the main job: simulate a machine over whole crank revolutions"),
     "twin": ("twin", "the digital twin: measured crank data in, the FMU's loads out"),
+    "plant": ("twin_plant", "the twin in a plant: a configuration file (OPC UA, databases, page)"),
+    "plc-sim": ("plc_sim", "a simulated pump PLC: an OPC UA server playing crank data"),
     "sweep": ("sweep", "a design sweep on Dask (a local cluster, or --scheduler)"),
     "closed-loop": ("closed_loop", "the pump and its drive train in one SSP system"),
 }
@@ -73,6 +78,9 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
+    from .commands import quiet_interrupt
+
+    quiet_interrupt()
     module = importlib.import_module(f"reciprocating_drive.commands.{COMMANDS[command][0]}")
     return int(module.main(rest, prog=f"rdrive {command}") or 0)
 

@@ -25,8 +25,9 @@ from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
-DEFAULT_FMU = ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"
+from . import artifacts
+
+DEFAULT_FMU = artifacts.fmu()
 
 _STATUS = ["OK", "Warning", "Discard", "Error", "Fatal", "Pending"]
 

@@ -11,8 +11,9 @@ import pathlib
 import tempfile
 import zipfile
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
-PRESET_DIR = ROOT / "resources" / "presets"
+from . import artifacts
+
+PRESET_DIR = artifacts.presets_dir()
 
 _CONVERT = {
     "Real": float,

@@ -49,13 +49,17 @@ from functools import cache
 
 import numpy as np
 
+from . import artifacts
 from .cli_errors import UserError, show
 from .presets import preset_values
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
-#: The model description of this repository (equal to the built FMU's); studies are validated
-#: against the FMU they run on when it is given.
-MODEL_DESCRIPTION = ROOT / "modelDescription" / "modelDescription.xml"
+#: The model description of this repository (equal to the built FMU's), or of the FMU an installed
+#: package carries; studies are validated against the FMU they run on when it is given.
+MODEL_DESCRIPTION = (
+    artifacts.fmu()
+    if artifacts.installed()
+    else artifacts.ROOT / "modelDescription" / "modelDescription.xml"
+)
 
 #: Metrics a study may ask for (docs/sweeps.md): (meaning, SI unit). Per evaluated revolution, then
 #: over them: the mean for friction work, the extreme otherwise.

@@ -16,8 +16,9 @@ row with status "error" and the FMU's message; it never ends the sweep.
 By default the sweep starts a `dask.distributed.LocalCluster` with one single-threaded worker
 process per core; `scheduler="tcp://host:port"` attaches to an existing cluster instead (workers
 started with `dask worker`, dask-jobqueue, dask-kubernetes, ...), after checking within
-`connect_timeout` that a Dask scheduler answers there. Workers need the FMU at the same path, or a
-shared file system.
+`connect_timeout` that a Dask scheduler answers there. Such workers share no disk with the client:
+they need the package (the wheel) installed, at the client's version, and receive the FMU from the
+client (cluster.py).
 """
 
 from __future__ import annotations
@@ -157,10 +158,18 @@ class Row:
     worker: str
 
 
-def run_batch(fmu_path: str, study: Study, cases: list[int]) -> list[dict]:
-    """One Dask task: the cases `cases` of `study`, each a result row (never raises for a case)."""
+def run_batch(
+    fmu_path: str, study: Study, cases: list[int], fmu_data: bytes | None = None
+) -> list[dict]:
+    """One Dask task: the cases `cases` of `study`, each a result row (never raises for a case).
+    `fmu_data`: the FMU's bytes shipped by the client to a cluster that shares no disk with it
+    (cluster.py); `fmu_path` is then their SHA-256, otherwise a path on this machine."""
     from .fmu import FmuError
 
+    if fmu_data is not None:
+        from .cluster import local_fmu
+
+        fmu_path = local_fmu(fmu_path, fmu_data)
     fmu = _worker_fmu(fmu_path)
     out = []
     for i in cases:
@@ -527,6 +536,18 @@ def run_sweep(
     with _quiet_distributed():
         client, cluster = _client(scheduler, workers, connect_timeout)
     n_workers = len(client.scheduler_info()["workers"]) or 1
+    # A cluster of other machines shares no disk with the client: every worker's package version is
+    # checked before anything runs, and the FMU travels as bytes (cluster.py). A LocalCluster's
+    # workers run here and open the FMU's path.
+    fmu_ref, fmu_data = fmu_path, None
+    if scheduler:
+        from .cluster import WorkerMismatch, prepare_workers
+
+        try:
+            fmu_ref, fmu_data = prepare_workers(client, fmu_path)
+        except WorkerMismatch as e:
+            client.close()
+            raise SweepError(f"--scheduler {scheduler}: {e}") from None
     bar = None
     computed, fmu_seconds, wall = 0, 0.0, 0.0
     try:
@@ -549,7 +570,9 @@ def run_sweep(
 
         def submit():
             b = list(itertools.islice(todo, size))
-            return client.submit(run_batch, fmu_path, study_f, b, pure=False) if b else None
+            return (
+                client.submit(run_batch, fmu_ref, study_f, b, fmu_data, pure=False) if b else None
+            )
 
         t0 = time.perf_counter()
         state.started = True

@@ -24,9 +24,10 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
-SSD = ROOT / "ssp" / "ClosedLoop" / "SystemStructure.ssd"
-FMU_DIR = ROOT / "target" / "fmu"
+from . import artifacts
+
+SSD = artifacts.ssp_system() / "SystemStructure.ssd"
+FMU_DIR = artifacts.fmu_dir()
 
 
 class LoopFailed(RuntimeError):

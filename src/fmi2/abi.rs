@@ -66,7 +66,7 @@ unsafe fn call<M: FmuModel>(
     let inst = c as *mut Instance<M>;
     match catch_unwind(AssertUnwindSafe(|| f(&mut *inst))) {
         Ok(Ok(())) => {
-            (*inst).log(fmi2Status_fmi2OK, Category::All, function);
+            (*inst).log(fmi2Status_fmi2OK, Category::Calls, function);
             fmi2Status_fmi2OK
         }
         Ok(Err(failure)) => {

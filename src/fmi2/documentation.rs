@@ -27,8 +27,11 @@ pub fn generate<M: FmuModel>() -> String {
             (Causality::Output, _) => "output",
         };
         let start = v.start().map(|s| format!("{s}")).unwrap_or_default();
-        let allowed =
-            if v.causality == Causality::Parameter { v.range.describe("") } else { String::new() };
+        let allowed = if v.causality == Causality::Parameter {
+            v.range.describe_as(v.ty, "")
+        } else {
+            String::new()
+        };
         let ty = match v.ty {
             VarType::Real => "Real",
             VarType::Integer => "Integer",
@@ -39,7 +42,7 @@ pub fn generate<M: FmuModel>() -> String {
             "<tr><td><code>{}</code></td><td>{vr}</td><td>{causality}</td><td>{ty}</td><td>{}</td><td>{start}</td><td>{}</td><td>{}</td></tr>",
             v.name,
             v.unit,
-            allowed.replace("a finite number in ", ""),
+            allowed.replace("a finite number in ", "").replace("an integer in ", ""),
             v.description.replace('&', "&amp;").replace('<', "&lt;")
         );
     }

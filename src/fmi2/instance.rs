@@ -14,8 +14,8 @@ use std::path::PathBuf;
 use crate::fmi2::logging::{Category, Logger};
 use crate::fmi2::model::FmuModel;
 use crate::fmi2::plans::{InputPlan, ReadPlan, Source};
-use crate::fmi2::variables::{Binding, Causality, VarType, Variability};
-use crate::model::error::{num, ModelError};
+use crate::fmi2::variables::{Binding, Causality, Range, VarType, Variability};
+use crate::model::error::{given, num, ModelError};
 
 /// The states of the FMI 2.0 co-simulation state machine this FMU can be in. It never returns
 /// fmi2Pending or fmi2Discard from a step, so "step failed/canceled" do not occur; a failed call
@@ -53,7 +53,30 @@ impl Failure {
     #[cold]
     #[inline(never)]
     pub fn illegal(function: &str, mode: Mode) -> Failure {
-        Failure::error(format!("{function}: illegal call sequence: not allowed in state {mode:?}"))
+        // The state as FMI 2.0's state machine names it, and what the importer can do from there.
+        let (state, hint) = match mode {
+            Mode::Instantiated => (
+                "instantiated",
+                "initialize first (fmi2SetupExperiment, fmi2EnterInitializationMode, \
+                 fmi2ExitInitializationMode)",
+            ),
+            Mode::InitializationMode => (
+                "initializationMode",
+                "fmi2ExitInitializationMode has not succeeded (a failed one leaves the instance \
+                 here: set valid values and call it again, or fmi2Reset, or fmi2FreeInstance)",
+            ),
+            Mode::StepComplete => (
+                "stepComplete",
+                "the instance is initialized; fmi2Reset returns it to instantiated",
+            ),
+            Mode::Terminated => ("terminated", "only fmi2Reset or fmi2FreeInstance remain"),
+            Mode::Fatal => {
+                ("fatal", "an earlier call failed fatally; only fmi2FreeInstance remains")
+            }
+        };
+        Failure::error(format!(
+            "{function}: illegal call sequence: not allowed in state {state}: {hint}"
+        ))
     }
 }
 
@@ -110,12 +133,7 @@ impl<S> Core<S> {
             if let Binding::Param { set, .. } = var.binding {
                 let v = self.values[vr];
                 if !var.range.contains(v) {
-                    return Err(ModelError::out_of_range(
-                        var.name,
-                        v,
-                        var.range.describe(var.unit),
-                    )
-                    .into());
+                    return Err(ModelError::out_of_range(var.name, v, var.allowed()).into());
                 }
                 set(&mut p, v);
             }
@@ -235,7 +253,7 @@ impl<M: FmuModel> Instance<M> {
                 let x = self.core.values[i];
                 let s = v.start().unwrap_or(0.0);
                 let ratio = (x.abs().max(1e-300) / s.abs().max(1e-300)).log10().abs();
-                (x != s).then(|| (ratio, format!("{} = {}", v.name, num(x))))
+                (x != s).then(|| (ratio, format!("{} = {}", v.name, given(x))))
             })
             .collect();
         cand.sort_by(|a, b| b.0.total_cmp(&a.0));
@@ -275,20 +293,25 @@ impl<M: FmuModel> Instance<M> {
         self.require("fmi2SetupExperiment", &[Mode::Instantiated])?;
         if !start.is_finite() {
             return Err(Failure::error(format!(
-                "fmi2SetupExperiment: startTime = {start} must be finite"
+                "fmi2SetupExperiment: startTime = {} must be finite",
+                given(start)
             )));
         }
         if let Some(t) = tolerance {
-            if !(t > 0.0 && t < 1.0) {
+            if !Range::TOLERANCE.contains(t) {
                 return Err(Failure::error(format!(
-                    "fmi2SetupExperiment: tolerance = {t}; allowed: (0, 1)"
+                    "fmi2SetupExperiment: tolerance = {}; allowed: {}",
+                    given(t),
+                    Range::TOLERANCE.describe("")
                 )));
             }
         }
         if let Some(s) = stop {
             if s.is_nan() || s < start {
                 return Err(Failure::error(format!(
-                    "fmi2SetupExperiment: stopTime = {s} must be finite and >= startTime = {start}"
+                    "fmi2SetupExperiment: stopTime = {} must be finite and >= startTime = {}",
+                    given(s),
+                    given(start)
                 )));
             }
         }
@@ -480,7 +503,7 @@ impl<M: FmuModel> Instance<M> {
     #[inline]
     pub fn quick_get_real(&mut self, vrs: &[u32], out: &mut [f64]) -> bool {
         if self.core.mode != Mode::StepComplete
-            || self.logger.wants(Category::All)
+            || self.logger.wants(Category::Calls)
             || vrs.len() != out.len()
         {
             return false;
@@ -572,9 +595,7 @@ impl<M: FmuModel> Instance<M> {
                     )))
                 }
                 Causality::Input if !v.is_finite() => {
-                    return Err(
-                        ModelError::out_of_range(var.name, v, var.range.describe(var.unit)).into()
-                    )
+                    return Err(ModelError::out_of_range(var.name, v, var.allowed()).into())
                 }
                 Causality::Parameter if stepping => {
                     if var.variability != Variability::Tunable {
@@ -584,12 +605,7 @@ impl<M: FmuModel> Instance<M> {
                         )));
                     }
                     if !var.range.contains(v) {
-                        return Err(ModelError::out_of_range(
-                            var.name,
-                            v,
-                            var.range.describe(var.unit),
-                        )
-                        .into());
+                        return Err(ModelError::out_of_range(var.name, v, var.allowed()).into());
                     }
                     tunable_changed = true;
                 }
@@ -624,7 +640,7 @@ impl<M: FmuModel> Instance<M> {
     #[inline]
     pub fn quick_set_real(&mut self, vrs: &[u32], values: &[f64]) -> bool {
         if self.core.mode != Mode::StepComplete
-            || self.logger.wants(Category::All)
+            || self.logger.wants(Category::Calls)
             || vrs.len() != values.len()
             || self.provisional.is_some()
         {
@@ -695,7 +711,7 @@ impl<M: FmuModel> Instance<M> {
     #[inline]
     pub fn quick_step(&mut self, current: f64, h: f64) -> bool {
         self.core.mode == Mode::StepComplete
-            && !self.logger.wants(Category::All)
+            && !self.logger.wants(Category::Calls)
             && self.step_arguments_ok(current, h)
             && self.carry(current, h)
     }
@@ -767,13 +783,16 @@ impl<M: FmuModel> Instance<M> {
     fn step_arguments_failure(&self, current: f64, h: f64) -> Failure {
         if !(h > 0.0 && h.is_finite()) {
             Failure::error(format!(
-                "fmi2DoStep: communicationStepSize = {h}; allowed: a finite number > 0"
+                "fmi2DoStep: communicationStepSize = {}; allowed: a finite number > 0",
+                given(h)
             ))
         } else {
             Failure::error(format!(
-                "fmi2DoStep: currentCommunicationPoint = {current} does not match the FMU's time {} \
-                 (roll back with fmi2SetFMUstate to repeat a step)",
-                self.core.time
+                "fmi2DoStep: currentCommunicationPoint = {} does not match the FMU's time {} s \
+                 (it differs by {} s; roll back with fmi2SetFMUstate to repeat a step)",
+                given(current),
+                num(self.core.time),
+                num(current - self.core.time)
             ))
         }
     }
@@ -781,7 +800,11 @@ impl<M: FmuModel> Instance<M> {
     #[cold]
     #[inline(never)]
     fn step_failure(current: f64, h: f64, e: ModelError) -> Failure {
-        Failure::error(format!("fmi2DoStep from t = {current} s with h = {h} s failed: {e}"))
+        Failure::error(format!(
+            "fmi2DoStep from t = {} s with h = {} s failed: {e}",
+            num(current),
+            given(h)
+        ))
     }
 
     /// A model warning, with the function and the FMU's time.
@@ -789,7 +812,7 @@ impl<M: FmuModel> Instance<M> {
         self.logger.log(
             fmi_sys::fmi2::fmi2Status_fmi2Warning,
             Category::Warning,
-            &format!("{function}: at t = {} s {message}", self.core.time),
+            &format!("{function}: at t = {} s {message}", num(self.core.time)),
         );
     }
 
@@ -847,14 +870,18 @@ impl<M: FmuModel> Instance<M> {
                 return Err(bad(&format!(
                     "{} = {}; allowed: {}",
                     var.name,
-                    num(*v),
-                    var.range.describe(var.unit)
+                    given(*v),
+                    var.allowed()
                 )));
             }
         }
         if let Some(t) = core.tolerance {
-            if !(t > 0.0 && t < 1.0) {
-                return Err(bad(&format!("tolerance = {}; allowed: (0, 1)", num(t))));
+            if !Range::TOLERANCE.contains(t) {
+                return Err(bad(&format!(
+                    "tolerance = {}; allowed: {}",
+                    given(t),
+                    Range::TOLERANCE.describe("")
+                )));
             }
         }
         let model = match core.mode {

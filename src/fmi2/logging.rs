@@ -1,6 +1,11 @@
 //! Messages through the importer's logger (docs/fmi-interface.md "State machine"): the caller's
 //! componentEnvironment is passed back unchanged on every call; error messages always reach the
 //! logger; other categories only while debug logging is on and the category is enabled.
+//!
+//! The per-call trace (`logCalls`) is opt-in by name (docs/fmi-interface.md "Logging
+//! categories"): FMI 2.0 leaves the categories and their meaning to the FMU, and a master that
+//! switches debug logging on without naming categories (libcosim through the FMI Library does so
+//! at instantiation) wants the model's messages, not one line per fmi2DoStep of its own calls.
 
 use fmi_sys::fmi2::{fmi2CallbackLogger, fmi2ComponentEnvironment, fmi2Status};
 use fmi_sys::fmi3::fmi3LogMessageCallback;
@@ -11,15 +16,20 @@ pub static CATEGORIES: &[(&str, &str)] = &[
     ("logEvents", "Life-cycle events: initialization, steps with notable conditions, resets"),
     ("logStatusWarning", "Warnings (e.g. results near the validity limit of the model)"),
     ("logStatusError", "Errors: illegal calls, invalid parameters or inputs, failed steps"),
-    ("logAll", "Everything, including every FMI call"),
+    ("logCalls", "One line per FMI function call (a trace for debugging an importer); only when this category or logAll is named in fmi2SetDebugLogging"),
+    ("logAll", "Every category, including logCalls; only when named in fmi2SetDebugLogging"),
 ];
+
+/// How many categories there are.
+const N: usize = 5;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Category {
     Events = 0,
     Warning = 1,
     Error = 2,
-    All = 3,
+    Calls = 3,
+    All = 4,
 }
 
 /// The importer's logger: FMI 2.0's (printf-like, with the instance name) or FMI 3.0's (status,
@@ -31,12 +41,17 @@ enum Sink {
     Fmi3(fmi3LogMessageCallback),
 }
 
+/// The categories debug logging enables when none are named (fmi2Instantiate with
+/// loggingOn = true, or fmi2SetDebugLogging with nCategories = 0): all but the per-call trace
+/// and logAll, which includes it.
+const DEFAULT_ENABLED: [bool; N] = [true, true, true, false, false];
+
 pub struct Logger {
     callback: Sink,
     environment: fmi2ComponentEnvironment,
     instance_name: CString,
     debug_logging: bool,
-    enabled: [bool; 4],
+    enabled: [bool; N],
 }
 
 impl Logger {
@@ -51,7 +66,7 @@ impl Logger {
             environment,
             instance_name,
             debug_logging: logging_on,
-            enabled: [true; 4],
+            enabled: DEFAULT_ENABLED,
         }
     }
 
@@ -67,9 +82,10 @@ impl Logger {
         logger
     }
 
-    /// fmi2SetDebugLogging: no categories given means all of them.
+    /// fmi2SetDebugLogging: no categories given means every category but the per-call trace
+    /// (logCalls and logAll must be named).
     pub fn set_debug_logging(&mut self, on: bool, categories: &[&str]) -> Result<(), String> {
-        let mut enabled = [categories.is_empty(); 4];
+        let mut enabled = if categories.is_empty() { DEFAULT_ENABLED } else { [false; N] };
         for c in categories {
             match CATEGORIES.iter().position(|(n, _)| n == c) {
                 Some(i) => enabled[i] = true,

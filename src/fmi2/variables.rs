@@ -79,6 +79,12 @@ impl Range {
     pub const fn closed(min: f64, max: f64) -> Range {
         Range { min, max, min_open: false, max_open: false }
     }
+    /// An integrator's relative tolerance: [1e-13, 1). Below about 100 machine epsilons
+    /// (2.2e-14) the rounding of a step's own error estimate (a sum over the stages of
+    /// differences of numbers of the size of the state) exceeds the tolerance, so no step size
+    /// meets it and every step fails; 1e-13 (about 450 epsilons) leaves a margin
+    /// (docs/hardening.md "Bounded parameters").
+    pub const TOLERANCE: Range = Range { min: 1e-13, max: 1.0, min_open: false, max_open: true };
     /// (0, max]: a positive quantity with an upper bound.
     pub const fn positive_to(max: f64) -> Range {
         Range { min: 0.0, max, min_open: true, max_open: false }
@@ -97,12 +103,24 @@ impl Range {
         above && below
     }
 
-    /// Human-readable interval, e.g. "(0, inf) m" or "[0, 2]".
+    /// Human-readable interval of a Real, e.g. "a finite number in (0, inf) m".
     pub fn describe(&self, unit: &str) -> String {
+        self.describe_as(VarType::Real, unit)
+    }
+
+    /// Human-readable interval for a variable of type `ty`: an Integer's bounds as integers
+    /// ("an integer in [0, 3]"), a Real's with at most 6 significant digits.
+    pub fn describe_as(&self, ty: VarType, unit: &str) -> String {
         let lo = if self.min_open { '(' } else { '[' };
         let hi = if self.max_open { ')' } else { ']' };
-        let mut s =
-            format!("a finite number in {lo}{}, {}{hi}", fmt_bound(self.min), fmt_bound(self.max));
+        let bound = |b: f64| match ty {
+            VarType::Real => fmt_bound(b),
+            // Integer bounds are whole numbers within i32 (or infinite, printed as such).
+            _ if b.is_finite() => format!("{}", b as i64),
+            _ => fmt_bound(b),
+        };
+        let what = if ty == VarType::Real { "a finite number" } else { "an integer" };
+        let mut s = format!("{what} in {lo}{}, {}{hi}", bound(self.min), bound(self.max));
         if !unit.is_empty() {
             s.push(' ');
             s.push_str(unit);
@@ -127,6 +145,11 @@ pub struct Var<M: FmuModel> {
 }
 
 impl<M: FmuModel> Var<M> {
+    /// What a refusal of this variable says is allowed: its range, in its type and unit.
+    pub fn allowed(&self) -> String {
+        self.range.describe_as(self.ty, self.unit)
+    }
+
     /// Start value (parameters: the model's default parameters; inputs: their start).
     pub fn start(&self) -> Option<f64> {
         match self.binding {

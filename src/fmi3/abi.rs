@@ -91,7 +91,7 @@ unsafe fn call<M: FmuModel>(
     let inst = c as *mut Instance<M>;
     match catch_unwind(AssertUnwindSafe(|| f(&mut *inst))) {
         Ok(Ok(())) => {
-            (*inst).log(fmi3Status_fmi3OK, Category::All, function);
+            (*inst).log(fmi3Status_fmi3OK, Category::Calls, function);
             fmi3Status_fmi3OK
         }
         Ok(Err(failure)) => {

@@ -32,7 +32,7 @@
 //! reciprocal with the normalisation of u (one division per call). Then
 //! `TF = A·rotation·b_q`, `TF' = A·b_qq` (rotation² = 1). No finite differences (docs/model.md §2).
 
-use crate::model::error::ModelError;
+use crate::model::error::{given, num, ModelError};
 use crate::model::kinematics::Kinematics;
 
 /// Lever class of the beam unit (docs/model.md §1, mechanism kinds 2 and 3).
@@ -199,10 +199,17 @@ impl BeamUnit {
             ));
         }
         let k = i.hypot(hg);
+        // Parameters as given, computed lengths to 6 digits (docs/hardening.md "Messages").
         let links = format!(
-            "geometry.crank_radius R = {r} m, geometry.rod_length P = {p} m, \
-             geometry.beam_rear_arm C = {c} m, K = sqrt(geometry.pivot_dx² + geometry.pivot_dy²) \
-             = sqrt({i}² + {hg}²) = {k} m"
+            "geometry.crank_radius R = {} m, geometry.rod_length P = {} m, \
+             geometry.beam_rear_arm C = {} m, K = sqrt(geometry.pivot_dx² + geometry.pivot_dy²) \
+             = sqrt({}² + {}²) = {} m",
+            given(r),
+            given(p),
+            given(c),
+            given(i),
+            given(hg),
+            num(k)
         );
         // 3. Closes nowhere: the crank-pin-to-bearing distance range misses the pitman/arm range.
         if k - r >= c + p || k + r <= (c - p).abs() {
@@ -216,7 +223,9 @@ impl BeamUnit {
         if r >= shortest_other {
             return Err(ModelError::invalid(format!(
                 "beam unit is not a crank-rocker: the crank radius must be the shortest link of \
-                 the four-bar (R, P, C, K), but R = {r} m >= {shortest_other} m; {links}"
+                 the four-bar (R, P, C, K), but R = {} m >= {} m; {links}",
+                given(r),
+                num(shortest_other)
             )));
         }
         // 5. Grashof (strict) with R shortest.
@@ -225,8 +234,11 @@ impl BeamUnit {
         if r + longest >= others {
             return Err(ModelError::invalid(format!(
                 "beam unit is not a crank-rocker (Grashof condition violated): need R + longest \
-                 < sum of the other two links, but {r} + {longest} = {} >= {others} m; {links}",
-                r + longest
+                 < sum of the other two links, but {} + {} = {} >= {} m; {links}",
+                given(r),
+                num(longest),
+                num(r + longest),
+                num(others)
             )));
         }
         // 6. Guard (implied by 4 + 5): the loop closes at every crank angle.
@@ -272,7 +284,8 @@ impl BeamUnit {
         if err.is_nan() || err > 1e-6 {
             return Err(ModelError::invalid(format!(
                 "beam unit geometry is too close to a degenerate four-bar to fix the assembly \
-                 branch (mismatch {err} rad at the bottom dead position); {links}"
+                 branch (mismatch {} rad at the bottom dead position); {links}",
+                num(err)
             )));
         }
 

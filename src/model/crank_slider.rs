@@ -5,7 +5,7 @@
 //! X(θ) = r cosθ + l cosβ, s = X_max − X. The derivatives below are the exact analytic ones
 //! (never finite differences, never the truncated λ-series of older handbooks, §2).
 
-use crate::model::error::{require_finite, ModelError};
+use crate::model::error::{given, num, require_finite, ModelError};
 use crate::model::kinematics::Kinematics;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -31,10 +31,12 @@ impl CrankSlider {
         }
         if l <= r + e.abs() {
             return Err(ModelError::invalid(format!(
-                "the crank-slider cannot assemble: geometry.rod_length = {l} m must exceed \
-                 geometry.crank_radius + |geometry.slider_offset| = {r} + {} = {} m (docs/model.md §3.1)",
-                e.abs(),
-                r + e.abs()
+                "the crank-slider cannot assemble: geometry.rod_length = {} m must exceed \
+                 geometry.crank_radius + |geometry.slider_offset| = {} + {} = {} m (docs/model.md §3.1)",
+                given(l),
+                given(r),
+                given(e.abs()),
+                num(r + e.abs())
             )));
         }
         let x_max = ((l + r) * (l + r) - e * e).sqrt();

@@ -14,7 +14,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::model::error::ModelError;
+use crate::model::error::{given, num, ModelError};
 use crate::model::integrator::{
     advance, IntegratorState, IntegratorStats, SecondOrderRhs, Tolerance,
 };
@@ -59,12 +59,23 @@ impl Default for DriveTrainParams {
     }
 }
 
+/// The smallest time constant of the drive accepted: the crank speed's relaxation time on the
+/// steepest part of Kloss's curve (s = 0), τ = s_b·ω_s·J / (2·i²·T_b) (docs/hardening.md
+/// "DriveTrain bounds"). An explicit integrator needs steps of about τ; its smallest step is
+/// 16·ε·t (3.6e-9 s at t = 10⁶ s, 11.6 days of simulated time), so a drive with τ below 1e-9 s
+/// cannot be integrated at all late in a run, and at 1 ms communication steps it needs over
+/// 10⁵ internal steps per step. Real drives have τ of milliseconds to seconds (the default:
+/// 35 ms).
+pub const MIN_TIME_CONSTANT: f64 = 1e-9;
+
 /// A validated drive train.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DriveTrain {
     pub p: DriveTrainParams,
     /// J = J_c + i²·J_m [kg·m²], crank side.
     pub inertia: f64,
+    /// τ = s_b·ω_s·J / (2·i²·T_b) [s], the drive's smallest time constant.
+    pub time_constant: f64,
 }
 
 /// The continuous state and the integrator's memory (part of the FMU state).
@@ -114,8 +125,40 @@ impl DriveTrain {
         let inertia = p.crank_inertia + p.gear_ratio * p.gear_ratio * p.motor_inertia;
         if !(inertia > 0.0 && inertia.is_finite()) {
             return Err(ModelError::invalid(format!(
-                "the drive train has no inertia: crank.inertia + drive.gear_ratio²·motor.inertia = {inertia} kg.m2; \
-                 allowed: > 0"
+                "the drive train's inertia J = crank.inertia + drive.gear_ratio²·motor.inertia = \
+                 {} + {}²·{} = {} kg.m2 is not a positive finite number (crank.inertia = {}, \
+                 drive.gear_ratio = {}, motor.inertia = {})",
+                given(p.crank_inertia),
+                given(p.gear_ratio),
+                given(p.motor_inertia),
+                num(inertia),
+                given(p.crank_inertia),
+                given(p.gear_ratio),
+                given(p.motor_inertia)
+            )));
+        }
+        // docs/hardening.md "DriveTrain bounds": the steepest slope of the motor torque.
+        let tau = p.breakdown_slip * p.synchronous_speed * inertia
+            / (2.0 * p.gear_ratio * p.gear_ratio * p.breakdown_torque);
+        // Written so that a NaN τ (from overflowing factors) is refused too.
+        if tau.is_nan() || tau < MIN_TIME_CONSTANT {
+            return Err(ModelError::invalid(format!(
+                "the drive train is too stiff to integrate: its time constant \
+                 τ = s_b·ω_s·J / (2·i²·T_b) = {} s with motor.breakdown_slip s_b = {}, \
+                 motor.synchronous_speed ω_s = {} rad/s, J = crank.inertia + \
+                 drive.gear_ratio²·motor.inertia = {} + {}²·{} = {} kg.m2, drive.gear_ratio \
+                 i = {}, motor.breakdown_torque T_b = {} N.m; allowed: τ >= {} s (a larger \
+                 inertia, or a smaller breakdown torque or gear ratio)",
+                num(tau),
+                given(p.breakdown_slip),
+                given(p.synchronous_speed),
+                given(p.crank_inertia),
+                given(p.gear_ratio),
+                given(p.motor_inertia),
+                num(inertia),
+                given(p.gear_ratio),
+                given(p.breakdown_torque),
+                num(MIN_TIME_CONSTANT)
             )));
         }
         for (name, v) in
@@ -128,7 +171,7 @@ impl DriveTrain {
         if !(p.tolerance > 0.0 && p.tolerance < 1.0) {
             return Err(ModelError::out_of_range("solver.tolerance", p.tolerance, "(0, 1)"));
         }
-        Ok(DriveTrain { p: *p, inertia })
+        Ok(DriveTrain { p: *p, inertia, time_constant: tau })
     }
 
     /// Motor slip and torque [N·m, motor shaft] at crank speed ω (Kloss).
@@ -174,6 +217,18 @@ impl DriveTrain {
                 Ok(self.0.acceleration(omega, self.1))
             }
         }
+        // A step shorter than the integrator resolves at this time (its floor, 16·ε·max(|t|,
+        // |t + h|, 1e-3), `crate::model::integrator::advance`) would fail although FMI allows
+        // any positive step: one Taylor step instead, θ + ωh + ω̇h²/2, ω + ω̇h, whose error
+        // (h²·ω̈ with h below 1e-17 s at t <= 1 ms) is far below the rounding of θ and ω.
+        if h < 16.0 * f64::EPSILON * t.abs().max((t + h).abs()).max(1e-3) {
+            let acc = self.acceleration(state.speed, load);
+            return Ok(DriveState {
+                angle: state.angle + state.speed * h + 0.5 * acc * h * h,
+                speed: state.speed + acc * h,
+                integrator: state.integrator,
+            });
+        }
         let omega0 = self.p.synchronous_speed / self.p.gear_ratio;
         let tolerance = Tolerance::from_solver_tolerance(tol, omega0);
         let mut integ = state.integrator;
@@ -185,8 +240,53 @@ impl DriveTrain {
             &tolerance,
             &mut integ,
             stats,
-        )?;
+        )
+        .map_err(|e| self.step_failure(state, load, h, e))?;
         Ok(DriveState { angle, speed, integrator: integ })
+    }
+
+    /// The integrator's failure, with what the drive was doing at the start of the step: the
+    /// crank's acceleration and the torques that make it, naming the load when it exceeds
+    /// what the motor can deliver.
+    #[cold]
+    fn step_failure(&self, state: &DriveState, load: f64, h: f64, e: ModelError) -> ModelError {
+        let (_, motor_torque) = self.motor(state.speed);
+        let drive_torque = self.p.gear_ratio * motor_torque;
+        let acc = self.acceleration(state.speed, load);
+        let peak = self.p.gear_ratio * self.p.breakdown_torque;
+        let cause = if h > 1e5 * self.time_constant {
+            format!(
+                "; the communication step h = {} s is {} times the drive's time constant \
+                 τ = {} s, more than the integrator covers in its limit of steps: use shorter \
+                 communication steps",
+                given(h),
+                num(h / self.time_constant),
+                num(self.time_constant)
+            )
+        } else if load.abs() > 10.0 * peak {
+            format!(
+                "; load.torque = {} N.m is {} times the most the motor delivers at the crank \
+                 (drive.gear_ratio·motor.breakdown_torque = {} N.m)",
+                given(load),
+                num(load.abs() / peak),
+                num(peak)
+            )
+        } else {
+            String::new()
+        };
+        ModelError::evaluation(format!(
+            "the drive train cannot follow the step: at its start crank.speed = {} rad/s and \
+             crank.acceleration = (drive.gear_ratio·motor.torque − load.torque)/J = ({} − {}) \
+             N.m / {} kg.m2 = {} rad/s2, a change of crank.speed of {} rad/s over the step{cause}; \
+             integrator: {e}",
+            num(state.speed),
+            num(drive_torque),
+            // A negative load in parentheses, so that the subtraction reads as one.
+            if load < 0.0 { format!("({})", num(load)) } else { num(load) },
+            num(self.inertia),
+            num(acc),
+            num(acc * h)
+        ))
     }
 
     pub fn outputs(&self, state: &DriveState, load: f64) -> DriveOutputs {
@@ -251,8 +351,59 @@ mod tests {
         let mut p = DriveTrainParams { breakdown_slip: 1.5, ..Default::default() };
         assert!(DriveTrain::new(&p).unwrap_err().to_string().contains("motor.breakdown_slip"));
         p = DriveTrainParams { crank_inertia: 0.0, motor_inertia: 0.0, ..Default::default() };
-        assert!(DriveTrain::new(&p).unwrap_err().to_string().contains("no inertia"));
+        let m = DriveTrain::new(&p).unwrap_err().to_string();
+        assert!(m.contains("inertia J") && m.contains("crank.inertia = 0"), "{m}");
         p = DriveTrainParams { gear_ratio: f64::NAN, ..Default::default() };
         assert!(DriveTrain::new(&p).unwrap_err().to_string().contains("drive.gear_ratio"));
+    }
+
+    /// The time constant bound names the parameters that make the drive too stiff, with their
+    /// values as given and τ to 6 digits; the default drive's τ is 35.0 ms.
+    #[test]
+    fn too_stiff_drives_are_refused_with_their_time_constant() {
+        let d = DriveTrain::new(&DriveTrainParams::default()).unwrap();
+        let tau = 0.15 * (50.0 * std::f64::consts::PI) * (50.0 + 23.0 * 23.0 * 0.5)
+            / (2.0 * 23.0 * 23.0 * 200.0);
+        assert!((tau - 0.0350200).abs() < 1e-6, "{tau}");
+        // Just above the bound passes, just below is refused.
+        let at = |j: f64| DriveTrainParams { crank_inertia: j, motor_inertia: 0.0, ..d.p };
+        let j_min =
+            MIN_TIME_CONSTANT * 2.0 * 23.0 * 23.0 * 200.0 / (0.15 * 50.0 * std::f64::consts::PI);
+        assert!(DriveTrain::new(&at(j_min * 1.01)).is_ok());
+        for (p, names) in [
+            (
+                at(1e-300),
+                &["τ = s_b", "= 1e-300 + 23²·0 = 1e-300 kg.m2", "allowed: τ >= 1e-09 s"][..],
+            ),
+            (DriveTrainParams { breakdown_torque: 1e300, ..d.p }, &["1e+300", "τ = "][..]),
+            (DriveTrainParams { breakdown_slip: 1e-300, ..d.p }, &["1e-300", "τ = "][..]),
+            (DriveTrainParams { synchronous_speed: 1e-300, ..d.p }, &["1e-300", "τ = "][..]),
+        ] {
+            let m = DriveTrain::new(&p).unwrap_err().to_string();
+            for n in names {
+                assert!(m.contains(n), "{n:?} not in {m}");
+            }
+        }
+    }
+
+    /// A load far beyond the motor fails the step with the load named and its ratio to the
+    /// motor's breakdown torque at the crank, not only the integrator's step size.
+    #[test]
+    fn an_impossible_load_is_named_when_the_step_fails() {
+        let d = DriveTrain::new(&DriveTrainParams::default()).unwrap();
+        for load in [1e300, -1e300] {
+            let m = d
+                .step(&d.initial_state(), load, 0.0, 1e-3, 1e-8, &mut IntegratorStats::default())
+                .unwrap_err()
+                .to_string();
+            assert!(
+                m.contains(&format!(
+                    "load.torque = {} N.m is 2.17391e+296 times",
+                    crate::model::error::given(load)
+                )),
+                "{m}"
+            );
+            assert!(m.contains("(drive.gear_ratio·motor.breakdown_torque = 4600 N.m)"), "{m}");
+        }
     }
 }

@@ -39,7 +39,7 @@
 //! error stays ~10× below the tolerance (DP5/Tsitouras reach ~1–2× tolerance).
 //!
 //! The elastic rod's caller does not integrate ϑ itself but φ = ϑ − c·Δ(τ), c = K_Δ/K_ϑ at the
-//! step's start (drive.rs, `CageRhs::shift`): the same equation, less the quasi-static part of
+//! step's start (drive/cage_step.rs, `CageRhs::shift`): the same equation, less the quasi-static part of
 //! the forced response that those terms act on. On this problem (the shift as a wrapper of the
 //! RHS, c from P at the start of each communication step) Verner 6(5) then needs 9 940 RHS
 //! evaluations per simulated second at 1 ms (about 1.1 internal steps per call; 9 is the floor
@@ -275,7 +275,8 @@ fn eval(
         Ok([y[1], acc])
     } else {
         Err(ModelError::evaluation(format!(
-            "non-finite second derivative {acc} {} s into the step, state ({}, {})",
+            "non-finite second derivative {} {} s into the step, state ({}, {})",
+            num(acc),
             num(t),
             num(y[0]),
             num(y[1])
@@ -294,9 +295,11 @@ fn scale(tol: &Tolerance, y0: [f64; 2], y1: [f64; 2]) -> [f64; 2] {
 fn validate(t0: f64, y0: [f64; 2], h: f64, tol: &Tolerance) -> Result<(), ModelError> {
     if !(t0.is_finite() && y0[0].is_finite() && y0[1].is_finite()) {
         return Err(ModelError::evaluation(format!(
-            "rod cage equation: non-finite start t = {t0} s, rod.angle = {} rad, \
+            "rod cage equation: non-finite start t = {} s, rod.angle = {} rad, \
              rod.angular_velocity = {} rad/s",
-            y0[0], y0[1]
+            num(t0),
+            num(y0[0]),
+            num(y0[1])
         )));
     }
     if !(h.is_finite() && h > 0.0) {
@@ -429,11 +432,11 @@ pub fn advance_with<const S: usize>(
             let reason = if n_steps >= MAX_STEPS_PER_CALL {
                 format!("the internal step limit of {MAX_STEPS_PER_CALL} steps per communication step is reached")
             } else {
-                format!("the step size fell to {h_try:e} s")
+                format!("the step size fell to {} s", num(h_try))
             };
             return Err(ModelError::evaluation(format!(
                 "the integrator cannot meet solver.tolerance (rtol = {}) within the step: {reason} \
-                 {} s after its start{why}",
+                 at {} s after the start of the step{why}",
                 num(tol.rtol),
                 num(t - t0)
             )));

@@ -210,3 +210,78 @@ def test_fmu_carries_the_documentation_as_html(fmu_path):
                     assert frag in parsed[target].ids, f"{n}: {ref}"
         # The model page shows the mechanism sketches.
         assert 'src="figures/crank_slider.png"' in z.read("documentation/model.html").decode()
+
+
+def _section(page: str, heading: str) -> str:
+    text = (DOCS / page).read_text()
+    return text.split(f"\n{heading}\n", 1)[1].split("\n## ", 1)[0]
+
+
+def test_every_unit_of_both_fmus_is_listed(fmu_path):
+    """docs/fmi-interface.md "Units" names every unit either FMU declares (N.m.s/rad was missing)."""
+    from fmpy import read_model_description
+
+    units = _section("fmi-interface.md", "## Units").split("\n\n")[0]
+    listed = {u.strip(" .,`\n") for u in re.split(r"[:,]|\band\b", units)}
+    listed |= set(re.findall(r"\b[\w./]+\b", units))
+    for name in ("ReciprocatingDrive.fmu", "DriveTrain.fmu"):
+        md = read_model_description(str(pathlib.Path(fmu_path).parent / name))
+        for u in md.unitDefinitions:
+            assert u.name in listed, f"{name}: unit {u.name} is not in docs/fmi-interface.md Units"
+
+
+def test_variable_table_has_descriptions_and_rod_angle_with_the_rod(model_description):
+    """The generated table gives each variable the model description's description, and lists
+    rod.angle with the connecting rod's outputs (an elastic rod's cage oscillation), not under
+    kinematics."""
+    text = (DOCS / "fmi-interface.md").read_text().split("<!-- variables:begin -->")[1]
+    text = text.split("<!-- variables:end -->")[0]
+    section, where = None, {}
+    for line in text.splitlines():
+        if line.startswith("**"):
+            section = line.strip("*")
+        m = re.match(r"^\| `([^`]+)` \|(.*)\|$", line)
+        if m:
+            where[m.group(1)] = (section, m.group(2))
+    for v in model_description.modelVariables:
+        cells = [c.strip() for c in re.split(r"(?<!\\)\|", where[v.name][1])]
+        assert cells[-1].replace("\\|", "|") == v.description, v.name
+    assert where["rod.angle"][0].startswith("Outputs: connecting rod")
+    assert where["rod.angular_velocity"][0] == where["rod.angle"][0]
+    assert "kinematics" not in where["rod.angle"][0]
+    assert where["suspension.position"][0] == "Outputs: kinematics"
+
+
+def test_which_parameters_act_names_real_parameters_and_tilt_of_a_gland_has_no_effect(
+    model_description, fmu_path
+):
+    """The "Which parameters act" table names only parameters of the FMU, and its claim about the
+    tilt holds in the FMU: on the default machine (C a frame-fixed pin, the gland; B a two-edge
+    guide) varying support_C.tilt changes no output bit, varying support_B.tilt changes the
+    friction."""
+    from reciprocating_drive import Fmu
+
+    table = _section("fmi-interface.md", "## Variables").split("### Which parameters act")[1]
+    table = table.split("<!-- variables:begin -->")[0]
+    names = {v.name for v in model_description.modelVariables}
+    cited = set(re.findall(r"`([a-z_A-Z]+\.[a-z_A-Z.]+)`", table))
+    # support_X.* stands for each of A, B and C; rod.* for the group.
+    expanded = {c.replace("_X.", f"_{x}.") for c in cited for x in "ABC"}
+    unknown = {c for c in expanded if not c.endswith(".*")} - names
+    assert len(cited) > 20 and not unknown, unknown
+
+    outs = ["rod.force", "link.friction_total", "support_C.reaction", "guide.reaction"]
+
+    def run(values):
+        with Fmu(fmu_path) as f:
+            f.start(values)
+            rows = []
+            for _ in range(40):
+                f.step(0.02)
+                rows.append(f.get(outs))
+        return rows
+
+    base = run({})
+    assert run({"support_C.tilt": 0.01}) == base
+    assert run({"support_C.tilt": -0.02}) == base
+    assert run({"support_B.tilt": 0.001}) != base

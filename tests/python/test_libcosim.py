@@ -161,3 +161,38 @@ def test_libcosim_two_instances_in_one_execution(fmu_path):
             ref, sc = m.outputs(5.0 * t, 5.0), m.scales(5.0)
             for j, name in enumerate(OUTPUTS):
                 assert abs(got[j] - ref[name]) <= 1e-9 * sc[name], (idx, name, t)
+
+
+def _user_guide_libcosim_example() -> str:
+    """The code block of docs/user-guide.md's "libcosim" section, as a user copies it."""
+    import pathlib
+    import re
+
+    text = (pathlib.Path(__file__).resolve().parents[2] / "docs" / "user-guide.md").read_text()
+    section = text.split("\n## libcosim\n", 1)[1].split("\n## ", 1)[0]
+    (code,) = re.findall(r"```python\n(.*?)```", section, flags=re.S)
+    return code
+
+
+def test_user_guide_libcosim_example_prints_no_per_call_trace(fmu_path, tmp_path):
+    """The user guide's libcosim example (3 s at 1 ms: 3000 steps) used to print one
+    `[trace] ... fmi2DoStep` line per step, because libcosim switches the FMU's debug logging on
+    without naming categories. The per-call trace is now the opt-in category logCalls
+    (docs/fmi-interface.md "Logging categories"): the example prints no such line, while
+    libcosim's own debug lines (the FMI Library's) still show that its log level lets an FMU's
+    messages through. Run as a user runs it, in its own process, bounded in time."""
+    import subprocess
+    import sys
+
+    code = _user_guide_libcosim_example()
+    assert "target/fmu/ReciprocatingDrive.fmu" in code and "simulate_until" in code
+    script = tmp_path / "example.py"
+    script.write_text(code.replace("target/fmu/ReciprocatingDrive.fmu", str(fmu_path)))
+    r = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=120, cwd=tmp_path
+    )
+    assert r.returncode == 0, r.stderr[-2000:]
+    out = (r.stdout + r.stderr).splitlines()
+    assert sum("[FMI Library" in line for line in out) > 5, "libcosim's debug lines are missing"
+    trace = [line for line in out if "fmi2DoStep" in line or "logCalls" in line]
+    assert trace == [], f"{len(trace)} per-call lines, e.g. {trace[:2]}"

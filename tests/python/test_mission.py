@@ -12,7 +12,6 @@ with 900 samples per revolution that is below 1e-7 of a peak and 0.01° of its a
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import re
@@ -20,10 +19,7 @@ import re
 import mpmath as mp
 import pytest
 from conftest import ROOT
-
-spec = importlib.util.spec_from_file_location("simulate", ROOT / "scripts" / "simulate.py")
-simulate = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(simulate)
+from reciprocating_drive.commands import simulate
 
 
 def angle_close(a_deg, b_deg, tol=0.01):

@@ -163,3 +163,62 @@ def test_presets_ship_inside_the_fmu(fmu_path):
             n for n in z.namelist() if n.startswith("resources/presets/") and n.endswith(".ssv")
         )
     assert shipped == sorted(f"resources/presets/{p}.ssv" for p in PRESETS)
+
+
+SSV_NS = "{http://ssp-standard.org/SSP1/SystemStructureParameterValues}"
+
+
+def _ssv_declarations(xml_bytes):
+    """(name, type element, unit or None) of every parameter of an .ssv file, read with the
+    standard library's XML parser (independent of reciprocating_drive.presets)."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(xml_bytes)
+    out = []
+    for p in root.iter(f"{SSV_NS}Parameter"):
+        (value,) = list(p)
+        out.append((p.get("name"), value.tag.removeprefix(SSV_NS), value.get("unit")))
+    return out
+
+
+def _unit_mismatches(xml_bytes, md):
+    declared = {v.name: v for v in md.modelVariables}
+    bad = []
+    for name, ty, unit in _ssv_declarations(xml_bytes):
+        v = declared.get(name)
+        if v is None:
+            bad.append(f"{name}: not a variable of the FMU")
+        elif ty != v.type:
+            bad.append(f"{name}: ssv:{ty}, the model description says {v.type}")
+        elif unit != v.unit:
+            bad.append(f"{name}: unit {unit!r}, the model description says {v.unit!r}")
+    return bad
+
+
+@pytest.mark.parametrize("name", PRESETS)
+def test_every_preset_unit_matches_the_model_description(fmu_path, model_description, name):
+    """Issue: the presets gave link.lateral_load unit="m" where the FMU declares N. Every
+    parameter of every preset (the repository's file and the copy shipped in the FMU) must name
+    a variable of the FMU, with its type and exactly its declared unit (none where it has none)."""
+    import pathlib
+
+    repo_file = pathlib.Path(__file__).resolve().parents[2] / "resources" / "presets"
+    with zipfile.ZipFile(fmu_path) as z:
+        shipped = z.read(f"resources/presets/{name}.ssv")
+    for xml_bytes in (shipped, (repo_file / f"{name}.ssv").read_bytes()):
+        assert len(_ssv_declarations(xml_bytes)) > 50
+        assert _unit_mismatches(xml_bytes, model_description) == []
+
+
+def test_unit_check_catches_a_wrong_unit(model_description):
+    """The check above is not vacuous: a preset line with a wrong or missing unit is reported."""
+    doc = (
+        b'<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"'
+        b' version="1.0" name="x"><ssv:Parameters>'
+        b'<ssv:Parameter name="link.lateral_load"><ssv:Real value="0" unit="m"/></ssv:Parameter>'
+        b'<ssv:Parameter name="load.mean"><ssv:Real value="0"/></ssv:Parameter>'
+        b'<ssv:Parameter name="mechanism"><ssv:Real value="1"/></ssv:Parameter>'
+        b"</ssv:Parameters></ssv:ParameterSet>"
+    )
+    bad = _unit_mismatches(doc, model_description)
+    assert [b.split(":")[0] for b in bad] == ["link.lateral_load", "load.mean", "mechanism"]

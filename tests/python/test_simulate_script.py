@@ -5,15 +5,10 @@ against closed forms in test_mission.py."""
 from __future__ import annotations
 
 import csv
-import importlib.util
 import math
 
-from conftest import ROOT
+from reciprocating_drive.commands import simulate
 from reference import OUTPUTS, Machine
-
-spec = importlib.util.spec_from_file_location("simulate", ROOT / "scripts" / "simulate.py")
-simulate = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(simulate)
 
 SSV = """<?xml version="1.0" encoding="UTF-8"?>
 <ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues"

@@ -10,9 +10,8 @@ import pathlib
 import tomllib
 from dataclasses import dataclass, field
 
+from .. import artifacts
 from ..presets import available_presets
-
-ROOT = pathlib.Path(__file__).resolve().parents[3]
 
 
 class ConfigError(ValueError):
@@ -175,7 +174,7 @@ def parse(data: dict, path: str = "<config>") -> Config:
         raise run.err("machine", machine, "allowed: " + ", ".join(presets) + ", or an .ssv file")
     if machine.endswith(".ssv"):
         machine = _path(path, machine)
-    fmu = run.get("fmu", str, str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
+    fmu = run.get("fmu", str, str(artifacts.fmu()))
     fmu = _path(path, fmu)
     commit_interval = run.positive("commit_interval", 0.1)
     checkpoint_interval = run.positive("checkpoint_interval", 2.0)

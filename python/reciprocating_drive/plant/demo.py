@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import os
 import pathlib
+import signal
 import subprocess
 import sys
 import tempfile
 import threading
 import time
 
-from .config import ROOT
+from .. import artifacts
 from .pipeline import run_config
 from .plc_sim import free_port
 
@@ -23,11 +24,13 @@ def demo(db: str, seconds: float | None = None) -> int:
     port = free_port()
     endpoint = f"opc.tcp://127.0.0.1:{port}/plc"
     pathlib.Path(db).parent.mkdir(parents=True, exist_ok=True)
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "python")}
+    # The simulated PLC in a process of its own, from this very package (checkout or wheel).
+    env = {**os.environ, "PYTHONPATH": str(artifacts.PACKAGE.parent)}
     plc = subprocess.Popen(
         [
             sys.executable,
-            str(ROOT / "scripts" / "plc_sim.py"),
+            "-m",
+            "reciprocating_drive.commands.plc_sim",
             "--port",
             str(port),
             "--start-delay",
@@ -66,12 +69,12 @@ def demo(db: str, seconds: float | None = None) -> int:
             )
             if seconds is not None:
                 # The pipeline stops (and commits) on SIGINT, as an operator's Ctrl-C.
-                import signal
-
                 timer = threading.Timer(seconds, lambda: os.kill(os.getpid(), signal.SIGINT))
                 timer.daemon = True
                 timer.start()
             status = run_config(str(cfg))
+            if seconds is not None and status == 128 + signal.SIGINT:
+                status = 0  # stopped by its own timer after --seconds, as asked
         print(
             f'demo: query it with: sqlite3 {db} "SELECT revolution, start_time, mean_speed, '
             f"rod_force_max FROM revolutions JOIN runs USING (run) WHERE name = '{run}'\"",

@@ -240,7 +240,8 @@ class Pipeline:
                     f"stopped by {self.stop_signal} after input line {lineno}; committed. Run "
                     "again with the same configuration to resume."
                 )
-                return 0
+                # Not 0: the run did not reach the end of its input (128 + the signal, as a shell).
+                return 128 + int(signal.Signals[self.stop_signal])
             try:
                 rows, sums = twin.finish()
             except (DataError, FmuError) as e:
@@ -272,7 +273,8 @@ class Pipeline:
         kind = "fmu_error" if isinstance(e, FmuError) else "data_error"
         self._event(Event(kind, str(e)))
         self._commit("failed")
-        self.log(f"twin: {e}")
+        src = self.cfg.source.public()
+        self.log(f"{src.get('path') or src.get('endpoint') or 'twin'}: {e}")
         return 1
 
 
@@ -301,4 +303,4 @@ def run_config(path: str, log=None) -> int:
         with os.fdopen(fd, "w") as f:
             traceback.print_exc(file=f)
         log(f"internal error of the twin; please report it with the details in {where}")
-        return 3
+        return 70  # EX_SOFTWARE, as every command of the package (cli_errors.py)

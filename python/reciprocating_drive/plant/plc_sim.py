@@ -35,9 +35,10 @@ from asyncua import Server, ua
 from asyncua.crypto.permission_rules import User, UserRole
 from asyncua.server.binary_server_asyncio import BinaryServer
 
+from .. import artifacts
+
 NAMESPACE = "urn:reciprocating-drive:plc-sim"
-ROOT = pathlib.Path(__file__).resolve().parents[3]
-SAMPLE = ROOT / "data" / "twin" / "pump_encoder.csv"
+SAMPLE = artifacts.twin_sample()
 EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.UTC)
 
 

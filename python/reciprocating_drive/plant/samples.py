@@ -11,8 +11,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-#: The header of the lines made from samples (the twin's CSV input, docs/twin.md "Input").
+#: The header of the lines made from samples (the twin's CSV input, docs/twin.md "Input") with
+#: every optional column; `sample_header` names only the columns a source has.
 SAMPLE_HEADER = "time,crank_angle,crank_speed,process_force"
+
+
+def sample_header(speed: bool, force: bool) -> str:
+    """The header of `sample_lines` for a source that measures speed and/or force. A column the
+    source does not have is left out, not written empty: the twin refuses an empty field."""
+    return ",".join(
+        ["time", "crank_angle"] + ["crank_speed"] * bool(speed) + ["process_force"] * bool(force)
+    )
 
 
 @dataclass
@@ -37,11 +46,11 @@ def _num(v) -> str:
 
 
 def sample_lines(t, angle, speed=None, force=None) -> list[str]:
-    """CSV lines (SAMPLE_HEADER's columns) of samples given as sequences; speed and force may be
-    None (not measured) or hold None/NaN where a sample has none."""
-    n = len(t)
-    speed = speed if speed is not None else [None] * n
-    force = force if force is not None else [None] * n
+    """CSV lines (the columns of `sample_header(speed is not None, force is not None)`) of samples
+    given as sequences; speed and force are None when not measured. A None or NaN inside a
+    measured column is written empty, which the twin refuses as bad data."""
+    cols = [t, angle] + [c for c in (speed, force) if c is not None]
     return [
-        f"{float(t[i])!r},{float(angle[i])!r},{_num(speed[i])},{_num(force[i])}" for i in range(n)
+        ",".join([repr(float(t[i])), repr(float(angle[i]))] + [_num(c[i]) for c in cols[2:]])
+        for i in range(len(t))
     ]

@@ -43,11 +43,11 @@ pub static VARIABLES: &[Var<DriveTrainFmu>] = &[
         "Moment of inertia J_m of the motor rotor and flywheel, motor shaft"),
     param!("crank.inertia", Real, crank_inertia, Fixed, "kg.m2", Range::NON_NEGATIVE,
         "Moment of inertia J_c of the crank shaft, gear and crank-side rotating parts; J = J_c + i^2*J_m"),
-    param!("crank.angle_start", Real, angle_start, Fixed, "rad", Range::ANY,
-        "Crank angle at the start"),
-    param!("crank.speed_start", Real, speed_start, Fixed, "rad/s", Range::ANY,
-        "Crank speed at the start"),
-    param!("solver.tolerance", Real, tolerance, Fixed, "", OPEN_UNIT,
+    param!("crank.angle_start", Real, angle_start, Fixed, "rad", Range::within(1e6),
+        "Crank angle at the start (within +-1e6 rad, as the pump's crank.angle_offset)"),
+    param!("crank.speed_start", Real, speed_start, Fixed, "rad/s", Range::within(1e4),
+        "Crank speed at the start (within +-1e4 rad/s, about 95 000 rpm: beyond any reciprocating machine)"),
+    param!("solver.tolerance", Real, tolerance, Fixed, "", Range::TOLERANCE,
         "Integrator tolerance (relative, and absolute on theta [rad] and omega/omega_0) when fmi2SetupExperiment gives none"),
 ];
 

@@ -17,7 +17,7 @@ use crate::fmi2::model::{FmuModel, GroupedOutput, ModelInfo};
 use crate::fmi2::variables::Table;
 use crate::model::crank::CrankState;
 use crate::model::drive::{Inputs, Model, Outputs, RodState};
-use crate::model::error::ModelError;
+use crate::model::error::{num, ModelError};
 use crate::model::integrator::IntegratorStats;
 use crate::model::params::Params;
 
@@ -231,7 +231,9 @@ impl FmuModel for ReciprocatingDrive {
 #[cold]
 fn rod_angle_warning(theta: f64) -> String {
     format!(
-        "the cage angle rod.angle = {theta} rad exceeds {ROD_ANGLE_VALIDITY} rad: \
-         the linear theory of the elastic rod (docs/model.md §6) is no longer valid"
+        "the cage angle rod.angle = {} rad exceeds {} rad: \
+         the linear theory of the elastic rod (docs/model.md §6) is no longer valid",
+        num(theta),
+        num(ROD_ANGLE_VALIDITY)
     )
 }

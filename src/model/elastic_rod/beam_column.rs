@@ -44,7 +44,7 @@
 
 use super::fundamental_functions::{fundamental_functions, FundamentalFunctions, SERIES_LIMIT};
 use super::stiffness::RodStiffness;
-use crate::model::error::ModelError;
+use crate::model::error::{num, ModelError};
 use std::f64::consts::PI;
 
 /// Everything that depends on the axial load P (compression positive), docs/model.md §6.
@@ -103,7 +103,8 @@ impl BeamColumn {
     ) -> Result<BeamColumn, ModelError> {
         if !p.is_finite() {
             return Err(ModelError::evaluation(format!(
-                "elastic rod: rod.force P = {p} N is not finite"
+                "elastic rod: rod.force P = {} N is not finite",
+                num(p)
             )));
         }
         let (a1, a2) = (stiff.a1, stiff.a2);
@@ -111,17 +112,22 @@ impl BeamColumn {
         let s_n = 1.0 - n / a1;
         if !(s_n > 0.0) {
             return Err(ModelError::evaluation(format!(
-                "elastic rod: tension N = {n} N (rod.force P = {p} N) reaches the shear stiffness \
-                 A1 = {a1} N: s_N = 1 - N/A1 = {s_n} <= 0, outside the Haringx theory"
+                "elastic rod: tension N = {} N (rod.force P = {} N) reaches the shear stiffness \
+                 A1 = {} N: s_N = 1 - N/A1 = {} <= 0, outside the Haringx theory",
+                num(n),
+                num(p),
+                num(a1),
+                num(s_n)
             )));
         }
         let l = flex_length;
         let x = n * s_n / a2;
         if x < 0.0 && -x * l * l >= 4.0 * PI * PI {
             return Err(ModelError::evaluation(format!(
-                "elastic rod buckled: rod.force P = {p} N gives kappa*l_f = {} >= 2*pi \
+                "elastic rod buckled: rod.force P = {} N gives kappa*l_f = {} >= 2*pi \
                  (beyond the clamped-clamped load; the first buckling load is lower)",
-                (-x).sqrt() * l
+                num(p),
+                num((-x).sqrt() * l)
             )));
         }
         let eta = a2 / (a1 * s_n * s_n);
@@ -140,14 +146,23 @@ impl BeamColumn {
         let k_delta = a2 * w_delta / (s_n * w_star);
         if !(k_theta.is_finite() && k_delta.is_finite()) {
             return Err(ModelError::evaluation(format!(
-                "elastic rod: rod.force P = {p} N gives non-finite stiffnesses \
-                 (x = {x} 1/m^2, K_theta = {k_theta}, K_Delta = {k_delta})"
+                "elastic rod: rod.force P = {} N gives non-finite stiffnesses \
+                 (x = {} 1/m^2, K_theta = {}, K_Delta = {})",
+                num(p),
+                num(x),
+                num(k_theta),
+                num(k_delta)
             )));
         }
         if !(w_star > 0.0 && k_theta > 0.0) {
             return Err(ModelError::evaluation(format!(
-                "elastic rod buckled: rod.force P = {p} N is at or above the buckling load: \
-                 K_theta = {k_theta} N*m/rad <= 0 (W* = {w_star} m^4, s_N = {s_n}, x = {x} 1/m^2)"
+                "elastic rod buckled: rod.force P = {} N is at or above the buckling load: \
+                 K_theta = {} N*m/rad <= 0 (W* = {} m^4, s_N = {}, x = {} 1/m^2)",
+                num(p),
+                num(k_theta),
+                num(w_star),
+                num(s_n),
+                num(x)
             )));
         }
         Ok(BeamColumn {

@@ -2,7 +2,7 @@
 //! connecting rod (docs/model.md §6, "Equivalent beam-column").
 
 use super::{RodKind, RodSpec};
-use crate::model::error::ModelError;
+use crate::model::error::{given, num, ModelError};
 use std::f64::consts::PI;
 
 /// Shear correction factor of a solid circular section used for the thin rod (docs/model.md §6).
@@ -80,14 +80,21 @@ impl RodStiffness {
                     return Err(ModelError::out_of_range(
                         "rod.coil_diameter",
                         dc,
-                        format!("a finite number > rod.wire_diameter = {d} m (spring index > 1)"),
+                        format!(
+                            "a finite number > rod.wire_diameter = {} m (spring index > 1)",
+                            given(d)
+                        ),
                     ));
                 }
                 let h = l_f / i;
                 if h < d {
                     return Err(ModelError::invalid(format!(
-                        "helical spring rod: pitch rod.flex_length/rod.coils = {l_f} m / {i} = {h} m \
-                         is smaller than rod.wire_diameter = {d} m (the coils would interpenetrate)"
+                        "helical spring rod: pitch rod.flex_length/rod.coils = {} m / {} = {} m \
+                         is smaller than rod.wire_diameter = {} m (the coils would interpenetrate)",
+                        given(l_f),
+                        given(i),
+                        num(h),
+                        given(d)
                     )));
                 }
                 let b_t = g * PI * d4 / 32.0;

@@ -39,8 +39,8 @@
 //!
 //! A relative error ε of the coefficients perturbs ϑ̈ by about ε·Ω0²·|ϑ| and, through the friction,
 //! P by about ε·|F_fr|. With ε = `ACCURACY` = 1e-13 both are far below what the integrator's error
-//! control at a tolerance ≥ 1e-10 can see (see `drive.rs`, `STAGE_P_TOLERANCE_FACTOR`); the
-//! outputs (`Model::evaluate`) always use the exact beam column.
+//! control at a tolerance ≥ 1e-10 can see (see `drive/cage_step.rs`,
+//! `STAGE_P_TOLERANCE_FACTOR`); the outputs (`Model::evaluate`) always use the exact beam column.
 
 // `!(a <= b)` is deliberate: it also rejects NaN; index loops mirror the lane formulas.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]

@@ -20,7 +20,7 @@
 // Index loops mirror the matrix formulas above; `!(a > b)` tests deliberately reject NaN.
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 
-use crate::model::error::ModelError;
+use crate::model::error::{given, num, ModelError};
 
 /// Names of the section variables (docs/model.md §10), indexed by section.
 const LENGTH_NAMES: [&str; 4] = ["link.l1", "link.l2", "link.l3", "link.l4"];
@@ -91,9 +91,10 @@ impl LinkBeam {
         let length: f64 = lengths.iter().sum();
         if !(length > 0.0) || !length.is_finite() {
             return Err(ModelError::invalid(format!(
-                "the link has no length: link.l1 + link.l2 + link.l3 + link.l4 = {length} m; \
+                "the link has no length: link.l1 + link.l2 + link.l3 + link.l4 = {} m; \
                  at least one section must have a positive length when a support is defined \
-                 (docs/model.md §5.1)"
+                 (docs/model.md §5.1)",
+                num(length)
             )));
         }
         // Physical section data, present sections only.
@@ -105,6 +106,22 @@ impl LinkBeam {
                 let d = diameters[i];
                 seg_len[count] = lengths[i];
                 ej[count] = e_modulus * std::f64::consts::PI * d * d * d * d / 64.0;
+                // A diameter so small (or E and d so large) that E·J under- or overflows has no
+                // stiffness to compute with: name the section rather than the mean below.
+                if !(ej[count].is_normal() && ej[count] > 0.0) {
+                    return Err(ModelError::invalid(format!(
+                        "the link's section {} has no representable flexural rigidity: \
+                         E·J = link.E·π·{}⁴/64 = {} N·m² with link.E = {} Pa, {} = {} m; \
+                         allowed: a diameter and modulus whose E·J is a positive double \
+                         (docs/model.md §5.1)",
+                        i + 1,
+                        DIAMETER_NAMES[i],
+                        num(ej[count]),
+                        given(e_modulus),
+                        DIAMETER_NAMES[i],
+                        given(d)
+                    )));
+                }
                 count += 1;
             }
         }
@@ -112,8 +129,11 @@ impl LinkBeam {
         let ej_ref = length / compliance_integral;
         if !ej_ref.is_finite() || ej_ref <= 0.0 {
             return Err(ModelError::invalid(format!(
-                "the link's flexural rigidity is not representable: mean E·J = {ej_ref} N·m² \
-                 (link.E = {e_modulus} Pa, link.d1..d4 = {diameters:?} m)"
+                "the link's flexural rigidity is not representable: mean E·J = {} N·m² \
+                 (link.E = {} Pa, link.d1..d4 = [{}] m)",
+                num(ej_ref),
+                given(e_modulus),
+                diameters.map(given).join(", ")
             )));
         }
         let mut beam = LinkBeam {
@@ -163,6 +183,11 @@ impl LinkBeam {
             base[1] + c * d * (x + a) / 2.0,
             base[2] + c * d * (x * x + x * a + a * a) / 3.0,
         ]
+    }
+
+    /// Scaled section boundaries inside the link (where the compliance moments change formula).
+    pub fn interior_bounds(&self) -> &[f64] {
+        &self.bounds[1..self.count]
     }
 
     /// A station (generalised coordinate at scaled z) for repeated flexibility evaluations.

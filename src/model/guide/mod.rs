@@ -4,6 +4,7 @@
 //! Where things are:
 //! * `link_beam.rs`  – the link as a stepped Euler–Bernoulli beam; exact Mohr flexibilities (§5.1);
 //! * `supports.rs`   – support contacts, frame axes, the beam problem → reactions R, M (§5.2, §5.3);
+//! * `gland.rs`      – the reactions of a link with one gland in closed form over the stroke;
 //! * `friction.rs`   – friction from the reactions, the implicit rod-force equation (§4, §5.3, §5.4);
 //! * `validation.rs` – rejected configurations and their messages (§5.2);
 //! * `dense_solve.rs`– the small allocation-free linear solve.
@@ -18,6 +19,7 @@
 
 mod dense_solve;
 mod friction;
+mod gland;
 mod link_beam;
 mod supports;
 mod validation;
@@ -27,7 +29,7 @@ mod reference_fe;
 #[cfg(test)]
 mod tests;
 
-use crate::model::error::ModelError;
+use crate::model::error::{num, ModelError};
 use friction::{AffineReaction, FrictionLaw};
 use supports::{ClampInfluence, ForceMoment, Influence, LoadSet, SupportSystem};
 
@@ -283,14 +285,18 @@ impl Guide {
         let tol = 1e-9 * (self.stroke + self.system.length());
         if !s.is_finite() || s < -tol || s > self.stroke + tol {
             return Err(ModelError::evaluation(format!(
-                "guide friction: stroke coordinate s = {s} m outside the stroke [0, {}] m",
-                self.stroke
+                "guide friction: stroke coordinate s = {} m outside the stroke [0, {}] m",
+                num(s),
+                num(self.stroke)
             )));
         }
         if !v.is_finite() || !p_base.is_finite() {
             return Err(ModelError::evaluation(format!(
-                "guide friction: non-finite input (velocity v = {v} m/s, rod force without friction \
-                 F_ext + Φ + F_bal = {p_base} N)"
+                "guide friction: the link velocity v = {} m/s or the rod force without friction \
+                 F_ext + Φ + F_bal = {} N is not finite (crank.speed, crank.acceleration or \
+                 link.external_force too large for the machine)",
+                num(v),
+                num(p_base)
             )));
         }
         Ok(())
@@ -313,14 +319,15 @@ impl Guide {
         self.check_inputs(s, v, p_base)?;
         if !tan_beta.is_finite() {
             return Err(ModelError::evaluation(format!(
-                "guide friction: tanβ = {tan_beta} is not finite"
+                "guide friction: tanβ = {} is not finite",
+                num(tan_beta)
             )));
         }
-        let infl = self.system.influence(s, LoadSet::Rigid)?;
+        let (base, per_q) = self.system.rigid_influence(s)?;
         let dq_dp = if self.rod_side_force { -tan_beta } else { 0.0 };
         let affine: [AffineReaction; 3] = std::array::from_fn(|x| AffineReaction {
-            base: infl.base[x],
-            slope: ForceMoment { r: dq_dp * infl.per_q[x].r, m: dq_dp * infl.per_q[x].m },
+            base: base[x],
+            slope: ForceMoment { r: dq_dp * per_q[x].r, m: dq_dp * per_q[x].m },
         });
         let sign = friction::regularized_sign(v / self.velocity_scale);
         let k = friction::sensitivity(&self.laws, &affine);
@@ -328,12 +335,16 @@ impl Guide {
         // Written so that NaN also fails.
         if k_unique.partial_cmp(&1.0) != Some(std::cmp::Ordering::Less) {
             return Err(ModelError::evaluation(format!(
-                "the guide is (close to) self-locking at s = {s} m: |tanh(v/v_ε)|·|tanβ|·Σ f·max(|∂R/∂Q|, \
-                 2|∂M/∂Q|/l_n) = {:.6} · {:.6} · {:.6} = {k_unique:.6} ≥ 1 (v = {v} m/s, tanβ = {tan_beta}), so \
+                "the guide is (close to) self-locking at s = {} m: |tanh(v/v_ε)|·|tanβ|·Σ f·max(|∂R/∂Q|, \
+                 2|∂M/∂Q|/l_n) = {} · {} · {} = {} ≥ 1 (v = {} m/s, tanβ = {}), so \
                  the rod force P = p_base + F_fr(P) has no unique solution (docs/model.md §4)",
-                sign.abs(),
-                tan_beta.abs(),
-                if tan_beta != 0.0 { k / tan_beta.abs() } else { 0.0 },
+                num(s),
+                num(sign.abs()),
+                num(tan_beta.abs()),
+                num(if tan_beta != 0.0 { k / tan_beta.abs() } else { 0.0 }),
+                num(k_unique),
+                num(v),
+                num(tan_beta),
             )));
         }
         let p = friction::solve_piecewise_linear(&self.laws, &affine, sign, p_base, k_unique);
@@ -410,8 +421,11 @@ impl Guide {
             let (m0, vc) = clamp_loads(p);
             if !m0.is_finite() || !vc.is_finite() {
                 return Err(ModelError::evaluation(format!(
-                    "guide friction: the rod's clamp loads at P = {p} N are not finite \
-                     (M0 = {m0} N·m, V = {vc} N)"
+                    "guide friction: the rod's clamp loads at P = {} N are not finite \
+                     (M0 = {} N·m, V = {} N)",
+                    num(p),
+                    num(m0),
+                    num(vc)
                 )));
             }
             let (at_p, fr) = cf.reactions_and_friction(m0, vc);
@@ -441,9 +455,13 @@ impl Guide {
         Err(ModelError::evaluation(format!(
             "guide friction with the elastic rod: the fixed-point iteration P = p_base + F_fr(P) did \
              not converge in {MAX_FIXED_POINT_ITERATIONS} iterations at s = {} m (v = {} m/s, \
-             p_base = {p_base} N, last P = {p} N, last change {last_step} N): friction depends too \
+             p_base = {} N, last P = {} N, last change {} N): friction depends too \
              strongly on the rod force (docs/model.md §4)",
-            cf.s, cf.v
+            num(cf.s),
+            num(cf.v),
+            num(p_base),
+            num(p),
+            num(last_step)
         )))
     }
 

@@ -21,16 +21,19 @@
 //! laterally by α·s). With frame-fixed supports (glands the link slides through) only their
 //! rows change with s: the link-fixed block is inverted once in `new` and eliminated (static
 //! condensation), so per s only a Schur complement of the frame-fixed contacts' size (1×1 for
-//! one gland) is solved. The full bordered system remains as the fallback when the link-fixed
-//! supports alone do not hold the link, and as the reference for the tests.
+//! one gland) is solved; with a single gland and a link-fixed load point that solve is tabulated
+//! in closed form over the stroke (`gland.rs`). The full bordered system remains as the fallback
+//! when the link-fixed supports alone do not hold the link or an elimination would lose digits
+//! (`agree_with_full_solve`), and as the reference for the tests.
 // Index loops mirror the matrix formulas above; `!(a > b)` tests deliberately reject NaN.
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 
 use super::dense_solve::{solve_in_place, Matrix, Rhs, MAX_EQ, MAX_RHS};
+use super::gland::{self, GlandTable, Miss};
 use super::link_beam::{Dof, LinkBeam, Station};
 use super::validation::{contacts, is_rigid, NAMES};
 use super::{GuideSpec, SupportKind};
-use crate::model::error::ModelError;
+use crate::model::error::{num, ModelError};
 
 /// Maximum number of contacts: three supports with two each.
 const MAX_CONTACTS: usize = 6;
@@ -196,6 +199,9 @@ pub(super) struct SupportSystem {
     precomputed: Option<(Influence, [ForceMoment; 3])>,
     /// When some contacts are frame-fixed and the link-fixed ones hold the link by themselves.
     condensed: Option<Condensed>,
+    /// When, besides, there is one frame-fixed contact and the load point is link-fixed: the
+    /// condensed solve tabulated in closed form over the stroke (`gland.rs`).
+    gland: Option<GlandTable>,
 }
 
 impl SupportSystem {
@@ -301,6 +307,7 @@ impl SupportSystem {
             fixed_block,
             precomputed: None,
             condensed: None,
+            gland: None,
         };
         if n_moving == 0 && !load_moving {
             let at_zero = system.solve_full(0.0, LoadSet::All, false)?;
@@ -308,6 +315,16 @@ impl SupportSystem {
             system.precomputed = Some((at_zero, rate.base));
         } else {
             system.condensed = system.condense();
+            if n_moving == 1 && !load_moving {
+                system.gland = system.gland_table(stroke);
+            }
+            let (condensed_ok, gland_ok) = system.agree_with_full_solve(stroke);
+            if !condensed_ok {
+                system.condensed = None;
+            }
+            if !gland_ok {
+                system.gland = None;
+            }
         }
         Ok(system)
     }
@@ -358,7 +375,9 @@ impl SupportSystem {
         }
         // Condense only when K₁₁ is well conditioned (∞-norm condition number): nearly
         // coincident link-fixed contacts would make the condensed path lose digits that the
-        // full system, held also by the frame-fixed contacts, keeps.
+        // full system, held also by the frame-fixed contacts, keeps (about 2·cond·ε of the
+        // largest reaction, measured on random configurations; default machine: cond 2.4e3).
+        // `new` also checks the condensed solve against the full one over the stroke.
         let norm = |m: &Matrix| {
             (0..n1).map(|i| (0..n1).map(|j| m[i][j].abs()).sum::<f64>()).fold(0.0, f64::max)
         };
@@ -412,6 +431,166 @@ impl SupportSystem {
         Some(c)
     }
 
+    /// Whether the condensed solve and the gland table agree with the full bordered system
+    /// within 1e-11 of the largest reaction of each load case at 24 points of the stroke (true
+    /// for a path that is absent). Both eliminations lose digits where the full system with
+    /// pivoting does not (link-fixed contacts nearly coincident, a rigid gland passing close to
+    /// a rigid contact: about 2·cond·ε); where they would lose more than that, `new` drops them,
+    /// so that every path stays well inside the 1e-10 the FE reference tests allow.
+    fn agree_with_full_solve(&self, stroke: f64) -> (bool, bool) {
+        const POINTS: usize = 24;
+        let close = |a: &Influence, b: &Influence| {
+            let cases = |i: &Influence| [i.base, i.per_q, i.per_m0, i.per_v];
+            cases(a).iter().zip(cases(b).iter()).all(|(p, q)| {
+                let scale = q.iter().map(|f| f.r.abs().max(f.m.abs())).fold(0.0, f64::max);
+                (0..3)
+                    .all(|x| (p[x].r - q[x].r).abs().max((p[x].m - q[x].m).abs()) <= 1e-11 * scale)
+            })
+        };
+        let (mut condensed_ok, mut gland_ok) = (true, true);
+        for i in 0..POINTS {
+            // Not at the stroke's ends only: a fraction away from simple ratios.
+            let s_scaled = stroke * ((i as f64 + 0.381_966) / POINTS as f64) / self.length;
+            let Ok(full) = self.solve_full(s_scaled, LoadSet::All, false) else { continue };
+            if let Some(c) = &self.condensed {
+                if let Ok(a) = self.solve_condensed(c, s_scaled, &Columns::new(LoadSet::All, false))
+                {
+                    condensed_ok &= close(&a, &full);
+                }
+            }
+            if let Some(g) = &self.gland {
+                if let Some(Ok(a)) = self.gland_influence(g, s_scaled, LoadSet::All) {
+                    gland_ok &= close(&a, &full);
+                }
+            }
+        }
+        (condensed_ok, gland_ok)
+    }
+
+    /// The closed-form table of one frame-fixed contact (`gland.rs`) over the stroke, a little
+    /// beyond it for the rounding `Guide::check_inputs` allows; None without a condensation.
+    fn gland_table(&self, stroke: f64) -> Option<GlandTable> {
+        let c = self.condensed.as_ref()?;
+        let nf = self.n_fixed;
+        let l = self.length;
+        let tol = 2e-9 * (stroke + l) / l;
+        // The gland sits at z₀ − s̃: the polynomials change where it meets a section boundary,
+        // a link-fixed contact or the load point.
+        let z0 = self.cons[nf].z0;
+        let mut breaks = [0.0; gland::MAX_PIECES];
+        let mut count = 0;
+        let points = self.beam.interior_bounds().iter().copied();
+        let points =
+            points.chain(self.cons[..nf].iter().map(|k| k.z0)).chain(std::iter::once(self.load_z0));
+        for z in points {
+            if count == breaks.len() {
+                return None;
+            }
+            breaks[count] = z0 - z;
+            count += 1;
+        }
+        let fu = self.force_unit;
+        let factor = [fu, 1.0, 1.0 / l, 1.0];
+        let si = |g: &[ForceMoment; 3], f: f64| -> [ForceMoment; 3] {
+            std::array::from_fn(|x| ForceMoment { r: g[x].r * f, m: g[x].m * f * l })
+        };
+        let pre = [
+            si(&c.g_base0, factor[0]),
+            si(&c.g_q, factor[1]),
+            si(&c.g_m0, factor[2]),
+            si(&c.g_v, factor[3]),
+        ];
+        GlandTable::new(
+            -tol,
+            stroke / l + tol,
+            &breaks[..count],
+            pre,
+            si(&c.g_base1, factor[0]),
+            |s| self.gland_sample(c, s, &factor),
+        )
+    }
+
+    /// The quantities `gland.rs` tabulates, from the condensed solve at scaled s̃ for the one
+    /// frame-fixed contact: the condensed right-hand sides b_k of the four load cases times
+    /// `factor[k]` (SI), e − g per support (R, and M times L), S and K₂₂ + 1/k.
+    fn gland_sample(&self, c: &Condensed, s_scaled: f64, factor: &[f64; 4]) -> [f64; gland::LANES] {
+        let nf = self.n_fixed;
+        let n1 = nf + 2;
+        let st = self.station_at(nf, s_scaled);
+        let mut col = [0.0; MAX_EQ];
+        for i in 0..nf {
+            col[i] = LinkBeam::flexibility(&self.cons[i].station, &st);
+        }
+        let (p, q) = border(&st);
+        col[nf] = p;
+        col[nf + 1] = q;
+        let mut x = [0.0; MAX_EQ];
+        for j in 0..n1 {
+            for i in 0..n1 {
+                x[i] += c.k11_inv[j][i] * col[j];
+            }
+        }
+        let gx = self.sum_fixed(&x);
+        let b = self.contact_rhs(nf, &st, &c.load, s_scaled, &Columns::new(LoadSet::All, false));
+        let mut y_base = c.y_base0;
+        for i in 0..MAX_EQ {
+            y_base[i] += s_scaled * c.y_base1[i];
+        }
+        let dot = |u: &[f64; MAX_EQ], v: &[f64; MAX_EQ]| (0..n1).map(|i| u[i] * v[i]).sum::<f64>();
+        let mut lanes = [0.0; gland::LANES];
+        let lane = [gland::B_BASE, gland::B_Q, gland::B_M0, gland::B_V];
+        for (k, y) in [&y_base, &c.y_q, &c.y_m0, &c.y_v].into_iter().enumerate() {
+            lanes[lane[k]] = (b[k] - dot(&col, y)) * factor[k];
+        }
+        let mut e = [ForceMoment::default(); 3];
+        self.cons[nf].add_to(&mut e, 1.0);
+        for s in 0..3 {
+            lanes[gland::E_MINUS_G + 2 * s] = e[s].r - gx[s].r;
+            lanes[gland::E_MINUS_G + 1 + 2 * s] = (e[s].m - gx[s].m) * self.length;
+        }
+        let k22 = LinkBeam::flexibility(&st, &st) + self.cons[nf].compliance;
+        lanes[gland::SCHUR] = k22 - dot(&col, &x);
+        lanes[gland::SCALE] = k22;
+        lanes
+    }
+
+    /// The influence from the gland table at scaled s̃; None outside its range.
+    #[inline]
+    fn gland_influence(
+        &self,
+        g: &GlandTable,
+        s_scaled: f64,
+        set: LoadSet,
+    ) -> Option<Result<Influence, ModelError>> {
+        match g.evaluate(s_scaled, set) {
+            Ok(r) => {
+                let l = self.length;
+                let mut infl = Influence {
+                    base: r.base,
+                    per_q: r.per_q,
+                    per_m0: r.per_m0,
+                    per_v: r.per_v,
+                    centres: [0.0; 3],
+                    load_point: self.load_z0 * l,
+                };
+                for x in 0..3 {
+                    infl.centres[x] = (self.centre_z0[x]
+                        - if self.centre_moving[x] { s_scaled } else { 0.0 })
+                        * l;
+                }
+                Some(Ok(infl))
+            }
+            Err(Miss::Singular) => Some(Err(self.singular_error(s_scaled))),
+            Err(Miss::OutOfRange) => None,
+        }
+    }
+
+    /// Whether the per-s solve uses the gland table (for tests).
+    #[cfg(test)]
+    pub fn has_gland_table(&self) -> bool {
+        self.gland.is_some()
+    }
+
     /// Whether the per-s solve uses static condensation (for tests).
     #[cfg(test)]
     pub fn has_condensation(&self) -> bool {
@@ -433,7 +612,29 @@ impl SupportSystem {
             }
             return Ok(infl);
         }
-        self.solve(s / self.length, set, false)
+        self.solve_moving(s / self.length, set)
+    }
+
+    /// The rigid rod's load cases of [`SupportSystem::influence`] only (base, per Q): what
+    /// `Guide::solve_rigid` needs, without building the rest.
+    #[inline]
+    pub fn rigid_influence(
+        &self,
+        s: f64,
+    ) -> Result<([ForceMoment; 3], [ForceMoment; 3]), ModelError> {
+        if let Some((at_zero, rate)) = &self.precomputed {
+            let base = std::array::from_fn(|x| at_zero.base[x].plus_scaled(s, rate[x]));
+            return Ok((base, at_zero.per_q));
+        }
+        if let Some(g) = &self.gland {
+            match g.evaluate_rigid(s / self.length) {
+                Ok(r) => return Ok(r),
+                Err(Miss::Singular) => return Err(self.singular_error(s / self.length)),
+                Err(Miss::OutOfRange) => {}
+            }
+        }
+        let infl = self.solve(s / self.length, LoadSet::Rigid, false)?;
+        Ok((infl.base, infl.per_q))
     }
 
     /// The clamp load cases of [`SupportSystem::influence`] only (base, per M0, per V): what the
@@ -447,8 +648,19 @@ impl SupportSystem {
             }
             return Ok(ClampInfluence { base, per_m0: at_zero.per_m0, per_v: at_zero.per_v });
         }
-        let infl = self.solve(s / self.length, LoadSet::Clamp, false)?;
+        let infl = self.solve_moving(s / self.length, LoadSet::Clamp)?;
         Ok(ClampInfluence { base: infl.base, per_m0: infl.per_m0, per_v: infl.per_v })
+    }
+
+    /// Reactions at scaled s̃ when something moves along the link: the gland table, else
+    /// [`SupportSystem::solve`].
+    fn solve_moving(&self, s_scaled: f64, set: LoadSet) -> Result<Influence, ModelError> {
+        if let Some(g) = &self.gland {
+            if let Some(r) = self.gland_influence(g, s_scaled, set) {
+                return r;
+            }
+        }
+        self.solve(s_scaled, set, false)
     }
 
     /// Reactions at scaled s̃: by static condensation onto the frame-fixed contacts when the
@@ -858,13 +1070,30 @@ impl SupportSystem {
                     Dof::Deflection => "lateral contact",
                     Dof::Slope => "slope restraint",
                 };
-                format!("{} {what} at z = {z} m", NAMES[c.support].label)
+                // A spring's stiffness, from its scaled compliance (1/k)·EJ_ref/L³.
+                let spring = if c.compliance > 0.0 {
+                    let k = self.force_unit / (self.length * c.compliance);
+                    format!(" ({}.stiffness = {} N/m)", NAMES[c.support].label, num(k))
+                } else {
+                    String::new()
+                };
+                format!("{} {what} at z = {} m{spring}", NAMES[c.support].label, num(z))
             })
             .collect();
+        // Springs far softer than the link's bending stiffness scale hold it too weakly to solve.
+        let soft = if self.cons[..self.n].iter().any(|c| c.compliance > 0.0) {
+            format!(
+                "; the link's bending stiffness scale is EJ/L³ = {} N/m, and a support much \
+                 softer than that barely holds it",
+                num(self.force_unit / self.length)
+            )
+        } else {
+            String::new()
+        };
         ModelError::evaluation(format!(
             "the link's support problem is singular at s = {} m (supports nearly coincide or do \
-             not hold the link): {} (docs/model.md §5.2)",
-            s_scaled * self.length,
+             not hold the link): {}{soft} (docs/model.md §5.2)",
+            num(s_scaled * self.length),
             positions.join(", ")
         ))
     }

@@ -5,7 +5,7 @@
 
 use super::link_beam::Dof;
 use super::{GuideSpec, SupportKind, SupportSpec};
-use crate::model::error::ModelError;
+use crate::model::error::{given, num, ModelError};
 
 /// Contract names of one support's parameters.
 pub(super) struct SupportNames {
@@ -90,15 +90,13 @@ pub(super) fn is_rigid(spec: &SupportSpec, contact: &Contact) -> bool {
 }
 
 /// A derived number (a position or stroke coordinate computed from several parameters) for a
-/// message, without the noise digits of its rounding: `0.19999999999999996` → `0.2`.
+/// message, to 6 significant digits without the noise digits of its rounding:
+/// `0.19999999999999996` → `0.2` (docs/hardening.md "Messages"); a rounded −0 reads 0.
 pub(super) fn short(x: f64) -> String {
-    let t = format!("{x:.9}");
-    let t =
-        if t.contains('.') { t.trim_end_matches('0').trim_end_matches('.').to_string() } else { t };
-    if t == "-0" {
+    if x == 0.0 {
         "0".to_string()
     } else {
-        t
+        num(x)
     }
 }
 
@@ -123,8 +121,9 @@ fn non_negative(name: &'static str, value: f64, unit: &str) -> Result<(), ModelE
 pub(super) fn check_scalars(spec: &GuideSpec, stroke: f64) -> Result<(), ModelError> {
     if !stroke.is_finite() || stroke < 0.0 {
         return Err(ModelError::invalid(format!(
-            "the stroke S = {stroke} m handed to the guide model must be finite and >= 0 \
-             (it follows from the kinematic parameters, docs/model.md §2)"
+            "the stroke S = {} m handed to the guide model must be finite and >= 0 \
+             (it follows from the kinematic parameters, docs/model.md §2)",
+            num(stroke)
         )));
     }
     finite("link.lateral_load", spec.lateral_load, "a finite force (N)")?;
@@ -188,7 +187,8 @@ pub(super) fn check_positions(
                 n.length,
                 s.length,
                 format!(
-                    "({tol}, inf) m: the two edges of a guide must be distinct points (1e-9·L)"
+                    "({}, inf) m: the two edges of a guide must be distinct points (1e-9·L)",
+                    short(tol)
                 ),
             ));
         }
@@ -202,11 +202,12 @@ pub(super) fn check_positions(
             let what = if s.frame_fixed {
                 format!(
                     "{} is frame-fixed ({}.attached = 1), so {} is its link coordinate at s = 0 and \
-                     it sits at {} − s; over the stroke S = {stroke} m that is [{}, {}] m",
+                     it sits at {} − s; over the stroke S = {} m that is [{}, {}] m",
                     n.label,
                     n.label,
                     n.z,
                     n.z,
+                    short(stroke),
                     short(lo),
                     short(hi)
                 )
@@ -223,9 +224,9 @@ pub(super) fn check_positions(
                      {what}; every edge must stay within [0, L] = [0, {}] m, L = link.l1 + … + \
                      link.l4 (docs/model.md §5.2)",
                     n.z,
-                    s.z,
+                    given(s.z),
                     n.length,
-                    s.length,
+                    given(s.length),
                     n.z,
                     if c.offset >= 0.0 { " + " } else { " − " },
                     n.length,
@@ -324,7 +325,7 @@ pub(super) fn check_held(spec: &GuideSpec, length: f64, stroke: f64) -> Result<(
                         s.kind as i32,
                         kind_name(s.kind),
                         NAMES[x].z,
-                        s.z,
+                        given(s.z),
                         if s.frame_fixed { " (frame-fixed)" } else { "" }
                     )
                 })
@@ -377,8 +378,16 @@ pub(super) fn check_held(spec: &GuideSpec, length: f64, stroke: f64) -> Result<(
                      {} m at s = {} m; {} = {} m, {} = {} m): the split of the reaction between \
                      them is indeterminate; move one of them or give one a positive stiffness \
                      ({} / {}) (docs/model.md §5.2)",
-                    na.label, nb.label, short(za), short(s), na.z, spec.supports[a.support].z, nb.z,
-                    spec.supports[b.support].z, na.stiffness, nb.stiffness
+                    na.label,
+                    nb.label,
+                    short(za),
+                    short(s),
+                    na.z,
+                    given(spec.supports[a.support].z),
+                    nb.z,
+                    given(spec.supports[b.support].z),
+                    na.stiffness,
+                    nb.stiffness
                 )));
             }
         }

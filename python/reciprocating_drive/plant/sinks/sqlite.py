@@ -8,6 +8,7 @@ with their checkpoint, so the twin resumes from the last one that the file holds
 from __future__ import annotations
 
 import json
+import pathlib
 import sqlite3
 import time
 
@@ -32,12 +33,16 @@ class SqliteSink(Sink):
         if self.db is not None:
             return
         try:
+            # The database's folder is made as an output folder is (results/twin/ of a fresh clone).
+            pathlib.Path(self.path).parent.mkdir(parents=True, exist_ok=True)
             # One thread at a time uses it: the pipeline's to open, then the writer's.
             db = sqlite3.connect(
                 self.path, isolation_level=None, timeout=30.0, check_same_thread=False
             )
             db.execute("PRAGMA journal_mode=WAL")
             db.execute("PRAGMA synchronous=NORMAL")
+        except OSError as e:
+            raise SinkError(f"{self.name}: cannot make its folder: {e.strerror}") from None
         except sqlite3.DatabaseError as e:
             raise SinkError(f"{self.name}: cannot open the database: {e}") from None
         self.db = db

@@ -30,7 +30,7 @@ import queue
 import threading
 import time
 
-from ..samples import SAMPLE_HEADER, Chunk, Event, sample_lines
+from ..samples import Chunk, Event, sample_header, sample_lines
 
 EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.UTC)
 _NUMERIC = None  # the numeric VariantTypes (set on first use: asyncua imported lazily)
@@ -181,7 +181,7 @@ class OpcUaSource:
 
     def _emit(self, lines: list, events: list) -> None:
         if self.need_header and lines:
-            lines = [SAMPLE_HEADER, *lines]
+            lines = [sample_header("speed" in self.roles, "force" in self.roles), *lines]
             self.need_header = False
         if lines or events:
             self.q.put(Chunk(lines=list(lines), events=list(events)))

@@ -1,0 +1,32 @@
+"""The workflows' command-line entry points, each `main(argv=None, prog=None) -> exit code`:
+`rdrive <command>` (cli.py) and the checkout's `scripts/<command>.py` run the same function.
+
+| module | rdrive | scripts/ |
+|---|---|---|
+| simulate | run | simulate.py (scripts/run.sh) |
+| twin | twin | twin.py |
+| twin_plant | plant | twin_plant.py |
+| plc_sim | plc-sim | plc_sim.py |
+| sweep | sweep | sweep.py |
+| closed_loop | closed-loop | closed_loop.py |
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+
+
+def quiet_interrupt() -> None:
+    """Ctrl-C while the modules load (numpy, fmpy, dask take a while): a quiet stop with exit code
+    130, not a traceback. Each command's main installs its own handler once it runs."""
+    signal.signal(signal.SIGINT, lambda signum, frame: sys.exit(130))
+
+
+def run_script(module: str) -> None:
+    """The body of a checkout's scripts/<name>.py: the command's main, its exit code the
+    process's."""
+    quiet_interrupt()
+    import importlib
+
+    sys.exit(importlib.import_module(f"reciprocating_drive.commands.{module}").main())
