@@ -1,5 +1,6 @@
 """The wheel's build hook (hatchling, pyproject.toml): puts the binaries that scripts/build-fmu.sh
-built, and the data the workflows ship with (presets, SSP system, studies, twin sample), into reciprocating_drive/_data/ (the layout
+built, and the data the workflows ship with (presets, SSP system, studies, example twin
+configurations, the twin's sample), into reciprocating_drive/_data/ (the layout
 python/reciprocating_drive/artifacts.py reads), and tags the wheel for the platform of its native
 code.
 
@@ -31,6 +32,8 @@ class CustomBuildHook(BuildHookInterface):
             files[src] = f"ssp/ClosedLoop/{src.name}"
         for src in sorted((root / "resources" / "presets").glob("*.ssv")):
             files[src] = f"presets/{src.name}"
+        for src in sorted((root / "examples" / "twin").glob("*.toml")):
+            files[src] = f"examples/{src.name}"
         for src in sorted((root / "studies").glob("*.toml")):
             files[src] = f"studies/{src.name}"
         missing = [str(p.relative_to(root)) for p in files if not p.is_file()]

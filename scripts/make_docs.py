@@ -39,7 +39,7 @@ SKETCHES = ("crank_slider", "beam_units", "supports", "elastic_rod")
 # The main job's presets: the FMU's start values and every preset of resources/presets.
 PRESETS = ("default", "unb600a", "sk8-3.5-4000", "kvo630")
 RESULTS = tuple(f"results_{p}" for p in PRESETS)
-# Drawn by scripts/closed_loop.py (docs/closed-loop.md).
+# Drawn by the closed loop's command (rdrive closed-loop, docs/closed-loop.md).
 CLOSED_LOOP = "closed_loop"
 
 
@@ -401,15 +401,12 @@ def write_results(runs: dict, doc: pathlib.Path = RESULTS_PAGE) -> None:
 
 
 def closed_loop_figure(out: pathlib.Path) -> None:
-    """The closed loop of the pump and its drive train in libcosim (scripts/closed_loop.py)."""
-    import importlib.util
+    """The closed loop of the pump and its drive train in libcosim (`rdrive closed-loop`)."""
+    from reciprocating_drive.commands import closed_loop
 
-    spec = importlib.util.spec_from_file_location(
-        "closed_loop", ROOT / "scripts" / "closed_loop.py"
-    )
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    mod.main(["--out-dir", str(out), "--fmu-dir", str(FMU.parent)])
+    rc = closed_loop.main(["--out-dir", str(out), "--fmu-dir", str(FMU.parent)])
+    if rc != 0:
+        raise SystemExit(f"make_docs.py: the closed loop's figure failed (exit {rc})")
     # The script packs the system next to its figure when the FMUs are not the repository's
     # target/fmu; the docs show only the figure.
     (out / "ClosedLoop.ssp").unlink(missing_ok=True)

@@ -75,6 +75,11 @@ def results_dir() -> pathlib.Path:
     return pathlib.Path.cwd() / "results" if installed() else ROOT / "results"
 
 
+def examples_dir() -> pathlib.Path:
+    """The example twin configurations and alarm limits (examples/twin/)."""
+    return _pick(DATA / "examples", ROOT / "examples" / "twin")
+
+
 def twin_sample() -> pathlib.Path:
     """The twin's sample data (a 4096-count encoder at 1 kHz, docs/twin.md)."""
     return _pick(DATA / "twin", ROOT / "data" / "twin") / "pump_encoder.csv"

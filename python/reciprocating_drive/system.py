@@ -302,6 +302,15 @@ def plot_closed_loop(r: dict, d: list, title: str, path: pathlib.Path | None = N
     ax[3].grid(True, alpha=0.4)
     ax[3].xaxis.set_major_locator(MaxNLocator(integer=True))
     plain_axis(ax[3], dp)
+    # δ is read against its size: the axis spans at least ±5 % of the mean δ, so that a change in
+    # its last printed digit (the 1 ms sampling of ω's extremes) does not fill the panel as if the
+    # fluctuation itself changed.
+    fin = dp[np.isfinite(dp)]
+    if fin.size:
+        mid = 0.5 * (float(fin.min()) + float(fin.max()))
+        half = max(0.5 * float(fin.max() - fin.min()) * 1.1, 0.05 * abs(mid))
+        if half > 0:
+            ax[3].set_ylim(mid - half, mid + half)
     fig.suptitle(title)
     fig.tight_layout()
     if path is None:

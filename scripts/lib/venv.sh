@@ -77,10 +77,17 @@ ensure_venv() {
 }
 
 # Makes the project's Python package (python/reciprocating_drive) importable in the venv, as an
-# editable install would: a .pth file naming this checkout's python/ folder.
+# editable install would: a .pth file naming this checkout's python/ folder, and the package's
+# command .venv/bin/rdrive (the launcher pip writes for a console script).
 _venv_link_package() {
-    local root="$1" site
+    local root="$1" site launcher
     site="$("$VENV_PYTHON" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
     [ "$(cat "$site/reciprocating_drive.pth" 2>/dev/null)" = "$root/python" ] \
         || echo "$root/python" > "$site/reciprocating_drive.pth"
+    launcher="$(dirname "$VENV_PYTHON")/rdrive"
+    if [ ! -x "$launcher" ]; then
+        printf '#!%s\nimport sys\nfrom reciprocating_drive.cli import main\nsys.exit(main())\n' \
+            "$VENV_PYTHON" > "$launcher"
+        chmod +x "$launcher"
+    fi
 }

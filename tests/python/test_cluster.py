@@ -211,3 +211,72 @@ def test_a_worker_with_another_version_is_named_before_anything_runs(wheel_venv,
         shutil.rmtree(other, ignore_errors=True)
     msg = str(e.value)
     assert "0.0.1" in msg and __version__ in msg and "tcp://127.0.0.1:" in msg
+
+
+@pytest.mark.parametrize("study", sorted(p.name for p in (ROOT / "studies").glob("*.toml")))
+def test_every_example_study_runs_on_the_cluster_that_shares_nothing(
+    wheel_venv, worker_user, fmu_path, study, tmp_path
+):
+    """The sweep command of the checkout as the client; the workers as above. Reference: the same
+    cases run in this process through sweep.run_case on the client's FMU, with no Dask at all."""
+    import pyarrow.parquet as pq
+    from reciprocating_drive.fmu import Fmu
+    from reciprocating_drive.study import load_study
+    from reciprocating_drive.sweep import run_case
+
+    bin_dir, _, _ = wheel_venv
+    out = tmp_path / "out"
+    with repository_hidden(), cluster(bin_dir, worker_user) as address:
+        r = subprocess.run(
+            [sys.executable, str(ROOT / "scripts" / "sweep.py"), str(ROOT / "studies" / study),
+             "--scheduler", address, "--out-dir", str(out), "--fmu", fmu_path, "--no-progress"],
+            capture_output=True, text=True, timeout=900,
+        )  # fmt: skip
+    assert r.returncode == 0, r.stderr
+    st = load_study(ROOT / "studies" / study, fmu=fmu_path)
+    table = pq.read_table(out / f"{st.name}.parquet").to_pylist()
+    assert [row["case"] for row in table] == list(range(st.n_cases))
+    workers = {row["worker"] for row in table}
+    assert all(w.startswith("tcp://127.0.0.1:") for w in workers)
+    ref = Fmu(fmu_path)
+    for i in sorted({0, st.n_cases // 2, st.n_cases - 1}):
+        row = table[i]
+        metrics, _ = run_case(ref, st, st.case(i))
+        assert row["status"] == "ok", row
+        for k, v in metrics.items():
+            assert row[k] == v, (study, i, k, row[k], v)  # the same FMU binary: bit for bit
+
+
+def test_the_sweep_names_a_worker_of_another_version_and_runs_nothing(
+    wheel_venv, worker_user, fmu_path, tmp_path
+):
+    from reciprocating_drive._version import __version__
+
+    bin_dir, _, where = wheel_venv
+    site = next((where / "venv" / "lib").glob("python3*/site-packages"))
+    other = pathlib.Path(tempfile.mkdtemp(prefix="rdrive-other-"))
+    os.chmod(other, 0o755)
+    try:
+        shutil.copytree(site / "reciprocating_drive", other / "reciprocating_drive")
+        info = next(site.glob("reciprocating_drive-*.dist-info"))
+        dest = other / "reciprocating_drive-0.0.1.dist-info"
+        shutil.copytree(info, dest)
+        meta = (dest / "METADATA").read_text()
+        (dest / "METADATA").write_text(meta.replace(f"Version: {__version__}", "Version: 0.0.1"))
+        subprocess.run(["chmod", "-R", "a+rX", str(other)], check=True, timeout=30)
+        env = {"PYTHONPATH": str(other)}
+        with cluster(bin_dir, worker_user, n_workers=1, extra_env=env) as address:
+            r = subprocess.run(
+                [sys.executable, str(ROOT / "scripts" / "sweep.py"),
+                 str(ROOT / "studies" / "default_balancer.toml"), "--scheduler", address,
+                 "--out-dir", str(tmp_path), "--fmu", fmu_path, "--no-progress"],
+                capture_output=True, text=True, timeout=300,
+            )  # fmt: skip
+    finally:
+        shutil.rmtree(other, ignore_errors=True)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    line = r.stderr.strip()
+    assert (
+        "\n" not in line and "0.0.1" in line and __version__ in line and "tcp://127.0.0.1:" in line
+    )
+    assert not list(tmp_path.glob("*.csv"))  # no case ran

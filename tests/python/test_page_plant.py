@@ -66,3 +66,106 @@ samples = "all"
         follower.close()
     finally:
         page.close()
+
+
+def _config(tmp_path, db, page: str, pace: float = 1.0) -> Path:
+    cfg = tmp_path / "twin.toml"
+    cfg.write_text(
+        f"""[run]
+id = "page-live"
+machine_id = "pump-1"
+machine = "default"
+
+[source]
+type = "csv"
+path = "{ROOT / "data" / "twin" / "pump_encoder.csv"}"
+angle_unit = "counts"
+counts_per_rev = 4096
+pace = {pace}
+
+[[sink]]
+type = "sqlite"
+path = "{db}"
+samples = "none"
+
+[page]
+{page}
+"""
+    )
+    return cfg
+
+
+def test_a_plant_run_with_a_page_table_serves_its_revolutions(fmu_path, tmp_path):
+    """The [page] table of a twin configuration (docs/page.md): the page is served while the run
+    goes on, and the revolutions it shows are the ones the run commits to its database."""
+    import json
+    import os
+    import signal
+    import subprocess
+    import sys
+    import urllib.request
+
+    db = tmp_path / "twin.sqlite"
+    limits = ROOT / "examples" / "twin" / "limits.toml"
+    cfg = _config(tmp_path, db, f'port = 0\nlimits = "{limits}"')
+    env = {**os.environ, "RD_FMU": fmu_path, "PYTHONPATH": str(ROOT / "python")}
+    p = subprocess.Popen(
+        [sys.executable, str(ROOT / "scripts" / "twin_plant.py"), "--config", str(cfg)],
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    try:
+        line = p.stderr.readline()  # the first line names the page's address
+        assert line.startswith("page: http://127.0.0.1:"), line
+        url = line.split()[1]
+        deadline = time.monotonic() + 30
+        last = None
+        while time.monotonic() < deadline:
+            with urllib.request.urlopen(url + "api/state", timeout=5) as r:
+                st = json.load(r)
+            last = st.get("last")
+            if last and last.get("revolution", 0) >= 3:
+                break
+            time.sleep(0.2)
+        assert last and last["revolution"] >= 3, st
+        p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait(timeout=10)
+    assert p.returncode == 130, err  # stopped before the input's end: not 0
+    con = sqlite3.connect(db)
+    row = con.execute(
+        "SELECT friction_work FROM revolutions WHERE revolution = ?", (last["revolution"],)
+    ).fetchone()
+    assert row is not None and row[0] == last["friction_work"]
+
+
+def test_a_bad_page_table_is_one_line_and_exit_2(fmu_path, tmp_path):
+    import os
+    import socket
+    import subprocess
+    import sys
+
+    env = {**os.environ, "RD_FMU": fmu_path, "PYTHONPATH": str(ROOT / "python")}
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen(1)
+        port = busy.getsockname()[1]
+        for page, words in (
+            (f"port = {port}", f"port {port} on 127.0.0.1 is in use"),
+            ('host = "127.0.0.2"', "access token is required"),
+            ("colour = 1", "page.colour: unknown key"),
+        ):
+            cfg = _config(tmp_path, tmp_path / "x.sqlite", page, pace=0)
+            r = subprocess.run(
+                [sys.executable, str(ROOT / "scripts" / "twin_plant.py"), "--config", str(cfg)],
+                capture_output=True,
+                text=True,
+                env=env,
+                timeout=120,
+            )
+            assert r.returncode == 2, (page, r.stderr)
+            assert words in r.stderr and r.stderr.count("\n") == 1, (page, r.stderr)

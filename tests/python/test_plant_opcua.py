@@ -300,7 +300,17 @@ def test_the_one_command_demo(tmp_path):
 
     db = tmp_path / "demo.sqlite"
     p = subprocess.run(
-        [sys.executable, str(pu.SCRIPT), "--demo", "--seconds", "6", "--db", str(db)],
+        [
+            sys.executable,
+            str(pu.SCRIPT),
+            "--demo",
+            "--seconds",
+            "6",
+            "--db",
+            str(db),
+            "--page-port",
+            "0",
+        ],  # fmt: skip
         env=pu.env(),
         capture_output=True,
         text=True,
@@ -308,6 +318,7 @@ def test_the_one_command_demo(tmp_path):
     )
     assert p.returncode == 0, p.stderr
     assert "stopped by SIGINT" in p.stderr and "Traceback" not in p.stderr
+    assert "page: http://127.0.0.1:" in p.stderr  # the demo serves the live page
     n = pu.query(db, "SELECT COUNT(*) FROM samples")[0][0]
     t = pu.query(db, "SELECT MAX(t) FROM samples")[0][0]
     # Real time: about 1000 rows per second of the run after the PLC's 2 s start delay.

@@ -69,3 +69,57 @@ def test_platform_tag_matches_the_native_code(wheel_venv):
     with zipfile.ZipFile(wheel) as z:
         lib = z.read("reciprocating_drive/_data/lib/libfmi2_batch.so")
     assert platform == f"linux_{_elf_machine(lib)}"
+
+
+def test_rdrive_run_outside_the_checkout_equals_the_checkouts_main_job(wheel_venv, tmp_path):
+    """The main job from the wheel, in a folder of its own: its summary equals the checkout's run
+    of the same command (the same FMU binary, so to the last bit)."""
+    import json
+    import sys
+
+    bin_dir, _, _ = wheel_venv
+    work = tmp_path / "user"
+    work.mkdir()
+    r = rdrive(bin_dir, "run", "unb600a", cwd=work, timeout=600)
+    assert r.returncode == 0, r.stderr
+    mine = json.loads((work / "results" / "unb600a.json").read_text())
+    ref = tmp_path / "ref"
+    r2 = subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "simulate.py"), "unb600a", "--out-dir", str(ref)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert r2.returncode == 0, r2.stderr
+    assert mine == json.loads((ref / "unb600a.json").read_text())
+    assert r.stdout == r2.stdout.replace(str(ref), str(work / "results"))
+
+
+def test_rdrive_twin_replays_the_shipped_sample_from_the_wheel(wheel_venv, tmp_path):
+    bin_dir, _, where = wheel_venv
+    site = next((where / "venv" / "lib").glob("python3*/site-packages"))
+    sample = site / "reciprocating_drive" / "_data" / "twin" / "pump_encoder.csv"
+    assert sample.read_bytes() == (ROOT / "data" / "twin" / "pump_encoder.csv").read_bytes()
+    r = rdrive(
+        bin_dir,
+        "twin",
+        str(sample),
+        "--angle-unit",
+        "counts",
+        "--counts-per-rev",
+        "4096",
+        "--out",
+        str(tmp_path / "out.csv"),
+        cwd=tmp_path,
+        timeout=600,
+    )
+    assert r.returncode == 0, r.stderr
+    lines = (tmp_path / "out.csv").read_text().splitlines()
+    assert len(lines) > 1000 and lines[0].startswith("time [s],")
+
+
+@pytest.mark.parametrize("command", ["run", "twin", "plant", "plc-sim", "sweep", "closed-loop"])
+def test_every_command_has_help(wheel_venv, command):
+    bin_dir, _, where = wheel_venv
+    r = rdrive(bin_dir, command, "--help", cwd=where)
+    assert r.returncode == 0 and r.stdout.startswith(f"usage: rdrive {command}"), r.stderr

@@ -30,6 +30,12 @@ def main(argv=None, prog: str | None = None) -> int:
     )
     ap.add_argument("--seconds", type=float, default=None, help="with --demo: stop after this long")
     ap.add_argument(
+        "--page-port",
+        type=int,
+        default=8050,
+        help="with --demo: the live page's port on 127.0.0.1 (0: any free port)",
+    )
+    ap.add_argument(
         "--db",
         default=str(artifacts.results_dir() / "twin" / "demo.sqlite"),
         help="with --demo: the database",
@@ -38,7 +44,7 @@ def main(argv=None, prog: str | None = None) -> int:
     if a.demo:
         from ..plant.demo import demo
 
-        return demo(a.db, a.seconds)
+        return demo(a.db, a.seconds, a.page_port)
     from ..plant.pipeline import run_config
 
     return run_config(a.config)

@@ -106,6 +106,7 @@ class Config:
     commit_interval: float = 0.1
     commit_samples: int = 20000
     checkpoint_interval: float = 2.0
+    page: dict | None = None  # the [page] table (docs/page.md), checked when the page is made
 
 
 def _secret(t: _Table, what: str) -> str | None:
@@ -154,10 +155,13 @@ def load(path: str) -> Config:
 def parse(data: dict, path: str = "<config>") -> Config:
     top = _Table(path, "(top)", data)
     for key in data:
-        if key not in ("run", "source", "conditioning", "sink"):
+        if key not in ("run", "source", "conditioning", "sink", "page"):
             raise ConfigError(
-                f"{path}: [{key}] is not a known table (known: run, source, conditioning, sink)"
+                f"{path}: [{key}] is not a known table "
+                "(known: run, source, conditioning, sink, page)"
             )
+    if "page" in data and not isinstance(data["page"], dict):
+        raise ConfigError(f"{path}: page = {data['page']!r}: must be a table [page]")
     run = _Table(path, "run", data.get("run", _MISSING) if "run" in data else {})
     if "run" not in data:
         raise ConfigError(f"{path}: [run] is missing (it names the run and the machine)")
@@ -268,6 +272,7 @@ def parse(data: dict, path: str = "<config>") -> Config:
         commit_interval,
         commit_samples,
         checkpoint_interval,
+        data.get("page"),
     )
 
 

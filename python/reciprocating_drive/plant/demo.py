@@ -20,7 +20,7 @@ from .pipeline import run_config
 from .plc_sim import free_port
 
 
-def demo(db: str, seconds: float | None = None) -> int:
+def demo(db: str, seconds: float | None = None, page_port: int = 8050) -> int:
     port = free_port()
     endpoint = f"opc.tcp://127.0.0.1:{port}/plc"
     pathlib.Path(db).parent.mkdir(parents=True, exist_ok=True)
@@ -60,7 +60,10 @@ def demo(db: str, seconds: float | None = None) -> int:
                 f'[source]\ntype = "opcua"\nendpoint = "{endpoint}"\nmode = "scalar"\n'
                 'angle_node = "ns=2;s=Pump.CrankAngle"\nend_node = "ns=2;s=Pump.Finished"\n'
                 'angle_unit = "counts"\ncounts_per_rev = 4096\n\n'
-                f'[[sink]]\ntype = "sqlite"\npath = "{pathlib.Path(db).resolve()}"\n'
+                f'[[sink]]\ntype = "sqlite"\npath = "{pathlib.Path(db).resolve()}"\n\n'
+                # The live page with the example alarm limits (docs/page.md), on 127.0.0.1.
+                f'[page]\nport = {page_port}\nlimits = "{artifacts.examples_dir() / "limits.toml"}"\n'
+                'title = "Demo pump (simulated PLC)"\n'
             )
             print(
                 f"demo: PLC at {endpoint} playing data/twin/pump_encoder.csv in real time (12 s); "

@@ -14,6 +14,7 @@ pipeline resumes from the last committed checkpoint (docs/plant.md "Exactly once
 from __future__ import annotations
 
 import os
+import pathlib
 import signal
 import sys
 import tempfile
@@ -57,12 +58,41 @@ def make_sinks(cfg: Config) -> list:
     return out
 
 
+def make_page(cfg: Config, on_alarm):
+    """The live page of the [page] table (docs/page.md), or None. Its trends read the first SQLite
+    sink. The page is handed what the sinks get but is not one of them: it keeps nothing durable
+    (its alarms' state goes into the twin's checkpoint instead)."""
+    if cfg.page is None:
+        return None
+    from ..page import PageError
+    from ..page.config import page_from_table
+
+    sqlite = next((s for s in cfg.sinks if s.type == "sqlite"), None)
+    try:
+        return page_from_table(
+            cfg.page,
+            cfg.path,
+            base=pathlib.Path(cfg.path).resolve().parent,
+            database=sqlite.settings["path"] if sqlite else None,
+            run=cfg.run_id,
+            on_alarm=on_alarm,
+        )
+    except PageError as e:  # a bad [page] table or limits file: a configuration error (exit 2)
+        raise ConfigError(str(e)) from None
+
+
 class Pipeline:
     def __init__(self, cfg: Config, log=None):
         self.cfg = cfg
         self.log = log or (lambda m: print(m, file=sys.stderr, flush=True))
         self.stop_signal = None
         self.commits = 0
+        self.page = None
+
+    def _on_alarm(self, change) -> None:
+        """An alarm raised or cleared (alarms.py): the log, and an event every sink stores."""
+        self.log(change.message)
+        self._event(Event("alarm", change.message, t=change.t))
 
     # ---- events and hand-over -------------------------------------------------------------------
     def _event(self, ev: Event) -> None:
@@ -75,6 +105,8 @@ class Pipeline:
         events, self.events = self.events, []
         for s in self.sinks:
             s.add(rows, first, summaries, self.c.revolutions, events)
+        if self.page is not None:
+            self.page.add(rows, first, summaries, self.c.revolutions, events)
         self.c.samples = self.twin.rows_out
         self.c.revolutions += len(summaries)
         if summaries:
@@ -112,6 +144,8 @@ class Pipeline:
                 "duplicates_reported": self.dups_seen,
                 "gaps_reported": self.gap_count,
             }
+            if self.page is not None and self.page.engine is not None:
+                state["alarms"] = self.page.engine.checkpoint()
             self.last_checkpoint = time.monotonic()
             self.lines_since_checkpoint = 0
         for s in self.sinks:
@@ -133,8 +167,20 @@ class Pipeline:
         self.source = make_source(cfg)
         self.sinks = make_sinks(cfg)
         try:
+            self.page = make_page(cfg, self._on_alarm)
+            if self.page is not None:
+                from ..page import PageError
+
+                try:
+                    self.page.start()
+                except PageError as e:  # a port in use: one line, as for any option (exit 2)
+                    self.page = None
+                    raise ConfigError(str(e)) from None
+                self.log(f"page: http://{self.page.host}:{self.page.port}/")
             return self._run()
         finally:
+            if self.page is not None:
+                self.page.close()
             self.source.close()
             for s in self.sinks:
                 try:
@@ -183,6 +229,10 @@ class Pipeline:
             last_t=twin.last_t,
             time_origin=state.get("time_origin") if state else None,
         )
+        if self.page is not None:
+            if state is not None and "alarms" in state and self.page.engine is not None:
+                self.page.engine.restore(state["alarms"])
+            self.page.open(twin.outputs, self.source_origin())
         self._event(
             Event(
                 "resumed" if resumed else "started",
@@ -204,6 +254,9 @@ class Pipeline:
             while self.stop_signal is None:
                 wait = max(0.0, cfg.commit_interval - (time.monotonic() - self.last_commit))
                 chunk = self.source.get(wait)
+                if self.page is not None:
+                    connected = getattr(self.source, "connected", None)
+                    self.page.health(connected=connected.is_set() if connected else True)
                 if chunk is None and self.source.ended:
                     break
                 if chunk is not None:
@@ -289,7 +342,10 @@ def run_config(path: str, log=None) -> int:
         return 2
     try:
         return Pipeline(cfg, log).run()
-    except (SinkError, SourceError, ConfigError) as e:
+    except ConfigError as e:  # the [page] table, its limits file, its port
+        log(str(e))
+        return 2
+    except (SinkError, SourceError) as e:
         log(str(e))
         return 1
     except FmuError as e:
