@@ -26,6 +26,10 @@ source scripts/lib/win64.sh
 if win64_enabled; then
     ensure_wine  # tests/python/test_win64.py runs the win64 DLL under wine
 fi
+source scripts/lib/aarch64.sh
+if aarch64_enabled; then
+    ensure_qemu_aarch64  # tests/python/test_fmi3.py runs the aarch64-linux binary under qemu-user
+fi
 
 echo "== scripts/build-wheel.sh (the installable package, tests/python/test_wheel.py)"
 bash scripts/build-wheel.sh --no-build

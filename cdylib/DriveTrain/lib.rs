@@ -1,4 +1,6 @@
-//! The DriveTrain FMU's shared object: the 34 FMI 2.0 functions for its model.
+//! The DriveTrain FMU's shared object: the 34 FMI 2.0 functions and the FMI 3.0 functions for
+//! its model (one binary for target/fmu/DriveTrain.fmu and target/fmu/DriveTrain-fmi3.fmu).
 #![allow(non_snake_case)]
 
 reciprocating_drive::export_fmu!(reciprocating_drive::fmus::drive_train::DriveTrainFmu);
+reciprocating_drive::export_fmu3!(reciprocating_drive::fmus::drive_train::DriveTrainFmu);

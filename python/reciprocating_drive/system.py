@@ -1,10 +1,10 @@
 """The closed loop of docs/closed-loop.md as an SSP system: the pump (ReciprocatingDrive FMU) and
 its drive train (DriveTrain FMU), connected
 
-    pump.crank.torque        -> drive.load.torque
-    drive.crank.angle        -> pump.crank.angle
-    drive.crank.speed        -> pump.crank.speed
-    drive.crank.acceleration -> pump.crank.acceleration
+    pump.crank.torque             -> drivetrain.load.torque
+    drivetrain.crank.angle        -> pump.crank.angle
+    drivetrain.crank.speed        -> pump.crank.speed
+    drivetrain.crank.acceleration -> pump.crank.acceleration
 
 `build_ssp` writes the system (ssp/ClosedLoop/SystemStructure.ssd of the repository, both FMUs
 and parameter sets for each component) as a .ssp archive; `run_libcosim` and `run_fmpy` simulate
@@ -39,12 +39,12 @@ class LoopFailed(RuntimeError):
 
 #: What the scripts and tests record: (component, variable).
 RECORD = (
-    ("drive", "crank.speed"),
-    ("drive", "crank.angle"),
-    ("drive", "crank.acceleration"),
-    ("drive", "motor.torque"),
-    ("drive", "motor.power"),
-    ("drive", "motor.slip"),
+    ("drivetrain", "crank.speed"),
+    ("drivetrain", "crank.angle"),
+    ("drivetrain", "crank.acceleration"),
+    ("drivetrain", "motor.torque"),
+    ("drivetrain", "motor.power"),
+    ("drivetrain", "motor.slip"),
     ("pump", "crank.torque"),
 )
 
@@ -76,7 +76,7 @@ def build_ssp(
     fmu_dir: pathlib.Path = FMU_DIR,
 ) -> pathlib.Path:
     """Writes the system as `out` (.ssp, a zip): SystemStructure.ssd, resources/ with both FMUs
-    and the two components' parameter sets (pump.ssv, drive.ssv; the repository's
+    and the two components' parameter sets (pump.ssv, drivetrain.ssv; the repository's
     ssp/ClosedLoop/*.ssv unless `pump`/`drive` values are given)."""
     out = pathlib.Path(out)
     with tempfile.TemporaryDirectory() as d:
@@ -88,7 +88,7 @@ def build_ssp(
             if not src.is_file():
                 raise FileNotFoundError(f"{src} not found: build it with scripts/build-fmu.sh")
             shutil.copy(src, d / "resources" / fmu)
-        for comp, values in (("pump", pump), ("drive", drive)):
+        for comp, values in (("pump", pump), ("drivetrain", drive)):
             if values is None:
                 shutil.copy(SSD.parent / f"{comp}.ssv", d / "resources" / f"{comp}.ssv")
             else:
@@ -162,7 +162,7 @@ def run_fmpy(ssp: pathlib.Path, h: float, t_end: float) -> dict:
     with tempfile.TemporaryDirectory() as d:
         with zipfile.ZipFile(ssp) as z:
             z.extractall(d)
-        for comp in ("pump", "drive"):
+        for comp in ("pump", "drivetrain"):
             for p in read_ssv(str(pathlib.Path(d) / "resources" / f"{comp}.ssv")).parameters:
                 p.name = f"{comp}.{p.name}"
                 params.append(p)
@@ -282,11 +282,11 @@ def plot_closed_loop(r: dict, d: list, title: str, path: pathlib.Path | None = N
     from .sweep_plot import plain_axis
 
     fig, ax = plt.subplots(4, 1, figsize=(10, 10))
-    t, w = r["time"], r["drive.crank.speed"]
+    t, w = r["time"], r["drivetrain.crank.speed"]
     series = [
         (w * 60 / (2 * math.pi), "crank speed\n[strokes/min]"),
-        (r["drive.motor.torque"], "motor torque\n[N·m]"),
-        (r["drive.motor.power"] * 1e-3, "motor power\n[kW]"),
+        (r["drivetrain.motor.torque"], "motor torque\n[N·m]"),
+        (r["drivetrain.motor.power"] * 1e-3, "motor power\n[kW]"),
     ]
     for x, (y, label) in zip(ax[:3], series):
         x.plot(t, y)

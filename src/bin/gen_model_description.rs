@@ -2,12 +2,14 @@
 //! * no argument: the ReciprocatingDrive FMU's modelDescription.xml on stdout
 //!   (`cargo run --bin gen-model-description > modelDescription/modelDescription.xml`);
 //! * `--model <modelIdentifier>`: another FMU's;
+//! * `--fmi3`: the FMI 3.0 modelDescription.xml instead (from the same table);
 //! * `--doc [--pages DIR]`: the FMU's documentation/index.html instead, linking the pages of the
 //!   Markdown folder DIR (docs/) that scripts/build-fmu.sh puts beside it as HTML;
 //! * `--page FILE.md`: one Markdown page as HTML (links to other pages become .html).
 use std::path::Path;
 
 use reciprocating_drive::fmi2::{documentation, model::FmuModel, model_description};
+use reciprocating_drive::fmi3::model_description as model_description3;
 use reciprocating_drive::fmus::drive_train::DriveTrainFmu;
 use reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive;
 
@@ -31,10 +33,12 @@ fn pages(dir: &Path) -> Vec<(String, String)> {
     out
 }
 
-fn emit<M: FmuModel>(doc: bool, pages_dir: Option<&str>) {
+fn emit<M: FmuModel>(doc: bool, fmi3: bool, pages_dir: Option<&str>) {
     if doc {
         let pages = pages_dir.map(|d| pages(Path::new(d))).unwrap_or_default();
         print!("{}", documentation::generate_with_pages::<M>(&pages));
+    } else if fmi3 {
+        print!("{}", model_description3::generate::<M>());
     } else {
         print!("{}", model_description::generate::<M>());
     }
@@ -56,10 +60,11 @@ fn main() {
         return;
     }
     let doc = args.iter().any(|a| a == "--doc");
+    let fmi3 = args.iter().any(|a| a == "--fmi3");
     let model = value("--model").unwrap_or("ReciprocatingDrive");
     match model {
-        "ReciprocatingDrive" => emit::<ReciprocatingDrive>(doc, value("--pages")),
-        "DriveTrain" => emit::<DriveTrainFmu>(doc, value("--pages")),
+        "ReciprocatingDrive" => emit::<ReciprocatingDrive>(doc, fmi3, value("--pages")),
+        "DriveTrain" => emit::<DriveTrainFmu>(doc, fmi3, value("--pages")),
         other => {
             eprintln!("gen-model-description: unknown model \"{other}\"; known: ReciprocatingDrive, DriveTrain");
             std::process::exit(2);

@@ -27,7 +27,7 @@ use crate::fmi2::variables::VarType;
 static TYPES_PLATFORM: &CStr = c"default";
 static VERSION: &CStr = c"2.0";
 
-unsafe fn opt_str<'a>(s: fmi2String) -> Option<&'a str> {
+pub(crate) unsafe fn opt_str<'a>(s: fmi2String) -> Option<&'a str> {
     if s.is_null() {
         None
     } else {
@@ -36,7 +36,7 @@ unsafe fn opt_str<'a>(s: fmi2String) -> Option<&'a str> {
 }
 
 /// A slice from a C array; NULL is only accepted for an empty array.
-unsafe fn slice<'a, T>(p: *const T, n: usize) -> Option<&'a [T]> {
+pub(crate) unsafe fn slice<'a, T>(p: *const T, n: usize) -> Option<&'a [T]> {
     if n == 0 {
         Some(&[])
     } else if p.is_null() {
@@ -414,7 +414,7 @@ unsafe fn no_strings(
 /// Stores a snapshot in the importer's FMUstate: reuses a state it passes back (FMI 2.0 allows
 /// that), else allocates one, which the instance keeps track of so that fmi2FreeInstance frees
 /// it if the importer does not.
-unsafe fn store_snapshot<M: FmuModel>(
+pub(crate) unsafe fn store_snapshot<M: FmuModel>(
     inst: &mut Instance<M>,
     state: *mut fmi2FMUstate,
     snap: Snapshot<M>,
@@ -431,7 +431,7 @@ unsafe fn store_snapshot<M: FmuModel>(
     }
 }
 
-unsafe fn snapshot_ref<'a, M: FmuModel>(
+pub(crate) unsafe fn snapshot_ref<'a, M: FmuModel>(
     function: &str,
     state: fmi2FMUstate,
 ) -> Result<&'a Snapshot<M>, Failure> {

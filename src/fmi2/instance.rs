@@ -197,6 +197,9 @@ pub struct Instance<M: FmuModel> {
     plan: ReadPlan<M>,
     /// The inputs of the last fmi2SetReal of inputs only, resolved (see [`InputPlan`]).
     inputs: InputPlan<M>,
+    /// Instantiated for Model Exchange (FMI 3.0, `crate::fmi3`): the ME functions are allowed,
+    /// fmi3DoStep is not.
+    pub model_exchange: bool,
 }
 
 impl<M: FmuModel> Instance<M> {
@@ -213,11 +216,29 @@ impl<M: FmuModel> Instance<M> {
             states: Vec::new(),
             plan: ReadPlan::empty(),
             inputs: InputPlan::empty(),
+            model_exchange: false,
         }
     }
 
     pub fn time(&self) -> f64 {
         self.core.time
+    }
+
+    pub fn mode(&self) -> Mode {
+        self.core.mode
+    }
+
+    /// Model Exchange (`crate::fmi3`): the built model, the values and the state, once
+    /// initialized.
+    pub fn me_parts(&self) -> Option<(&M::Built, &[f64], &M::State)> {
+        Some((self.model.as_ref()?, &self.core.values, &self.core.state))
+    }
+
+    /// Model Exchange: the importer's solver sets the time or the continuous states; the outputs
+    /// are evaluated again when read.
+    pub fn me_update(&mut self, f: impl FnOnce(&mut f64, &mut M::State)) {
+        f(&mut self.core.time, &mut self.core.state);
+        self.invalidate_outputs();
     }
 
     /// The parameters set furthest from their start values (by order of magnitude), to name in a

@@ -8,6 +8,7 @@
 //! at instantiation) wants the model's messages, not one line per fmi2DoStep of its own calls.
 
 use fmi_sys::fmi2::{fmi2CallbackLogger, fmi2ComponentEnvironment, fmi2Status};
+use fmi_sys::fmi3::fmi3LogMessageCallback;
 use std::ffi::{c_char, CString};
 
 /// Log categories declared in `<LogCategories>`, in declaration order.
@@ -31,13 +32,22 @@ pub enum Category {
     All = 4,
 }
 
+/// The importer's logger: FMI 2.0's (printf-like, with the instance name) or FMI 3.0's (status,
+/// category and message only). The status values of both standards are the same numbers
+/// (OK 0 ... Fatal 4), so one instance core logs through either.
+#[derive(Clone, Copy)]
+enum Sink {
+    Fmi2(fmi2CallbackLogger),
+    Fmi3(fmi3LogMessageCallback),
+}
+
 /// The categories debug logging enables when none are named (fmi2Instantiate with
 /// loggingOn = true, or fmi2SetDebugLogging with nCategories = 0): all but the per-call trace
 /// and logAll, which includes it.
 const DEFAULT_ENABLED: [bool; N] = [true, true, true, false, false];
 
 pub struct Logger {
-    callback: fmi2CallbackLogger,
+    callback: Sink,
     environment: fmi2ComponentEnvironment,
     instance_name: CString,
     debug_logging: bool,
@@ -52,12 +62,24 @@ impl Logger {
         logging_on: bool,
     ) -> Logger {
         Logger {
-            callback,
+            callback: Sink::Fmi2(callback),
             environment,
             instance_name,
             debug_logging: logging_on,
             enabled: DEFAULT_ENABLED,
         }
+    }
+
+    /// A logger for an FMI 3.0 instance (fmi3Instantiate…'s logMessage and instanceEnvironment).
+    pub fn new_fmi3(
+        callback: fmi3LogMessageCallback,
+        environment: fmi2ComponentEnvironment,
+        instance_name: CString,
+        logging_on: bool,
+    ) -> Logger {
+        let mut logger = Logger::new(None, environment, instance_name, logging_on);
+        logger.callback = Sink::Fmi3(callback);
+        logger
     }
 
     /// fmi2SetDebugLogging: no categories given means every category but the per-call trace
@@ -97,22 +119,36 @@ impl Logger {
 
     #[cold]
     fn emit(&self, status: fmi2Status, category: Category, message: &str) {
-        let Some(callback) = self.callback else { return };
-        // Interior NULs cannot cross a C string; replace them rather than drop the message.
-        let msg = CString::new(message.replace('\0', " ")).unwrap_or_default();
-        let cat = CString::new(CATEGORIES[category as usize].0).unwrap_or_default();
-        // The message goes through "%s": it may contain '%' and must not be read as a format.
-        // SAFETY: every pointer is a valid NUL-terminated string living across the call; the
-        // callback is the importer's, called with the arguments FMI 2.0 prescribes.
-        unsafe {
-            callback(
-                self.environment,
-                self.instance_name.as_ptr(),
-                status,
-                cat.as_ptr(),
-                c"%s".as_ptr() as *const c_char,
-                msg.as_ptr(),
-            )
+        // Through an FMI 3.0 instance the message names the 3.0 functions.
+        let text = match self.callback {
+            Sink::Fmi3(_) => crate::fmi3::abi::dialect(message),
+            Sink::Fmi2(_) => std::borrow::Cow::Borrowed(message),
         };
+        // Interior NULs cannot cross a C string; replace them rather than drop the message.
+        let msg = CString::new(text.replace('\0', " ")).unwrap_or_default();
+        let cat = CString::new(CATEGORIES[category as usize].0).unwrap_or_default();
+        match self.callback {
+            Sink::Fmi2(Some(callback)) => {
+                // The message goes through "%s": it may contain '%' and must not be read as a
+                // format.
+                // SAFETY: every pointer is a valid NUL-terminated string living across the call;
+                // the callback is the importer's, called with the arguments FMI 2.0 prescribes.
+                unsafe {
+                    callback(
+                        self.environment,
+                        self.instance_name.as_ptr(),
+                        status,
+                        cat.as_ptr(),
+                        c"%s".as_ptr() as *const c_char,
+                        msg.as_ptr(),
+                    )
+                };
+            }
+            Sink::Fmi3(Some(callback)) => {
+                // SAFETY: as above, with the arguments FMI 3.0 prescribes (no format string).
+                unsafe { callback(self.environment, status, cat.as_ptr(), msg.as_ptr()) };
+            }
+            Sink::Fmi2(None) | Sink::Fmi3(None) => {}
+        }
     }
 }

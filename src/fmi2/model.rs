@@ -187,4 +187,37 @@ pub trait FmuModel: Sized + 'static {
     fn check_state(_state: &Self::State) -> Result<(), &'static str> {
         Ok(())
     }
+
+    /// Model Exchange (FMI 3.0, `crate::fmi3`): the continuous states, each as (the name of the
+    /// table's variable that is the state, the unit of its derivative). Empty: the FMU does not
+    /// offer Model Exchange. The number of states must not depend on the parameters.
+    const CONTINUOUS_STATES: &'static [(&'static str, &'static str)] = &[];
+
+    /// Model Exchange (FMI 3.0) is declared: by default when the model has continuous states; a
+    /// model without any (outputs functions of the inputs) may declare it too.
+    const MODEL_EXCHANGE: bool = !Self::CONTINUOUS_STATES.is_empty();
+
+    /// Model Exchange: why this built machine cannot run as Model Exchange (e.g. it would need
+    /// continuous states the FMU does not declare); None: it can. Checked at
+    /// fmi3ExitInitializationMode of a Model Exchange instance.
+    fn model_exchange_refusal(_built: &Self::Built) -> Option<String> {
+        None
+    }
+
+    /// Model Exchange: the continuous states of `state`, in the order of `CONTINUOUS_STATES`.
+    fn continuous_states(_state: &Self::State, _x: &mut [f64]) {}
+
+    /// Model Exchange: sets the continuous states of `state` from `x` (the importer's solver).
+    fn set_continuous_states(_state: &mut Self::State, _x: &[f64]) {}
+
+    /// Model Exchange: the derivatives of the continuous states at `state` with the inputs in
+    /// `values`.
+    fn derivatives(
+        _built: &Self::Built,
+        _values: &[f64],
+        _state: &Self::State,
+        _dx: &mut [f64],
+    ) -> Result<(), ModelError> {
+        Ok(())
+    }
 }

@@ -11,12 +11,12 @@ use crate::fmi2::variables::{Binding, Causality, VarType, Variability};
 
 const GUID_PLACEHOLDER: &str = "@GUID@";
 
-fn esc(s: &str) -> String {
+pub(crate) fn esc(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 
 /// xs:double text that round-trips (Rust's shortest representation).
-fn num(v: f64) -> String {
+pub(crate) fn num(v: f64) -> String {
     format!("{v:?}")
 }
 

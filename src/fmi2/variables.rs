@@ -188,6 +188,8 @@ pub struct Table<M: FmuModel> {
     pub units: &'static [(&'static str, [i32; 4])],
     info: OnceLock<Vec<VarInfo<M>>>,
     pub(crate) guid: OnceLock<String>,
+    /// The FMI 3.0 instantiationToken (`crate::fmi3::model_description::token`).
+    pub(crate) token3: OnceLock<String>,
     pub(crate) fingerprint: OnceLock<u64>,
 }
 
@@ -201,6 +203,7 @@ impl<M: FmuModel> Table<M> {
             units,
             info: OnceLock::new(),
             guid: OnceLock::new(),
+            token3: OnceLock::new(),
             fingerprint: OnceLock::new(),
         }
     }

@@ -15,6 +15,8 @@ must agree within 1e-3 of ω_mean at h = 1 ms, and the error must fall at least 
 from __future__ import annotations
 
 import math
+import pathlib
+import zipfile
 
 import numpy as np
 import pytest
@@ -94,7 +96,7 @@ def errors(run, ssp):
     for h in (1e-3, 0.5e-3, 0.25e-3):
         r = run(ssp, h, T_END)
         ref = monolithic(r["time"])
-        w = r["drive.crank.speed"]
+        w = r["drivetrain.crank.speed"]
         out[h] = float(np.max(np.abs(w - ref)) / np.mean(ref))
     return out
 
@@ -117,13 +119,15 @@ def test_default_system_runs_in_both_importers_and_agrees(fmu_path, tmp_path):
     ssp = build_ssp(tmp_path / "ClosedLoop.ssp", fmu_dir=pathlib.Path(fmu_path).parent)
     a, b = run_libcosim(ssp, 1e-3, 4.0), run_fmpy(ssp, 1e-3, 4.0)
     assert np.allclose(a["time"], b["time"], atol=1e-9)
-    w = a["drive.crank.speed"]
-    assert np.max(np.abs(w - b["drive.crank.speed"])) <= 1e-4 * np.mean(w)
-    d = speed_fluctuation(a["time"], a["drive.crank.angle"], w)
+    w = a["drivetrain.crank.speed"]
+    assert np.max(np.abs(w - b["drivetrain.crank.speed"])) <= 1e-4 * np.mean(w)
+    d = speed_fluctuation(a["time"], a["drivetrain.crank.angle"], w)
     assert len(d) >= 3 and 0 < d[-1] < 0.2 and abs(d[-1] - d[-2]) < 1e-3 * d[-1]
     # The motor drives (positive slip, torque and power), well below breakdown.
-    assert np.all(a["drive.motor.slip"][100:] > 0) and np.all(a["drive.motor.power"][100:] > 0)
-    assert np.max(a["drive.motor.torque"]) < 200.0
+    assert np.all(a["drivetrain.motor.slip"][100:] > 0) and np.all(
+        a["drivetrain.motor.power"][100:] > 0
+    )
+    assert np.max(a["drivetrain.motor.torque"]) < 200.0
 
 
 @pytest.mark.parametrize("jc,stable", [(20.0, True), (4.0, False)])
@@ -147,13 +151,62 @@ def test_loop_stability_condition(tmp_path, fmu_path, jc, stable):
     rho = M * max(tf(x)[0] ** 2 for x in np.linspace(0, math.pi, 2001)) / jc * math.exp(-1e-3 / tau)
     assert (rho < 1) == stable, rho
     if stable:
-        a = run_fmpy(s, 1e-3, 2.0)["drive.crank.acceleration"]
+        a = run_fmpy(s, 1e-3, 2.0)["drivetrain.crank.acceleration"]
         # Smooth after fmpy's start from zero inputs: a step changes ε by about ε̇·h.
         assert np.all(np.isfinite(a)) and np.max(np.abs(np.diff(a[100:]))) < 0.2
     else:
         try:
-            a = run_fmpy(s, 1e-3, 2.0)["drive.crank.acceleration"]
+            a = run_fmpy(s, 1e-3, 2.0)["drivetrain.crank.acceleration"]
         except Exception as e:  # fmpy raises when an FMU refuses the non-finite value
             assert "status 3" in str(e) or isinstance(e, FmuError), e
         else:
             assert not np.all(np.isfinite(a)) or np.max(np.abs(a)) > 1e6
+
+
+def test_shipped_system_is_ready_for_omsimulator(fmu_path, tmp_path):
+    """What OMSimulator (v3.0) needs beyond libcosim and fmpy (docs/closed-loop.md, "In
+    OMSimulator"). OMSimulator is not installable here from a package registry (its PyPI package
+    downloads its binaries from build.openmodelica.org at build time), so the two conditions under
+    which it loads and runs the system are checked on the shipped archive itself:
+    * the system carries its master in the org.openmodelica annotation
+      (oms:SimulationInformation/oms:FixedStepMaster), since OMSimulator refuses a system without
+      one ("Unable to add System"), with the communication step of scripts/closed_loop.py;
+    * no component name followed by "." starts a variable name of an FMU: OMSimulator addresses
+      a parameter as system.component.variable and would read "drive" + "gear_ratio" for the
+      variable drive.gear_ratio ("Unknown signal").
+    The same archive still runs in libcosim and fmpy (the other tests of this file)."""
+    import xml.etree.ElementTree as ET
+
+    from fmpy import read_model_description
+
+    ssp = build_ssp(tmp_path / "ClosedLoop.ssp", fmu_dir=pathlib.Path(fmu_path).parent)
+    ns = {
+        "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
+        "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
+        "oms": "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd",
+    }
+    with zipfile.ZipFile(ssp) as z:
+        z.extractall(tmp_path / "x")
+    root = ET.parse(tmp_path / "x" / "SystemStructure.ssd").getroot()
+    system = root.find("ssd:System", ns)
+    ann = system.find("ssd:Annotations/ssc:Annotation[@type='org.openmodelica']", ns)
+    assert ann is not None, "the system has no org.openmodelica annotation"
+    master = ann.find("oms:Annotations/oms:SimulationInformation/oms:FixedStepMaster", ns)
+    assert master is not None and float(master.get("stepSize")) == 1e-3
+    components = system.findall("ssd:Elements/ssd:Component", ns)
+    names = [c.get("name") for c in components]
+    assert sorted(names) == ["drivetrain", "pump"]
+    for c in components:
+        md = read_model_description(str(tmp_path / "x" / c.get("source")))
+        for v in md.modelVariables:
+            for other in names:
+                assert not v.name.startswith(other + "."), (
+                    f"{c.get('name')}.{v.name}: the component name {other} is a prefix of it"
+                )
+    # Every parameter of each component's .ssv names a variable of its FMU.
+    for c in components:
+        md = read_model_description(str(tmp_path / "x" / c.get("source")))
+        known = {v.name for v in md.modelVariables}
+        ssv = ET.parse(tmp_path / "x" / "resources" / f"{c.get('name')}.ssv").getroot()
+        for p in ssv.iter("{http://ssp-standard.org/SSP1/SystemStructureParameterValues}Parameter"):
+            assert p.get("name") in known, f"{c.get('name')}.ssv: {p.get('name')}"

@@ -81,7 +81,7 @@ NAMED = [
     (["--step", "0.05"], "36 steps per revolution"),
     (["--time", "1e-6"], "shorter than one step"),
     (["--step", "1e-9", "--time", "100"], "allowed: <= 10,000,000"),
-    (["--set", "drive.crank.inertia=-1"], "drive.crank.inertia=-1"),
+    (["--set", "drivetrain.crank.inertia=-1"], "drivetrain.crank.inertia=-1"),
     (["--set", "pump.nosuch=1"], "'nosuch' is not a parameter of the pump"),
     (["--set", "mass=3"], "allowed: pump.PARAMETER=VALUE"),
     (["--set", "pump.support_A.kind=1.5"], "allowed: an integer"),
@@ -144,8 +144,8 @@ def test_diverging_loop_is_reported_with_the_stability_condition(
     """The issue's finding: a loop that diverged ended in "RuntimeError: libcosim: the simulation
     failed" without saying it diverged. J = 4 kg·m² gives ρ_eff = 2.1 (it diverges, exit 1, the
     message names ρ_eff and its value); J = 20 kg·m² gives 0.57 and runs."""
-    args = ["--time", "1.5", "--set", f"drive.crank.inertia={jc}", "--set", "drive.motor.inertia=0",
-            "--set", "drive.motor.breakdown_slip=0.9", "--importer", importer]  # fmt: skip
+    args = ["--time", "1.5", "--set", f"drivetrain.crank.inertia={jc}", "--set", "drivetrain.motor.inertia=0",
+            "--set", "drivetrain.motor.breakdown_slip=0.9", "--importer", importer]  # fmt: skip
     p = run(args, tmp_path, fmu_dir)
     rho = closed_form_rho(jc, 0.9, 1e-3)
     if diverges:
@@ -188,9 +188,9 @@ def test_constant_delta_is_drawn_as_a_constant():
     w = 6.7 + 0.1 * np.sin(2 * math.pi * t / 0.92)
     r = {
         "time": t,
-        "drive.crank.speed": w,
-        "drive.motor.torque": 50 + 0 * t,  # a constant too
-        "drive.motor.power": 1e4 + 0 * t,
+        "drivetrain.crank.speed": w,
+        "drivetrain.motor.torque": 50 + 0 * t,  # a constant too
+        "drivetrain.motor.power": 1e4 + 0 * t,
     }
     d = [0.032037 + k * 3e-12 for k in range(3)]
     fig = plot_closed_loop(r, d, "test")

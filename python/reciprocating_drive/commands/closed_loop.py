@@ -4,8 +4,8 @@ target/fmu/ClosedLoop.ssp from ssp/ClosedLoop/ and both FMUs, simulates it in li
 or fmpy, prints the per-revolution speed fluctuation δ = (ω_max − ω_min)/ω_mean and writes
 results/closed_loop.png (crank speed, motor torque and power, δ per revolution).
 
-    .venv/bin/python scripts/closed_loop.py [--importer libcosim|fmpy] [--step 1e-3] [--time 10]
-    .venv/bin/python scripts/closed_loop.py --set drive.crank.inertia=80 --set pump.load.mean=2e4
+    .venv/bin/python scripts/closed_loop.py [--importer libcosim|fmpy|model-exchange] [--step 1e-3] [--time 10]
+    .venv/bin/python scripts/closed_loop.py --set drivetrain.crank.inertia=80 --set pump.load.mean=2e4
 
 Exit codes: 0 done, 1 the loop failed or diverged (the message names docs/closed-loop.md's
 stability condition ρ_eff < 1), 2 a user error, 70 an internal error, 130 stopped.
@@ -36,14 +36,21 @@ PROG = "closed_loop.py"
 MIN_STEPS_PER_REVOLUTION = 36
 #: Samples of a run are held in memory (7 series): 10⁷ steps are about 0.6 GB.
 MAX_STEPS = 10_000_000
-COMPONENTS = {"pump": "ReciprocatingDrive.fmu", "drive": "DriveTrain.fmu"}
+COMPONENTS = {"pump": "ReciprocatingDrive.fmu", "drivetrain": "DriveTrain.fmu"}
 
 
 def parser(prog: str = PROG) -> ArgumentParser:
     ap = ArgumentParser(
         prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    ap.add_argument("--importer", choices=("libcosim", "fmpy"), default="libcosim")
+    ap.add_argument(
+        "--importer",
+        choices=("libcosim", "fmpy", "model-exchange"),
+        default="libcosim",
+        help="libcosim or fmpy: co-simulation of the SSP system (one-step delay in the loop); "
+        "model-exchange: both FMI 3.0 FMUs as Model Exchange in one ODE, the loop solved exactly "
+        "(reciprocating_drive/me_loop.py, docs/closed-loop.md)",
+    )
     ap.add_argument("--step", default="1e-3", help="communication step [s] (default 1e-3)")
     ap.add_argument("--time", default="10", help="simulated time [s] (default 10)")
     ap.add_argument("--out-dir", type=pathlib.Path, default=artifacts.results_dir())
@@ -58,7 +65,7 @@ def parser(prog: str = PROG) -> ArgumentParser:
         action="append",
         default=[],
         metavar="COMPONENT.PARAMETER=VALUE",
-        help="a parameter of the pump or the drive over the shipped sets (ssp/ClosedLoop/*.ssv)",
+        help="a parameter of the pump or the drivetrain over the shipped sets (ssp/ClosedLoop/*.ssv)",
     )
     return ap
 
@@ -68,13 +75,13 @@ def overrides(items: list[str], fmu_dir: pathlib.Path) -> dict:
     checked against the FMU's type and range."""
     from ..study import model_parameters
 
-    out = {"pump": {}, "drive": {}}
+    out = {"pump": {}, "drivetrain": {}}
     for item in items:
         key, eq, text = item.partition("=")
         comp, _, name = key.partition(".")
         if not eq or comp not in COMPONENTS or not name:
             raise UserError(
-                f"--set {show(item)}: allowed: pump.PARAMETER=VALUE or drive.PARAMETER=VALUE"
+                f"--set {show(item)}: allowed: pump.PARAMETER=VALUE or drivetrain.PARAMETER=VALUE"
             )
         params, _, _ = model_parameters(str(fmu_dir / COMPONENTS[comp]), require_pump=False)
         var = params.get(name)
@@ -117,7 +124,10 @@ def _main(argv, prog: str = PROG) -> int:
     a = parser(prog).parse_args(argv)
     h = positive_float("--step", a.step)
     t_end = positive_float("--time", a.time)
-    for fmu in COMPONENTS.values():
+    needed = list(COMPONENTS.values())
+    if a.importer == "model-exchange":
+        needed += ["ReciprocatingDrive-fmi3.fmu", "DriveTrain-fmi3.fmu"]
+    for fmu in needed:
         if not (a.fmu_dir / fmu).is_file():
             raise UserError(f"--fmu-dir {a.fmu_dir}: no {fmu}; build it with scripts/build-fmu.sh")
     from ..presets import read_ssv
@@ -135,7 +145,7 @@ def _main(argv, prog: str = PROG) -> int:
 
     extra = overrides(a.set, a.fmu_dir)
     pump = {**read_ssv(SSD.parent / "pump.ssv"), **extra["pump"]}
-    drive = {**read_ssv(SSD.parent / "drive.ssv"), **extra["drive"]}
+    drive = {**read_ssv(SSD.parent / "drivetrain.ssv"), **extra["drivetrain"]}
     d = {**start_values(a.fmu_dir / "DriveTrain.fmu"), **drive}
     omega = max(d["crank.speed_start"], d["motor.synchronous_speed"] / d["drive.gear_ratio"])
     h_max = 2 * math.pi / omega / MIN_STEPS_PER_REVOLUTION
@@ -170,13 +180,18 @@ def _main(argv, prog: str = PROG) -> int:
     t0 = time.perf_counter()
     failure = None
     try:
-        r = (run_libcosim if a.importer == "libcosim" else run_fmpy)(ssp, h, t_end)
+        if a.importer == "model-exchange":
+            from reciprocating_drive.me_loop import run_model_exchange
+
+            r = run_model_exchange(np.arange(1, n + 1) * h, pump, drive, a.fmu_dir)
+        else:
+            r = (run_libcosim if a.importer == "libcosim" else run_fmpy)(ssp, h, t_end)
     except LoopFailed as e:
         failure = (e.time, str(e))
     except Exception as e:  # fmpy raises a plain Exception when an FMU refuses a step
         failure = (None, f"{a.importer}: {e}")
     else:
-        w = r["drive.crank.speed"]
+        w = r["drivetrain.crank.speed"]
         bad = ~np.isfinite(w) | (w <= 0) | (w > 2 * omega)
         bad |= ~np.isfinite(r["pump.crank.torque"])
         if bad.any():
@@ -200,8 +215,8 @@ def _main(argv, prog: str = PROG) -> int:
             f"the closed loop failed{at} ({failure[1]}); {cond} < 1, so not the algebraic loop "
             "of docs/closed-loop.md: check the parameters"
         )
-    dfl = speed_fluctuation(r["time"], r["drive.crank.angle"], r["drive.crank.speed"])
-    w = r["drive.crank.speed"]
+    dfl = speed_fluctuation(r["time"], r["drivetrain.crank.angle"], r["drivetrain.crank.speed"])
+    w = r["drivetrain.crank.speed"]
     print(f"{a.importer}: {t_end:g} s at h = {h:g} s in {wall:.2f} s wall; wrote {ssp}")
     print(
         f"crank speed at the end {w[-1]:.5g} rad/s ({w[-1] * 60 / (2 * math.pi):.4g} strokes/min)"

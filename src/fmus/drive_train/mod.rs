@@ -105,6 +105,31 @@ impl FmuModel for DriveTrainFmu {
         d.p.tolerance
     }
 
+    /// Model Exchange: θ and ω, d/dt (θ, ω) = (ω, (i·T_m(ω) − T_L)/J) (docs/closed-loop.md).
+    const CONTINUOUS_STATES: &'static [(&'static str, &'static str)] =
+        &[("crank.angle", "rad/s"), ("crank.speed", "rad/s2")];
+
+    fn continuous_states(state: &DriveState, x: &mut [f64]) {
+        x[0] = state.angle;
+        x[1] = state.speed;
+    }
+
+    fn set_continuous_states(state: &mut DriveState, x: &[f64]) {
+        state.angle = x[0];
+        state.speed = x[1];
+    }
+
+    fn derivatives(
+        d: &DriveTrain,
+        values: &[f64],
+        state: &DriveState,
+        dx: &mut [f64],
+    ) -> Result<(), ModelError> {
+        dx[0] = state.speed;
+        dx[1] = d.acceleration(state.speed, load(values));
+        Ok(())
+    }
+
     fn check_state(state: &DriveState) -> Result<(), &'static str> {
         let i = &state.integrator;
         if ![state.angle, state.speed, i.h_next, i.err_prev].iter().all(|v| v.is_finite()) {

@@ -184,6 +184,20 @@ impl FmuModel for ReciprocatingDrive {
         true
     }
 
+    /// Model Exchange (FMI 3.0) for the rigid mechanisms: no continuous state, every output a
+    /// function of the crank inputs, evaluated when read (docs/fmi-interface.md "Model
+    /// Exchange"). The elastic rod's states depend on the parameters, which Model Exchange's
+    /// fixed number of states cannot express: it stays co-simulation.
+    const MODEL_EXCHANGE: bool = true;
+
+    fn model_exchange_refusal(model: &Model) -> Option<String> {
+        model.has_state().then(|| {
+            "this machine has continuous states (an elastic rod), which Model Exchange does not \
+             offer: run it as co-simulation"
+                .to_string()
+        })
+    }
+
     fn default_tolerance(model: &Model) -> f64 {
         model.default_tolerance()
     }

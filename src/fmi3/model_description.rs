@@ -1,0 +1,241 @@
+//! Generates a model's FMI 3.0 modelDescription.xml from the same variable table as the FMI 2.0
+//! one (`crate::fmi2::model_description`): names, value references, units and display units,
+//! descriptions, causality, variability, ranges, start values and output dependencies come from
+//! the one table, so the two descriptions cannot disagree (docs/fmi-interface.md "FMI 3.0").
+//! Deterministic (no generation date): the checked-in copy under `modelDescription/fmi3/` is
+//! compared byte for byte with what this produces.
+//!
+//! What differs from 2.0 is only the dialect: one element per type (`<Float64>`, `<Int32>`,
+//! `<Boolean>`) instead of `<ScalarVariable>`, `instantiationToken` instead of `guid`, and
+//! ModelStructure naming value references instead of 1-based indices.
+
+use std::fmt::Write;
+
+use crate::fmi2::display_units;
+use crate::fmi2::logging::CATEGORIES;
+use crate::fmi2::model::FmuModel;
+use crate::fmi2::model_description::{esc, num};
+use crate::fmi2::variables::{Binding, Causality, VarType, Variability};
+
+const TOKEN_PLACEHOLDER: &str = "@TOKEN@";
+
+fn ty_name(t: VarType) -> &'static str {
+    match t {
+        VarType::Real => "Float64",
+        VarType::Integer => "Int32",
+        VarType::Boolean => "Boolean",
+    }
+}
+
+fn body<M: FmuModel>() -> String {
+    let info = M::info();
+    let table = M::table();
+    let (start, stop, step) = info.default_experiment;
+    let mut x = String::new();
+    let w = &mut x;
+    let _ = writeln!(w, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
+    let _ = writeln!(
+        w,
+        r#"<fmiModelDescription fmiVersion="3.0" modelName="{}" instantiationToken="{TOKEN_PLACEHOLDER}" description="{}" version="{}" generationTool="reciprocating_drive {}" variableNamingConvention="structured">"#,
+        esc(info.model_name),
+        esc(info.description),
+        env!("CARGO_PKG_VERSION"),
+        env!("CARGO_PKG_VERSION")
+    );
+    if M::MODEL_EXCHANGE {
+        let _ = writeln!(
+            w,
+            r#"  <ModelExchange modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="false" providesAdjointDerivatives="false" needsCompletedIntegratorStep="false" providesEvaluateDiscreteStates="false"/>"#,
+            info.model_identifier
+        );
+    }
+    let _ = writeln!(
+        w,
+        r#"  <CoSimulation modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="false" providesAdjointDerivatives="false" canHandleVariableCommunicationStepSize="true" maxOutputDerivativeOrder="0" providesIntermediateUpdate="false" mightReturnEarlyFromDoStep="false" canReturnEarlyAfterIntermediateUpdate="false" hasEventMode="false"/>"#,
+        info.model_identifier
+    );
+    let _ = writeln!(w, "  <UnitDefinitions>");
+    for (name, [kg, m, s, rad]) in table.units {
+        let mut attrs = String::new();
+        for (sym, e) in [("kg", kg), ("m", m), ("s", s), ("rad", rad)] {
+            if *e != 0 {
+                let _ = write!(attrs, r#" {sym}="{e}""#);
+            }
+        }
+        let mut display = String::new();
+        for d in display_units::for_unit(name) {
+            let _ = write!(
+                display,
+                r#"<DisplayUnit name="{}" factor="{}"/>"#,
+                esc(d.name),
+                num(d.factor)
+            );
+        }
+        let _ = writeln!(w, r#"    <Unit name="{}"><BaseUnit{attrs}/>{display}</Unit>"#, esc(name));
+    }
+    // The unit of the independent variable `time`, unless the table has it already.
+    if !table.units.iter().any(|(name, _)| *name == "s") {
+        let _ = writeln!(w, r#"    <Unit name="s"><BaseUnit s="1"/></Unit>"#);
+    }
+    let _ = writeln!(w, "  </UnitDefinitions>");
+    let _ = writeln!(w, "  <LogCategories>");
+    for (name, desc) in CATEGORIES {
+        let _ = writeln!(w, r#"    <Category name="{name}" description="{}"/>"#, esc(desc));
+    }
+    let _ = writeln!(w, "  </LogCategories>");
+    let _ = writeln!(
+        w,
+        r#"  <DefaultExperiment startTime="{}" stopTime="{}" stepSize="{}"/>"#,
+        num(start),
+        num(stop),
+        num(step)
+    );
+    let _ = writeln!(w, "  <ModelVariables>");
+    // FMI 3.0 requires the independent variable; it takes the value reference after the table's.
+    let _ = writeln!(
+        w,
+        r#"    <Float64 name="time" valueReference="{}" causality="independent" variability="continuous" description="Simulation time" unit="s"/>"#,
+        time_vr::<M>()
+    );
+    for (vr, v) in table.variables.iter().enumerate() {
+        let causality = match v.causality {
+            Causality::Parameter => "parameter",
+            Causality::CalculatedParameter => "calculatedParameter",
+            Causality::Input => "input",
+            Causality::Output => "output",
+        };
+        // FMI 3.0 allows "continuous" for Float variables only; an Int32 or Boolean input or
+        // output changes only at communication points (discrete).
+        let variability = match (v.variability, v.ty) {
+            (Variability::Fixed, _) => "fixed",
+            (Variability::Tunable, _) => "tunable",
+            (Variability::Continuous, VarType::Real) => "continuous",
+            (Variability::Continuous, _) => "discrete",
+        };
+        let mut attrs = String::new();
+        if v.ty == VarType::Real && !v.unit.is_empty() {
+            let _ = write!(attrs, r#" unit="{}""#, esc(v.unit));
+            if let Some(d) = display_units::default_for(v.unit) {
+                let _ = write!(attrs, r#" displayUnit="{}""#, esc(d));
+            }
+        }
+        if v.ty != VarType::Boolean {
+            let fmt =
+                |b: f64| if v.ty == VarType::Integer { format!("{}", b as i64) } else { num(b) };
+            if v.range.min.is_finite() {
+                let _ = write!(attrs, r#" min="{}""#, fmt(v.range.min));
+            }
+            if v.range.max.is_finite() {
+                let _ = write!(attrs, r#" max="{}""#, fmt(v.range.max));
+            }
+        }
+        if let Some(s) = v.start() {
+            let text = match v.ty {
+                VarType::Real => num(s),
+                VarType::Integer => format!("{}", s as i64),
+                VarType::Boolean => (if s != 0.0 { "true" } else { "false" }).to_string(),
+            };
+            let _ = write!(attrs, r#" start="{text}""#);
+        }
+        let _ = writeln!(
+            w,
+            r#"    <{} name="{}" valueReference="{vr}" causality="{causality}" variability="{variability}" description="{}"{attrs}/>"#,
+            ty_name(v.ty),
+            esc(v.name),
+            esc(v.description)
+        );
+    }
+    // Model Exchange: the derivative of each continuous state, after `time`.
+    for (k, (state, unit)) in M::CONTINUOUS_STATES.iter().enumerate() {
+        let _ = writeln!(
+            w,
+            r#"    <Float64 name="der({})" valueReference="{}" causality="local" variability="continuous" description="Derivative of {} (Model Exchange)" unit="{}" derivative="{}"/>"#,
+            esc(state),
+            derivative_vr::<M>(k),
+            esc(state),
+            esc(unit),
+            state_vr::<M>(k)
+        );
+    }
+    let _ = writeln!(w, "  </ModelVariables>");
+    let _ = writeln!(w, "  <ModelStructure>");
+    for (vr, v) in table.variables.iter().enumerate() {
+        if let (Causality::Output, Binding::Output { depends_on, .. }) = (v.causality, v.binding) {
+            let deps: Vec<String> = depends_on
+                .iter()
+                .filter_map(|s| table.input_vr(*s))
+                .map(|i| i.to_string())
+                .collect();
+            let kinds: Vec<&str> = deps.iter().map(|_| "dependent").collect();
+            let _ = writeln!(
+                w,
+                r#"    <Output valueReference="{vr}" dependencies="{}" dependenciesKind="{}"/>"#,
+                deps.join(" "),
+                kinds.join(" ")
+            );
+        }
+    }
+    for k in 0..M::CONTINUOUS_STATES.len() {
+        let _ = writeln!(
+            w,
+            r#"    <ContinuousStateDerivative valueReference="{}"/>"#,
+            derivative_vr::<M>(k)
+        );
+    }
+    // Outputs and calculated parameters are computed at initialization from all knowns (inputs
+    // and parameters): no `dependencies` attribute means exactly that (as in the 2.0 file).
+    for (vr, v) in table.variables.iter().enumerate() {
+        if matches!(v.causality, Causality::Output | Causality::CalculatedParameter) {
+            let _ = writeln!(w, r#"    <InitialUnknown valueReference="{vr}"/>"#);
+        }
+    }
+    for k in 0..M::CONTINUOUS_STATES.len() {
+        let _ = writeln!(w, r#"    <InitialUnknown valueReference="{}"/>"#, derivative_vr::<M>(k));
+    }
+    let _ = writeln!(w, "  </ModelStructure>");
+    let _ = writeln!(w, "</fmiModelDescription>");
+    x
+}
+
+/// The value reference of the independent variable `time`: the first after the table's.
+pub fn time_vr<M: FmuModel>() -> u32 {
+    M::table().variables.len() as u32
+}
+
+/// The value reference of the derivative of the k-th continuous state (Model Exchange): after
+/// `time`'s.
+pub fn derivative_vr<M: FmuModel>(k: usize) -> u32 {
+    time_vr::<M>() + 1 + k as u32
+}
+
+/// The value reference of the table's variable that is the k-th continuous state.
+pub fn state_vr<M: FmuModel>(k: usize) -> usize {
+    let name = M::CONTINUOUS_STATES[k].0;
+    M::table().variables.iter().position(|v| v.name == name).unwrap_or(usize::MAX)
+}
+
+/// The instantiationToken, derived from the 3.0 interface itself (as the 2.0 GUID is from the
+/// 2.0 one): any change to the table changes it, so an importer holding an old
+/// modelDescription.xml cannot instantiate a new binary by mistake.
+pub fn token<M: FmuModel>() -> &'static str {
+    M::table().token3.get_or_init(|| {
+        let b = body::<M>();
+        let h = |seed: u64| {
+            b.bytes().fold(seed, |h, c| (h ^ c as u64).wrapping_mul(0x0000_0100_0000_01b3))
+        };
+        let (a, c) = (h(0xcbf2_9ce4_8422_2325), h(0x84222325cbf29ce4));
+        format!(
+            "{{{:08x}-{:04x}-{:04x}-{:04x}-{:012x}}}",
+            a >> 32,
+            (a >> 16) & 0xffff,
+            a & 0xffff,
+            c >> 48,
+            c & 0xffff_ffff_ffff
+        )
+    })
+}
+
+/// The complete FMI 3.0 modelDescription.xml.
+pub fn generate<M: FmuModel>() -> String {
+    body::<M>().replacen(TOKEN_PLACEHOLDER, token::<M>(), 1)
+}

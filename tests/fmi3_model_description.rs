@@ -1,0 +1,66 @@
+//! The checked-in FMI 3.0 model descriptions (modelDescription/fmi3/*.xml) must equal what the
+//! generator produces from the variable tables now, as for FMI 2.0 (tests/model_description.rs);
+//! and the 3.0 file names the same variables as the 2.0 file, in the same order with the same
+//! value references (one table), read back from the two generated texts.
+
+use reciprocating_drive::fmi2::model::FmuModel;
+use reciprocating_drive::fmus::drive_train::DriveTrainFmu;
+use reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive;
+
+fn assert_current<M: FmuModel>(id: &str) {
+    let file = format!("modelDescription/fmi3/{id}.xml");
+    let path = format!("{}/{file}", env!("CARGO_MANIFEST_DIR"));
+    let on_disk = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let generated = reciprocating_drive::fmi3::model_description::generate::<M>();
+    assert!(
+        on_disk == generated,
+        "{file} is stale: regenerate it with \
+         cargo run --bin gen-model-description -- --fmi3 --model {id} > {file}"
+    );
+}
+
+/// (name, valueReference) of every variable, in document order, from attributes in a line.
+fn names_and_refs(xml: &str) -> Vec<(String, String)> {
+    let attr = |line: &str, a: &str| {
+        let key = format!(" {a}=\"");
+        line.find(&key).map(|i| {
+            let rest = &line[i + key.len()..];
+            rest[..rest.find('"').unwrap()].to_string()
+        })
+    };
+    xml.lines()
+        .filter(|l| l.contains(" valueReference=\"") && l.contains(" name=\""))
+        .map(|l| (attr(l, "name").unwrap(), attr(l, "valueReference").unwrap()))
+        .collect()
+}
+
+#[test]
+fn checked_in_fmi3_model_descriptions_are_current() {
+    assert_current::<ReciprocatingDrive>("ReciprocatingDrive");
+    assert_current::<DriveTrainFmu>("DriveTrain");
+}
+
+#[test]
+fn fmi3_declares_the_same_variables_as_fmi2() {
+    fn check<M: FmuModel>() {
+        let two = reciprocating_drive::fmi2::model_description::generate::<M>();
+        let three = reciprocating_drive::fmi3::model_description::generate::<M>();
+        let (a, mut b) = (names_and_refs(&two), names_and_refs(&three));
+        assert_eq!(a.len(), M::table().variables.len());
+        // FMI 3.0's independent variable, after the table's value references.
+        let n = M::table().variables.len().to_string();
+        assert_eq!(b.remove(0), ("time".to_string(), n));
+        // Then the derivatives of the continuous states (Model Exchange), if any.
+        let ders: Vec<String> = b.split_off(a.len()).into_iter().map(|(name, _)| name).collect();
+        let expected: Vec<String> =
+            M::CONTINUOUS_STATES.iter().map(|(s, _)| format!("der({s})")).collect();
+        assert_eq!(ders, expected);
+        assert_eq!(a, b);
+        assert!(three.contains("fmiVersion=\"3.0\""));
+        // The instantiation token differs from the 2.0 GUID (another interface).
+        let guid = reciprocating_drive::fmi2::model_description::guid::<M>();
+        assert!(!three.contains(guid));
+    }
+    check::<ReciprocatingDrive>();
+    check::<DriveTrainFmu>();
+}
