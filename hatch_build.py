@@ -25,7 +25,10 @@ class CustomBuildHook(BuildHookInterface):
             return
         root = pathlib.Path(self.root)
         lib = root / "target" / "release" / "libfmi2_batch.so"
+        # FMI 2.0 (<id>.fmu) and FMI 3.0 (<id>-fmi3.fmu) archives of each model.
         files = {root / "target" / "fmu" / f"{m}.fmu": f"fmu/{m}.fmu" for m in MODELS}
+        for m in MODELS:
+            files[root / "target" / "fmu" / f"{m}-fmi3.fmu"] = f"fmu/{m}-fmi3.fmu"
         files[lib] = f"lib/{lib.name}"
         files[root / "data" / "twin" / "pump_encoder.csv"] = "twin/pump_encoder.csv"
         for src in sorted((root / "ssp" / "ClosedLoop").iterdir()):
