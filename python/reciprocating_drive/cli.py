@@ -18,7 +18,6 @@ run says how to resume).
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
 
 from . import __version__, artifacts
@@ -78,10 +77,9 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    from .commands import quiet_interrupt
+    from .commands import load
 
-    quiet_interrupt()
-    module = importlib.import_module(f"reciprocating_drive.commands.{COMMANDS[command][0]}")
+    module = load(COMMANDS[command][0])
     return int(module.main(rest, prog=f"rdrive {command}") or 0)
 
 

@@ -92,6 +92,10 @@ class Options:
     separator: str = "auto"  # of the input's fields: auto | , | ; (';' reads decimal commas)
     speed_check: str = "refuse"  # a measured speed that contradicts the angle: refuse | warn
     speed_tolerance: float = 0.1  # relative, see docs/twin.md "Measured speed"
+    # A segment between gaps too short for the local cubic (fewer than 4 samples): refuse stops
+    # the run (a file); drop leaves its samples out and records them (a live source, where a
+    # reconnect can leave a sample or two between two gaps; docs/plant.md "Faults").
+    short_segments: str = "refuse"
 
     def to_dict(self) -> dict:
         return dict(self.__dict__)
@@ -114,6 +118,7 @@ class Options:
             "duplicates": ("drop", "error"),
             "separator": ("auto", ",", ";"),
             "speed_check": ("refuse", "warn"),
+            "short_segments": ("refuse", "drop"),
         }
         for name, allowed in choices.items():
             v = getattr(self, name)
@@ -438,6 +443,8 @@ class Twin:
         self.lines_read = 0  # input lines consumed (header included)
         self.rows_out = 0
         self.messages: list = []
+        #: (first line, samples) of each segment left out as too short (Options.short_segments).
+        self.short_dropped: list = []
 
     @property
     def header(self) -> list[str]:
@@ -683,6 +690,10 @@ class Twin:
         # A sample's window is complete when `half` samples follow it (or the segment ended).
         ready = n if final else (max(0, n - half) if n >= width else 0)
         if ready <= b.done:
+            return
+        if n < cond.DEGREE + 1 and final and self.o.short_segments == "drop":
+            self.short_dropped.append((int(b.line[0]), n))
+            b.done = n
             return
         if n < cond.DEGREE + 1:
             raise DataError(

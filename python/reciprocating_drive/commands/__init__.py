@@ -19,14 +19,23 @@ import sys
 
 def quiet_interrupt() -> None:
     """Ctrl-C while the modules load (numpy, fmpy, dask take a while): a quiet stop with exit code
-    130, not a traceback. Each command's main installs its own handler once it runs."""
+    130, not a traceback. `load` puts Python's own handler back before the command runs: each
+    command handles KeyboardInterrupt itself (cli_errors.run_cli: "stopped; resume with ...")."""
     signal.signal(signal.SIGINT, lambda signum, frame: sys.exit(130))
+
+
+def load(module: str):
+    """Imports a command's module quietly (quiet_interrupt), then restores the default SIGINT
+    handler, under which Ctrl-C raises KeyboardInterrupt in the command."""
+    import importlib
+
+    quiet_interrupt()
+    mod = importlib.import_module(f"reciprocating_drive.commands.{module}")
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    return mod
 
 
 def run_script(module: str) -> None:
     """The body of a checkout's scripts/<name>.py: the command's main, its exit code the
     process's."""
-    quiet_interrupt()
-    import importlib
-
-    sys.exit(importlib.import_module(f"reciprocating_drive.commands.{module}").main())
+    sys.exit(load(module).main())

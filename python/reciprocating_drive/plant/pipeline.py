@@ -115,14 +115,26 @@ class Pipeline:
 
     def _twin_events(self) -> None:
         tw = self.twin
-        for gap, msg in zip(tw.gaps[self.gaps_seen :], tw.messages[self.msgs_seen :]):
-            # Twin.feed records a gap twice when a chunk starts right after it (a chunk of one
-            # line, as live sources give): one event per gap.
-            if gap != self.last_gap:
-                self._event(Event("gap", msg, t=gap[0]))
+        for gap in tw.gaps[self.gaps_seen :]:
+            # One event per gap, its text made from the gap itself (the twin's other messages,
+            # such as the separator it detected, are not gaps).
+            if tuple(gap) != self.last_gap:
+                t0, t1 = gap
+                msg = f"gap of {t1 - t0:.6g} s from t = {t0!r} s to {t1!r} s: the FMU is re-initialized after it"
+                self._event(Event("gap", msg, t=t0))
                 self.gap_count += 1
-            self.last_gap = gap
-        self.gaps_seen, self.msgs_seen = len(tw.gaps), len(tw.messages)
+            self.last_gap = tuple(gap)
+        self.gaps_seen = len(tw.gaps)
+        for line, n in tw.short_dropped[self.short_seen :]:
+            self._event(
+                Event(
+                    "dropped",
+                    f"{n} sample(s) from input line {line} dropped: a segment between gaps too "
+                    "short for the local cubic (at least 4 samples)",
+                    count=n,
+                )
+            )
+        self.short_seen = len(tw.short_dropped)
         if tw.duplicates > self.dups_seen:
             n = tw.duplicates - self.dups_seen
             self._event(Event("duplicates", f"{n} duplicate timestamp(s) dropped", count=n))
@@ -190,7 +202,12 @@ class Pipeline:
 
     def _run(self) -> int:
         cfg = self.cfg
-        twin = Twin(cfg.fmu, cfg.machine, Options(**cfg.options))
+        opts = dict(cfg.options)
+        if getattr(self.source, "live", True):
+            # A live source's reconnect can leave a sample or two between two gaps: dropped and
+            # reported (an event), not a reason to stop a twin that runs for months.
+            opts.setdefault("short_segments", "drop")
+        twin = Twin(cfg.fmu, cfg.machine, Options(**opts))
         info = RunInfo(
             cfg.run_id,
             cfg.machine_id,
@@ -220,7 +237,7 @@ class Pipeline:
             self.c = Counters(c["samples"], c["revolutions"], c["events"], 0, c.get("rev_upto"))
             self.dups_seen = state.get("duplicates_reported", 0)
         self.twin = twin
-        self.gaps_seen, self.msgs_seen = len(twin.gaps), 0
+        self.gaps_seen, self.short_seen = len(twin.gaps), len(twin.short_dropped)
         self.last_gap = tuple(twin.gaps[-1]) if twin.gaps else None
         self.gap_count = state.get("gaps_reported", 0) if state else 0
         resumed = state is not None

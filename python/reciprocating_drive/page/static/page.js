@@ -200,10 +200,38 @@ async function loadTrend() {
 }
 
 async function main() {
+  // The stream first, its messages held until the state is drawn: an update flushed between the
+  // state's fetch and the stream's start is then not lost (revolutions already in the state are
+  // skipped, health and alarms are whole snapshots).
+  const badge = document.getElementById("stream");
+  const held = [];
+  let live = false;
+  const opened = new Promise((resolve) => {
+    const es = new EventSource("/stream");
+    es.onopen = () => { badge.textContent = "live"; badge.className = "badge ok"; resolve(); };
+    es.onerror = () => { badge.textContent = "reconnecting"; badge.className = "badge bad"; };
+    es.onmessage = (ev) => { if (live) apply(JSON.parse(ev.data)); else held.push(ev.data); };
+  });
+  let lastRev = -1;
+  function apply(m) {
+    if (m.revs && m.revs.length) {
+      const revs = m.revs.filter((r) => r.revolution > lastRev);
+      if (revs.length) {
+        lastRev = revs[revs.length - 1].revolution;
+        showLast(revs[revs.length - 1]);
+        appendTrend(revs);
+      }
+    }
+    if (m.card) { S.cards.push(m.card); while (S.cards.length > 6) S.cards.shift(); drawCards(); }
+    if (m.health) showHealth(m.health);
+    if (m.alarms) showAlarms(m.alarms);
+  }
+  await opened;
   const r = await fetch("/api/state", { credentials: "same-origin" });
   const st = await r.json();
   S.meta = st.values; S.limits = st.limits; S.origin = st.time_origin;
   S.cards = st.cards; S.alarms = st.alarms;
+  if (st.last) lastRev = st.last.revolution;
   buildValues();
   showLast(st.last);
   drawCards();
@@ -211,17 +239,8 @@ async function main() {
   showAlarms(st.alarms);
   await loadTrend();
   document.getElementById("window").addEventListener("change", loadTrend);
-  const badge = document.getElementById("stream");
-  const es = new EventSource("/stream");
-  es.onopen = () => { badge.textContent = "live"; badge.className = "badge ok"; };
-  es.onerror = () => { badge.textContent = "reconnecting"; badge.className = "badge bad"; };
-  es.onmessage = (ev) => {
-    const m = JSON.parse(ev.data);
-    if (m.revs && m.revs.length) { showLast(m.revs[m.revs.length - 1]); appendTrend(m.revs); }
-    if (m.card) { S.cards.push(m.card); while (S.cards.length > 6) S.cards.shift(); drawCards(); }
-    if (m.health) showHealth(m.health);
-    if (m.alarms) showAlarms(m.alarms);
-  };
+  live = true;
+  for (const d of held.splice(0)) apply(JSON.parse(d));
   document.body.dataset.ready = "1";
 }
 
