@@ -226,11 +226,13 @@ def parse(data: dict, path: str = "<config>") -> Config:
 
     sinks_data = data.get("sink", [])
     if not isinstance(sinks_data, list) or not sinks_data:
-        raise ConfigError(f'{path}: no [[sink]] (at least one: type = "sqlite" or "postgres")')
+        raise ConfigError(
+            f'{path}: no [[sink]] (at least one: type = "sqlite", "postgres" or "csv")'
+        )
     sinks = []
     for i, sd in enumerate(sinks_data):
         s = _Table(path, f"sink[{i}]", sd)
-        stype_ = s.choice("type", ("sqlite", "postgres"))
+        stype_ = s.choice("type", ("sqlite", "postgres", "csv"))
         samples = s.get(
             "samples",
             (str, int),
@@ -246,6 +248,8 @@ def parse(data: dict, path: str = "<config>") -> Config:
         pw = None
         if stype_ == "sqlite":
             settings_ = {"path": _path(path, s.get("path", str, allowed="the database file"))}
+        elif stype_ == "csv":
+            settings_ = _csv_sink_settings(s, path)
         else:
             settings_ = {
                 "dsn": s.get(
@@ -259,6 +263,7 @@ def parse(data: dict, path: str = "<config>") -> Config:
             pw = _secret(s, f"sink[{i}]")
         s.done()
         sinks.append(SinkConfig(stype_, {**settings_, **common}, pw))
+    _distinct_files(path, settings if stype == "csv" else {}, sinks)
     top.used.update(data)
     return Config(
         path,
@@ -320,3 +325,37 @@ def _opcua_settings(src: _Table, path: str) -> dict:
                 f"{path}: source.trust is missing (the server certificates to trust, a list of files)"
             )
     return s
+
+
+def _csv_sink_settings(s: _Table, path: str) -> dict:
+    """The files of a CSV sink (docs/plant.md "CSV sink"), beside `path` by default."""
+    out = _path(path, s.get("path", str, allowed="the per-sample CSV file to write"))
+    stem = pathlib.Path(out)
+    return {
+        "path": out,
+        "summary": _path(
+            path, s.get("summary", str, str(stem.with_name(stem.stem + "-revolutions.csv")))
+        ),
+        "checkpoint": _path(
+            path, s.get("checkpoint", str, str(stem.with_name(stem.name + ".checkpoint.json")))
+        ),
+    }
+
+
+def _distinct_files(path: str, source: dict, sinks: list) -> None:
+    """No file is written twice or over the input (it would be destroyed)."""
+    seen = {}
+    if source.get("path") and source["path"] != "-":
+        seen[str(pathlib.Path(source["path"]).resolve())] = "source.path"
+    for i, sk in enumerate(sinks):
+        keys = ("path", "summary", "checkpoint") if sk.type == "csv" else ("path",)
+        for k in keys:
+            if k not in sk.settings:
+                continue
+            f = str(pathlib.Path(sk.settings[k]).resolve())
+            if f in seen:
+                raise ConfigError(
+                    f"{path}: sink[{i}].{k} = {sk.settings[k]!r}: the same file as {seen[f]}; "
+                    "each file is read or written by one part only"
+                )
+            seen[f] = f"sink[{i}].{k}"

@@ -51,6 +51,17 @@ def make_sinks(cfg: Config) -> list:
             from .sinks.sqlite import SqliteSink
 
             out.append(SqliteSink(s.settings["path"], **common))
+        elif s.type == "csv":
+            from .sinks.csv import CsvSink
+
+            out.append(
+                CsvSink(
+                    s.settings["path"],
+                    summary=s.settings["summary"],
+                    checkpoint=s.settings["checkpoint"],
+                    **common,
+                )
+            )
         else:
             from .sinks.postgres import PostgresSink
 
@@ -198,6 +209,7 @@ class Pipeline:
             twin.outputs,
             cfg.options,
             cfg.source.public(),
+            header=twin.header_with_units(),
         )
         states = [s.open(info) for s in self.sinks]
         have = [st for st in states if st is not None]
