@@ -189,8 +189,8 @@ def parse(data: dict, path: str = "<config>") -> Config:
 
     src = _Table(path, "source", data.get("source", {}))
     if "source" not in data:
-        raise ConfigError(f'{path}: [source] is missing (type = "csv" or "opcua")')
-    stype = src.choice("type", ("csv", "opcua"))
+        raise ConfigError(f'{path}: [source] is missing (type = "csv", "stdin" or "opcua")')
+    stype = src.choice("type", ("csv", "opcua", "stdin"))
     opts = {
         "angle_unit": src.choice("angle_unit", ("rad", "deg", "counts"), "rad"),
         "counts_per_rev": src.get(
@@ -205,10 +205,9 @@ def parse(data: dict, path: str = "<config>") -> Config:
         )
     password = None
     if stype == "csv":
-        settings = {
-            "path": _path(path, src.get("path", str, allowed="the CSV file to replay")),
-            "pace": src.positive("pace", 0.0, zero=True),
-        }
+        settings = _csv_source_settings(src, path)
+    elif stype == "stdin":
+        settings = {"path": "-", "pace": 0.0, "follow": False}
     else:
         settings = _opcua_settings(src, path)
         password = _secret(src, "source")
@@ -263,7 +262,7 @@ def parse(data: dict, path: str = "<config>") -> Config:
             pw = _secret(s, f"sink[{i}]")
         s.done()
         sinks.append(SinkConfig(stype_, {**settings_, **common}, pw))
-    _distinct_files(path, settings if stype == "csv" else {}, sinks)
+    _distinct_files(path, settings if stype != "opcua" else {}, sinks)
     top.used.update(data)
     return Config(
         path,
@@ -359,3 +358,16 @@ def _distinct_files(path: str, source: dict, sinks: list) -> None:
                     "each file is read or written by one part only"
                 )
             seen[f] = f"sink[{i}].{k}"
+
+
+def _csv_source_settings(src: _Table, path: str) -> dict:
+    """A CSV file replayed, a growing file followed, or standard input (`path = "-"`)
+    (docs/plant.md "Sources")."""
+    p = src.get("path", str, allowed='the CSV file to replay, or "-" for standard input')
+    follow = src.get("follow", bool, False)
+    pace = src.positive("pace", 0.0, zero=True)
+    if p == "-" and follow:
+        raise src.err("follow", True, 'follows a file, not standard input (path = "-")')
+    if pace > 0 and (follow or p == "-"):
+        raise src.err("pace", pace, "a followed file or standard input comes at its own pace; 0")
+    return {"path": p if p == "-" else _path(path, p), "pace": pace, "follow": follow}

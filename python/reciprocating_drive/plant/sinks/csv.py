@@ -143,6 +143,7 @@ class CsvSink(Sink):
             if size == 0:
                 head = run.header if key == "samples" else summary_header()
                 f.write((",".join(head) + "\n").encode())
+                f.flush()  # the headers are out before the first sample, as rdrive twin's
             self.files[key] = f
         self.meta = meta
         state = meta["state"]
