@@ -177,6 +177,11 @@ def test_files_changed_behind_the_sinks_back_are_refused(fmu_path, tmp_path):
     p = pu.run(cfg)
     assert p.returncode == 1 and p.stderr.count("\n") == 1, p.stderr
     assert f"{side}: not a CSV sink checkpoint" in p.stderr
+    for bad in ({**m, "sizes": {"samples": "x", "summary": 0}}, {**m, "state": 3}, [1]):
+        side.write_text(json.dumps(bad))
+        p = pu.run(cfg)
+        assert p.returncode == 1 and p.stderr.count("\n") == 1, p.stderr
+        assert f"{side}: not a CSV sink checkpoint" in p.stderr
     # Another run's files.
     side.write_text(json.dumps({**m, "run": "other"}))
     p = pu.run(cfg)

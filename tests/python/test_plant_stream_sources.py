@@ -233,3 +233,29 @@ def test_stream_source_configuration_errors(tmp_path, fmu_path, source, message)
     p = pu.run(cfg)
     assert p.returncode == 2 and p.stderr.count("\n") == 1, p.stderr
     assert message in p.stderr and str(cfg) in p.stderr
+
+
+def test_standard_input_stopped_by_sigterm_commits_and_says_it_cannot_resume(fmu_path, tmp_path):
+    """SIGTERM while standard input is open and silent: the twin stops at once (bounded), commits
+    what it computed (the checkpoint covers every row in the file) and says how to go on."""
+    out = tmp_path / "out.csv"
+    cfg = pu.write_config(tmp_path / "t.toml", source=stdin_source(), sinks=csv_sink(out),
+                          fmu=fmu_path)  # fmt: skip
+    p = _start(cfg, stdin=subprocess.PIPE)
+    try:
+        p.stdin.write("\n".join(LINES[:3001]) + "\n")
+        p.stdin.flush()
+        deadline = time.monotonic() + 30
+        while _rows(out) < 2900:
+            assert time.monotonic() < deadline and p.poll() is None, "not read"
+            time.sleep(0.01)
+        p.send_signal(signal.SIGTERM)
+        _, err = p.communicate(timeout=10)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait(timeout=10)
+    assert p.returncode == 128 + signal.SIGTERM, err
+    assert "stopped by SIGTERM after input line 3001; committed" in err
+    assert "Standard input cannot be rewound" in err and err.count("\n") == 1, err
+    assert _covered(out) == _rows(out) >= 2900

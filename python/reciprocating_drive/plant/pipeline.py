@@ -310,9 +310,13 @@ class Pipeline:
                     )
             if self.stop_signal is not None:
                 self._commit()
+                hint = getattr(
+                    self.source,
+                    "resume_hint",
+                    "Run again with the same configuration to resume.",
+                )
                 self.log(
-                    f"stopped by {self.stop_signal} after input line {lineno}; committed. Run "
-                    "again with the same configuration to resume."
+                    f"stopped by {self.stop_signal} after input line {lineno}; committed. {hint}"
                 )
                 # Not 0: the run did not reach the end of its input (128 + the signal, as a shell).
                 return 128 + int(signal.Signals[self.stop_signal])

@@ -80,11 +80,21 @@ class CsvSink(Sink):
         try:
             meta = json.loads(self.sidecar.read_text())
             ok = isinstance(meta, dict) and meta.get("format") == FORMAT
-            ok = ok and isinstance(meta.get("sizes"), dict)
+            sizes = meta.get("sizes") if ok else None
+            ok = (
+                ok and isinstance(sizes, dict) and isinstance(meta.get("state"), (dict, type(None)))
+            )
+            ok = ok and all(
+                type(sizes.get(k)) is int and sizes[k] >= 0 for k in ("samples", "summary")
+            )
+            ok = ok and (meta["state"] is None or isinstance(meta["state"].get("counters"), dict))
         except (OSError, ValueError) as e:
             raise SinkError(f"{self.sidecar}: not a CSV sink checkpoint ({e})") from None
         if not ok:
-            raise SinkError(f"{self.sidecar}: not a CSV sink checkpoint (format {FORMAT} expected)")
+            raise SinkError(
+                f"{self.sidecar}: not a CSV sink checkpoint (format {FORMAT} with the files' sizes "
+                "and the twin's state expected)"
+            )
         if meta.get("version") != VERSION:
             raise SinkError(
                 f"{self.sidecar}: checkpoint version {meta.get('version')!r}; this twin reads "

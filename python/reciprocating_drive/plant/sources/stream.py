@@ -29,6 +29,11 @@ class StreamSource:
         self.path, self.follow, self.run_id, self.block = str(path), follow, run_id, block
         self.stdin = self.path == "-"
         self.rewindable = not self.stdin
+        if self.stdin:
+            self.resume_hint = (
+                "Standard input cannot be rewound: the run cannot be resumed from it; name a new "
+                "run.id, or resume from the same data as a file (source.path)."
+            )
         self.name = "standard input" if self.stdin else self.path
         self.ended = False
         self.q: queue.Queue = queue.Queue(maxsize=64)  # bounded: a fast producer waits
