@@ -259,3 +259,28 @@ def test_standard_input_stopped_by_sigterm_commits_and_says_it_cannot_resume(fmu
     assert "stopped by SIGTERM after input line 3001; committed" in err
     assert "Standard input cannot be rewound" in err and err.count("\n") == 1, err
     assert _covered(out) == _rows(out) >= 2900
+
+
+@pytest.mark.parametrize("sep", [",", ";"])
+def test_paced_replay_keeps_the_pace_of_a_semicolon_file(sep, tmp_path):
+    """A CSV file replayed at pace 4: 1 s of data takes at least 0.2 s (0.25 s less the first
+    block), whether its fields are separated by ',' or, as a European export writes it, by ';'
+    with decimal commas."""
+    from reciprocating_drive.plant.sources.csv import CsvSource
+
+    src = tmp_path / "in.csv"
+    lines = LINES[:1002]  # 1 kHz: 1 s of data after the header
+    if sep == ";":
+        lines = [line.replace(",", ";").replace(".", ",") for line in lines]
+    src.write_text("\n".join(lines) + "\n")
+    s = CsvSource(str(src), pace=4.0, block=1 << 10)
+    s.start()
+    start, got = time.monotonic(), []
+    while not s.ended:
+        c = s.get(0.1)
+        if c is not None:
+            got += c.lines
+    took = time.monotonic() - start
+    s.close()
+    assert got == lines
+    assert took >= 0.2, took  # the first block (about 60 lines) sets the origin
