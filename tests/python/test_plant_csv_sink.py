@@ -91,13 +91,16 @@ def test_csv_sink_with_sqlite_and_decimation(fmu_path, tmp_path, reference):
     assert len(pu.samples(db)) == len(ref) - 2
 
 
-def test_sigkill_three_times_the_csv_equals_a_clean_run(fmu_path, tmp_path, reference):
-    out = tmp_path / "out.csv"
+@pytest.mark.parametrize("with_sqlite", [False, True])
+def test_sigkill_three_times_the_csv_equals_a_clean_run(with_sqlite, fmu_path, tmp_path, reference):
+    """With an SQLite sink beside it, the two sinks' checkpoints differ at a kill: the twin
+    resumes from the one that covers least and each sink skips what it holds."""
+    out, db = tmp_path / "out.csv", tmp_path / "t.sqlite"
     # Paced at 6x real time (12 s of data in about 2 s) so that the kills fall inside the run.
     cfg = pu.write_config(
         tmp_path / "t.toml",
         source=pu.csv_source(pace=6.0),
-        sinks=csv_sink(out),
+        sinks=csv_sink(out) + (pu.sqlite_sink(db) if with_sqlite else ""),
         fmu=fmu_path,
         run_extra="commit_interval = 0.05\ncommit_samples = 2000\n",
     )
@@ -143,6 +146,10 @@ def test_sigkill_three_times_the_csv_equals_a_clean_run(fmu_path, tmp_path, refe
     done = pu.run(cfg)
     assert done.returncode == 0, done.stderr
     assert _files(out) == reference
+    if with_sqlite:
+        table, revs, _ = pu.clean_run(fmu_path)
+        assert pu.same_values(pu.samples(db), table, sqlite=True)
+        assert [r[1:] for r in pu.revolutions(db)] == revs
 
 
 def test_files_changed_behind_the_sinks_back_are_refused(fmu_path, tmp_path):
