@@ -57,14 +57,14 @@ def _with(table, key, value):
         ("run", "commit_interval", -1, "run.commit_interval = -1.0: must be a number > 0"),
         ("run", "commit_interval", float("nan"), "run.commit_interval = nan: must be a number > 0"),
         ("run", "commit_samples", 0, "run.commit_samples = 0: must be an integer >= 1"),
-        ("source", "type", "modbus", "source.type = 'modbus': allowed: csv, opcua"),
+        ("source", "type", "modbus", "source.type = 'modbus': allowed: csv, opcua, stdin"),
         ("source", "angle_unit", "grad", "source.angle_unit = 'grad': allowed: rad, deg, counts"),
         ("source", "angle_unit", "counts", "source.counts_per_rev is missing"),
         ("source", "pace", "fast", "source.pace = 'fast': must be a number >= 0"),
         ("source", "speed_node", "x", "source.speed_node is not a known key"),
         ("conditioning", "window", 0, "conditioning.window = 0.0: must be a number > 0"),
         ("conditioning", "duplicates", "keep", "conditioning.duplicates = 'keep': allowed"),
-        ("sink", "type", "mysql", "sink[0].type = 'mysql': allowed: sqlite, postgres"),
+        ("sink", "type", "mysql", "sink[0].type = 'mysql': allowed: sqlite, postgres, csv"),
         ("sink", "samples", 0, 'sink[0].samples = 0: allowed: "all", "none", or N >= 1'),
         ("sink", "samples", "some", "sink[0].samples = 'some'"),
         ("sink", "password", "hunter2", "a password is never written in the configuration"),
@@ -102,7 +102,9 @@ def test_the_command_reports_a_bad_file_in_one_line(tmp_path):
     bad.write_text('[run]\nid = "r"\nmachine_id = "m"\n[source]\ntype = "csv"\npath = 3\n')
     p = pu.run(bad)
     assert p.returncode == 2
-    assert p.stderr.strip() == f"{bad}: source.path = 3: the CSV file to replay"
+    assert p.stderr.strip() == (
+        f'{bad}: source.path = 3: the CSV file to replay, or "-" for standard input'
+    )
     broken = tmp_path / "broken.toml"
     broken.write_text("[run\n")
     p = pu.run(broken)

@@ -189,8 +189,8 @@ def parse(data: dict, path: str = "<config>") -> Config:
 
     src = _Table(path, "source", data.get("source", {}))
     if "source" not in data:
-        raise ConfigError(f'{path}: [source] is missing (type = "csv" or "opcua")')
-    stype = src.choice("type", ("csv", "opcua"))
+        raise ConfigError(f'{path}: [source] is missing (type = "csv", "stdin" or "opcua")')
+    stype = src.choice("type", ("csv", "opcua", "stdin"))
     opts = {
         "angle_unit": src.choice("angle_unit", ("rad", "deg", "counts"), "rad"),
         "counts_per_rev": src.get(
@@ -205,10 +205,9 @@ def parse(data: dict, path: str = "<config>") -> Config:
         )
     password = None
     if stype == "csv":
-        settings = {
-            "path": _path(path, src.get("path", str, allowed="the CSV file to replay")),
-            "pace": src.positive("pace", 0.0, zero=True),
-        }
+        settings = _csv_source_settings(src, path)
+    elif stype == "stdin":
+        settings = {"path": "-", "pace": 0.0, "follow": False}
     else:
         settings = _opcua_settings(src, path)
         password = _secret(src, "source")
@@ -226,11 +225,13 @@ def parse(data: dict, path: str = "<config>") -> Config:
 
     sinks_data = data.get("sink", [])
     if not isinstance(sinks_data, list) or not sinks_data:
-        raise ConfigError(f'{path}: no [[sink]] (at least one: type = "sqlite" or "postgres")')
+        raise ConfigError(
+            f'{path}: no [[sink]] (at least one: type = "sqlite", "postgres" or "csv")'
+        )
     sinks = []
     for i, sd in enumerate(sinks_data):
         s = _Table(path, f"sink[{i}]", sd)
-        stype_ = s.choice("type", ("sqlite", "postgres"))
+        stype_ = s.choice("type", ("sqlite", "postgres", "csv"))
         samples = s.get(
             "samples",
             (str, int),
@@ -246,6 +247,8 @@ def parse(data: dict, path: str = "<config>") -> Config:
         pw = None
         if stype_ == "sqlite":
             settings_ = {"path": _path(path, s.get("path", str, allowed="the database file"))}
+        elif stype_ == "csv":
+            settings_ = _csv_sink_settings(s, path)
         else:
             settings_ = {
                 "dsn": s.get(
@@ -259,6 +262,7 @@ def parse(data: dict, path: str = "<config>") -> Config:
             pw = _secret(s, f"sink[{i}]")
         s.done()
         sinks.append(SinkConfig(stype_, {**settings_, **common}, pw))
+    _distinct_files(path, settings if stype != "opcua" else {}, sinks)
     top.used.update(data)
     return Config(
         path,
@@ -320,3 +324,50 @@ def _opcua_settings(src: _Table, path: str) -> dict:
                 f"{path}: source.trust is missing (the server certificates to trust, a list of files)"
             )
     return s
+
+
+def _csv_sink_settings(s: _Table, path: str) -> dict:
+    """The files of a CSV sink (docs/plant.md "CSV sink"), beside `path` by default."""
+    out = _path(path, s.get("path", str, allowed="the per-sample CSV file to write"))
+    stem = pathlib.Path(out)
+    return {
+        "path": out,
+        "summary": _path(
+            path, s.get("summary", str, str(stem.with_name(stem.stem + "-revolutions.csv")))
+        ),
+        "checkpoint": _path(
+            path, s.get("checkpoint", str, str(stem.with_name(stem.name + ".checkpoint.json")))
+        ),
+    }
+
+
+def _distinct_files(path: str, source: dict, sinks: list) -> None:
+    """No file is written twice or over the input (it would be destroyed)."""
+    seen = {}
+    if source.get("path") and source["path"] != "-":
+        seen[str(pathlib.Path(source["path"]).resolve())] = "source.path"
+    for i, sk in enumerate(sinks):
+        keys = ("path", "summary", "checkpoint") if sk.type == "csv" else ("path",)
+        for k in keys:
+            if k not in sk.settings:
+                continue
+            f = str(pathlib.Path(sk.settings[k]).resolve())
+            if f in seen:
+                raise ConfigError(
+                    f"{path}: sink[{i}].{k} = {sk.settings[k]!r}: the same file as {seen[f]}; "
+                    "each file is read or written by one part only"
+                )
+            seen[f] = f"sink[{i}].{k}"
+
+
+def _csv_source_settings(src: _Table, path: str) -> dict:
+    """A CSV file replayed, a growing file followed, or standard input (`path = "-"`)
+    (docs/plant.md "Sources")."""
+    p = src.get("path", str, allowed='the CSV file to replay, or "-" for standard input')
+    follow = src.get("follow", bool, False)
+    pace = src.positive("pace", 0.0, zero=True)
+    if p == "-" and follow:
+        raise src.err("follow", True, 'follows a file, not standard input (path = "-")')
+    if pace > 0 and (follow or p == "-"):
+        raise src.err("pace", pace, "a followed file or standard input comes at its own pace; 0")
+    return {"path": p if p == "-" else _path(path, p), "pace": pace, "follow": follow}

@@ -34,6 +34,12 @@ class SourceError(RuntimeError):
 
 def make_source(cfg: Config):
     s = cfg.source
+    if s.type == "stdin" or (
+        s.type == "csv" and (s.settings["follow"] or s.settings["path"] == "-")
+    ):
+        from .sources.stream import StreamSource
+
+        return StreamSource(s.settings["path"], follow=s.settings["follow"], run_id=cfg.run_id)
     if s.type == "csv":
         from .sources.csv import CsvSource
 
@@ -51,6 +57,17 @@ def make_sinks(cfg: Config) -> list:
             from .sinks.sqlite import SqliteSink
 
             out.append(SqliteSink(s.settings["path"], **common))
+        elif s.type == "csv":
+            from .sinks.csv import CsvSink
+
+            out.append(
+                CsvSink(
+                    s.settings["path"],
+                    summary=s.settings["summary"],
+                    checkpoint=s.settings["checkpoint"],
+                    **common,
+                )
+            )
         else:
             from .sinks.postgres import PostgresSink
 
@@ -215,6 +232,7 @@ class Pipeline:
             twin.outputs,
             cfg.options,
             cfg.source.public(),
+            header=twin.header_with_units(),
         )
         states = [s.open(info) for s in self.sinks]
         have = [st for st in states if st is not None]
@@ -270,7 +288,10 @@ class Pipeline:
         try:
             while self.stop_signal is None:
                 wait = max(0.0, cfg.commit_interval - (time.monotonic() - self.last_commit))
-                chunk = self.source.get(wait)
+                try:
+                    chunk = self.source.get(wait)
+                except DataError as e:  # a followed file truncated, replaced or removed
+                    return self._failed(e)
                 if self.page is not None:
                     connected = getattr(self.source, "connected", None)
                     self.page.health(connected=connected.is_set() if connected else True)
@@ -306,9 +327,13 @@ class Pipeline:
                     )
             if self.stop_signal is not None:
                 self._commit()
+                hint = getattr(
+                    self.source,
+                    "resume_hint",
+                    "Run again with the same configuration to resume.",
+                )
                 self.log(
-                    f"stopped by {self.stop_signal} after input line {lineno}; committed. Run "
-                    "again with the same configuration to resume."
+                    f"stopped by {self.stop_signal} after input line {lineno}; committed. {hint}"
                 )
                 # Not 0: the run did not reach the end of its input (128 + the signal, as a shell).
                 return 128 + int(signal.Signals[self.stop_signal])
@@ -320,7 +345,7 @@ class Pipeline:
             if twin.rows_out == 0:
                 self._event(Event("data_error", "the input holds no sample"))
                 self._commit("failed")
-                self.log(f"{cfg.source.public().get('path', 'source')}: the input holds no sample")
+                self.log(f"{self._source_name()}: the input holds no sample")
                 return 1
             self._event(Event("finished", f"finished: {twin.rows_out} samples"))
             self._commit("finished")
@@ -343,9 +368,14 @@ class Pipeline:
         kind = "fmu_error" if isinstance(e, FmuError) else "data_error"
         self._event(Event(kind, str(e)))
         self._commit("failed")
-        src = self.cfg.source.public()
-        self.log(f"{src.get('path') or src.get('endpoint') or 'twin'}: {e}")
+        self.log(f"{self._source_name()}: {e}")
         return 1
+
+    def _source_name(self) -> str:
+        src = self.cfg.source.public()
+        if src.get("path") == "-":
+            return "standard input"
+        return src.get("path") or src.get("endpoint") or "twin"
 
 
 def run_config(path: str, log=None) -> int:

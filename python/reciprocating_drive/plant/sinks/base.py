@@ -47,6 +47,7 @@ class RunInfo:
     options: dict
     source: dict  # the source's settings without secrets
     time_origin: float | None = None
+    header: list[str] | None = None  # `time` and the outputs as `name [unit]` (the CSV sink's)
 
 
 @dataclass

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import time
 
+from ...twin import detect_separator
 from ..samples import Chunk
 
 
@@ -44,23 +45,27 @@ class CsvSource:
                     tail = data[cut + 1 :]
                 if lineno == 0 and lines:
                     lines[0] = lines[0].removeprefix("\ufeff")
-                    names = [c.strip() for c in lines[0].split(",")]
+                    # The twin detects the separator from the header (docs/twin.md "Input"):
+                    # pacing reads the times the same way.
+                    sep = detect_separator(lines[0])
+                    names = [c.strip().strip('"').strip() for c in lines[0].split(sep)]
                     time_col = names.index("time") if "time" in names else None
                 first = lineno
                 lineno += len(lines)
                 if lineno > skip:
                     lines = lines[max(0, skip - first) :]
                     if self.pace > 0 and time_col is not None:
-                        t0, wall0 = self._wait(lines, time_col, t0, wall0)
+                        t0, wall0 = self._wait(lines, time_col, t0, wall0, sep)
                     yield Chunk(lines=lines)
                 if not data:
                     return
 
-    def _wait(self, lines, col, t0, wall0):
+    def _wait(self, lines, col, t0, wall0, sep=","):
         """Sleeps until the last sample of these lines is due (pace times real time)."""
         for line in reversed(lines):
             try:
-                t = float(line.split(",")[col])
+                field = line.split(sep)[col]
+                t = float(field.replace(",", ".") if sep == ";" else field)
             except (ValueError, IndexError):
                 continue
             if t0 is None:
