@@ -2,8 +2,9 @@
 
 A worker needs the `reciprocating_drive` package (the functions it runs are pickled by reference),
 so it runs in an environment where the wheel is installed (scripts/build-wheel.sh). Nothing else is
-shared: the client scatters the FMU's bytes, and each worker process keeps them in a private
-temporary folder, keyed by their SHA-256, so a case never names a path of the client's machine.
+shared: the client ships the FMU's bytes in a worker plugin, and each worker process keeps them in
+a private temporary folder, keyed by their SHA-256, so a case never names a path of the client's
+machine.
 
 Before any case runs, `prepare_workers` checks that every worker runs the client's package version
 and names each worker that does not, with both versions: a worker with other code would compute
@@ -16,6 +17,8 @@ import hashlib
 import os
 import pathlib
 import tempfile
+
+from distributed.diagnostics.plugin import WorkerPlugin
 
 from ._version import __version__
 
@@ -59,17 +62,32 @@ def _receive_fmu(data: bytes, key: str) -> str:
     return path
 
 
-def local_fmu(key: str, data: bytes) -> str:
-    """On a worker: the local path of the FMU the client shipped (`prepare_workers`). `data` is the
-    scattered future's value, which Dask fetches to each worker once, also to a worker that joins
-    during the sweep."""
-    return _receive_fmu(data, key)
+def local_fmu(key: str) -> str:
+    """On a worker: the local path of the FMU the client shipped (`prepare_workers`)."""
+    path = _RECEIVED.get(key)
+    if path is None or not os.path.isfile(path):
+        raise RuntimeError(f"this worker has not received the FMU {key[:16]} from the client")
+    return path
 
 
-def prepare_workers(client, fmu_path: str | os.PathLike):
-    """Checks every worker's package version against the client's, then scatters the FMU's bytes.
-    Returns (key, future of the bytes) for the cases to pass to `local_fmu`. Raises WorkerMismatch
-    naming each worker whose version differs, before anything runs."""
+class ShipFmu(WorkerPlugin):
+    """A Dask worker plugin that stores the client's FMU on every worker, those of the cluster
+    now and those that join later (its `setup` runs on each). Cases then carry only the FMU's
+    SHA-256, so the scheduler spreads them over the workers as it would any task without data."""
+
+    name = "reciprocating-drive-fmu"
+
+    def __init__(self, data: bytes, key: str):
+        self.data, self.key = data, key
+
+    def setup(self, worker=None) -> None:
+        _receive_fmu(self.data, self.key)
+
+
+def prepare_workers(client, fmu_path: str | os.PathLike) -> str:
+    """Checks every worker's versions against the client's, then ships the FMU to every worker
+    (ShipFmu). Returns the FMU's SHA-256, which the cases pass to `local_fmu`. Raises
+    WorkerMismatch naming each worker whose versions differ, before anything runs."""
     ids = client.run(_identity)
     mine = _identity()
     wrong = {
@@ -85,4 +103,6 @@ def prepare_workers(client, fmu_path: str | os.PathLike):
             f"{names}; install the same wheel and dask on every worker"
         )
     data = pathlib.Path(fmu_path).read_bytes()
-    return fmu_key(data), client.scatter(data, broadcast=True)
+    key = fmu_key(data)
+    client.register_plugin(ShipFmu(data, key), name=ShipFmu.name)
+    return key

@@ -168,18 +168,16 @@ def _worker_name() -> str:
         return f"pid {os.getpid()}"
 
 
-def run_batch(
-    fmu_path: str, study: Study, cases: list[int], fmu_data: bytes | None = None
-) -> list[dict]:
+def run_batch(fmu_path: str, study: Study, cases: list[int], shipped: bool = False) -> list[dict]:
     """One Dask task: the cases `cases` of `study`, each a result row (never raises for a case).
-    `fmu_data`: the FMU's bytes shipped by the client to a cluster that shares no disk with it
-    (cluster.py); `fmu_path` is then their SHA-256, otherwise a path on this machine."""
+    `shipped`: `fmu_path` is the SHA-256 of the FMU the client shipped to a cluster that shares no
+    disk with it (cluster.py), otherwise a path on this machine."""
     from .fmu import FmuError
 
-    if fmu_data is not None:
+    if shipped:
         from .cluster import local_fmu
 
-        fmu_path = local_fmu(fmu_path, fmu_data)
+        fmu_path = local_fmu(fmu_path)
     fmu = _worker_fmu(fmu_path)
     out = []
     for i in cases:
@@ -555,12 +553,12 @@ def run_sweep(
     # A cluster of other machines shares no disk with the client: every worker's package version is
     # checked before anything runs, and the FMU travels as bytes (cluster.py). A LocalCluster's
     # workers run here and open the FMU's path.
-    fmu_ref, fmu_data = fmu_path, None
+    fmu_ref, shipped = fmu_path, False
     if scheduler:
         from .cluster import WorkerMismatch, prepare_workers
 
         try:
-            fmu_ref, fmu_data = prepare_workers(client, fmu_path)
+            fmu_ref, shipped = prepare_workers(client, fmu_path), True
         except WorkerMismatch as e:
             client.close()
             raise SweepError(f"--scheduler {scheduler}: {e}") from None
@@ -586,9 +584,7 @@ def run_sweep(
 
         def submit():
             b = list(itertools.islice(todo, size))
-            return (
-                client.submit(run_batch, fmu_ref, study_f, b, fmu_data, pure=False) if b else None
-            )
+            return client.submit(run_batch, fmu_ref, study_f, b, shipped, pure=False) if b else None
 
         t0 = time.perf_counter()
         state.started = True

@@ -443,6 +443,8 @@ class Twin:
         self.lines_read = 0  # input lines consumed (header included)
         self.rows_out = 0
         self.messages: list = []
+        #: The message of each gap found in this process, by (t0, t1) (gaps holds them all).
+        self.gap_notes: dict = {}
         #: (first line, samples) of each segment left out as too short (Options.short_segments).
         self.short_dropped: list = []
 
@@ -600,10 +602,12 @@ class Twin:
             if lo in gaps:
                 t0, t1 = (self.last_t if lo == 0 else float(t[lo - 1])), float(t[lo])
                 self.gaps.append((t0, t1))
-                self.messages.append(
+                note = (
                     f"gap of {t1 - t0:.6g} s from t = {t0!r} s to {t1!r} s (line {ln[lo]}): "
                     "the FMU is re-initialized after it"
                 )
+                self.messages.append(note)
+                self.gap_notes[(t0, t1)] = note
                 self._drain(True, rows)
                 self.buf = _Segment()
             if hi > lo:

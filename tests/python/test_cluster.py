@@ -153,22 +153,22 @@ def test_workers_without_the_repository_compute_with_the_shipped_fmu(
                 assert v["user"] == worker_user
                 assert not v["sees_repository"]
                 assert str(ROOT) not in v["package"]  # the wheel's copy, not the checkout's
-            key, data = prepare_workers(client, fmu_path)
+            key = prepare_workers(client, fmu_path)
 
             # Defined here, not at module level, so that Dask sends it by value (the workers cannot
             # import this test file); it loads the shipped FMU and steps it once.
-            def _guid_and_row(key, data):
+            def _guid_and_row(key):
                 from reciprocating_drive.cluster import local_fmu
                 from reciprocating_drive.fmu import Fmu
 
-                fmu = Fmu(local_fmu(key, data))
+                fmu = Fmu(local_fmu(key))
                 fmu.start({"crank.angle": 0.7, "crank.speed": 6.8})
                 fmu.step(1e-3)
                 names = ["suspension.position", "suspension.acceleration", "crank.torque"]
                 return fmu.model_description.guid, fmu.get(names)
 
             results = client.gather(
-                [client.submit(_guid_and_row, key, data, pure=False, workers=[w]) for w in views]
+                [client.submit(_guid_and_row, key, pure=False, workers=[w]) for w in views]
             )
     ref = Fmu(fmu_path)
     expected = (ref.model_description.guid, _one_step(ref))

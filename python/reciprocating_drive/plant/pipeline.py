@@ -137,7 +137,11 @@ class Pipeline:
             # such as the separator it detected, are not gaps).
             if tuple(gap) != self.last_gap:
                 t0, t1 = gap
-                msg = f"gap of {t1 - t0:.6g} s from t = {t0!r} s to {t1!r} s: the FMU is re-initialized after it"
+                msg = tw.gap_notes.get(
+                    (t0, t1),
+                    f"gap of {t1 - t0:.6g} s from t = {t0!r} s to {t1!r} s: the FMU is "
+                    "re-initialized after it",
+                )
                 self._event(Event("gap", msg, t=t0))
                 self.gap_count += 1
             self.last_gap = tuple(gap)
