@@ -60,6 +60,31 @@ def repository_hidden():
         os.chmod(ROOT, mode)
 
 
+@contextlib.contextmanager
+def package_of_another_version(where: pathlib.Path, version: str = "0.0.1"):
+    """A copy of the wheel's installed package whose distribution says `version`, in a folder to
+    put ahead of the venv's site-packages (PYTHONPATH): a worker that really imports other code.
+    Yields the folder; removes it afterwards."""
+    from reciprocating_drive._version import __version__
+
+    site = next((where / "venv" / "lib").glob("python3*/site-packages"))
+    other = pathlib.Path(tempfile.mkdtemp(prefix="rdrive-other-"))
+    os.chmod(other, 0o755)
+    try:
+        shutil.copytree(site / "reciprocating_drive", other / "reciprocating_drive")
+        info = next(site.glob("reciprocating_drive-*.dist-info"))
+        dest = other / f"reciprocating_drive-{version}.dist-info"
+        shutil.copytree(info, dest)
+        meta = (dest / "METADATA").read_text()
+        (dest / "METADATA").write_text(
+            meta.replace(f"Version: {__version__}", f"Version: {version}")
+        )
+        subprocess.run(["chmod", "-R", "a+rX", str(other)], check=True, timeout=30)
+        yield other
+    finally:
+        shutil.rmtree(other, ignore_errors=True)
+
+
 def _stop(procs):
     for p in procs:
         if p.poll() is None:
@@ -183,32 +208,16 @@ def test_a_worker_with_another_version_is_named_before_anything_runs(wheel_venv,
     from reciprocating_drive.cluster import WorkerMismatch, prepare_workers
 
     bin_dir, _, where = wheel_venv
-    # A copy of the installed package whose distribution says another version, put ahead of the
-    # venv's site-packages: a worker that really imports other code.
-    site = next((where / "venv" / "lib").glob("python3*/site-packages"))
-    other = pathlib.Path(tempfile.mkdtemp(prefix="rdrive-other-"))
-    os.chmod(other, 0o755)
-    try:
-        shutil.copytree(site / "reciprocating_drive", other / "reciprocating_drive")
-        info = next(site.glob("reciprocating_drive-*.dist-info"))
-        dest = other / "reciprocating_drive-0.0.1.dist-info"
-        shutil.copytree(info, dest)
-        meta = (dest / "METADATA").read_text()
-        (dest / "METADATA").write_text(meta.replace(f"Version: {__version__}", "Version: 0.0.1"))
-        subprocess.run(["chmod", "-R", "a+rX", str(other)], check=True, timeout=30)
-        with (
-            repository_hidden(),
-            cluster(
-                bin_dir, worker_user, n_workers=1, extra_env={"PYTHONPATH": str(other)}
-            ) as address,
-        ):
-            with Client(address, timeout=30) as client:
-                t0 = time.monotonic()
-                with pytest.raises(WorkerMismatch) as e:
-                    prepare_workers(client, ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu")
-                assert time.monotonic() - t0 < 30
-    finally:
-        shutil.rmtree(other, ignore_errors=True)
+    with (
+        package_of_another_version(where) as other,
+        repository_hidden(),
+        cluster(bin_dir, worker_user, n_workers=1, extra_env={"PYTHONPATH": str(other)}) as address,
+        Client(address, timeout=30) as client,
+    ):
+        t0 = time.monotonic()
+        with pytest.raises(WorkerMismatch) as e:
+            prepare_workers(client, ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu")
+        assert time.monotonic() - t0 < 30
     msg = str(e.value)
     assert "0.0.1" in msg and __version__ in msg and "tcp://127.0.0.1:" in msg
 
@@ -253,27 +262,16 @@ def test_the_sweep_names_a_worker_of_another_version_and_runs_nothing(
     from reciprocating_drive._version import __version__
 
     bin_dir, _, where = wheel_venv
-    site = next((where / "venv" / "lib").glob("python3*/site-packages"))
-    other = pathlib.Path(tempfile.mkdtemp(prefix="rdrive-other-"))
-    os.chmod(other, 0o755)
-    try:
-        shutil.copytree(site / "reciprocating_drive", other / "reciprocating_drive")
-        info = next(site.glob("reciprocating_drive-*.dist-info"))
-        dest = other / "reciprocating_drive-0.0.1.dist-info"
-        shutil.copytree(info, dest)
-        meta = (dest / "METADATA").read_text()
-        (dest / "METADATA").write_text(meta.replace(f"Version: {__version__}", "Version: 0.0.1"))
-        subprocess.run(["chmod", "-R", "a+rX", str(other)], check=True, timeout=30)
-        env = {"PYTHONPATH": str(other)}
-        with cluster(bin_dir, worker_user, n_workers=1, extra_env=env) as address:
-            r = subprocess.run(
-                [sys.executable, str(ROOT / "scripts" / "sweep.py"),
-                 str(ROOT / "studies" / "default_balancer.toml"), "--scheduler", address,
-                 "--out-dir", str(tmp_path), "--fmu", fmu_path, "--no-progress"],
-                capture_output=True, text=True, timeout=300,
-            )  # fmt: skip
-    finally:
-        shutil.rmtree(other, ignore_errors=True)
+    with (
+        package_of_another_version(where) as other,
+        cluster(bin_dir, worker_user, n_workers=1, extra_env={"PYTHONPATH": str(other)}) as address,
+    ):
+        r = subprocess.run(
+            [sys.executable, str(ROOT / "scripts" / "sweep.py"),
+             str(ROOT / "studies" / "default_balancer.toml"), "--scheduler", address,
+             "--out-dir", str(tmp_path), "--fmu", fmu_path, "--no-progress"],
+            capture_output=True, text=True, timeout=300,
+        )  # fmt: skip
     assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
     line = r.stderr.strip()
     assert (

@@ -22,25 +22,7 @@ ROOT = Path(__file__).resolve().parents[2]
 def test_page_follows_the_plant_twins_sqlite_database(fmu_path, tmp_path, monkeypatch):
     monkeypatch.setenv("RD_FMU", fmu_path)
     db = tmp_path / "twin.sqlite"
-    cfg = tmp_path / "twin.toml"
-    cfg.write_text(
-        f"""[run]
-id = "page-test"
-machine_id = "pump-1"
-machine = "default"
-
-[source]
-type = "csv"
-path = "{ROOT / "data" / "twin" / "pump_encoder.csv"}"
-angle_unit = "counts"
-counts_per_rev = 4096
-
-[[sink]]
-type = "sqlite"
-path = "{db}"
-samples = "all"
-"""
-    )
+    cfg = _config(tmp_path, db, page=None, pace=0, samples="all")
     assert pipeline.run_config(str(cfg), log=lambda m: None) == 0
     page = PageServer(port=0, database=str(db)).start()
     try:
@@ -68,11 +50,14 @@ samples = "all"
         page.close()
 
 
-def _config(tmp_path, db, page: str, pace: float = 1.0) -> Path:
+def _config(tmp_path, db, page: str | None, pace: float = 1.0, samples: str = "none") -> Path:
+    """A twin configuration replaying the shipped sample into SQLite, with a [page] table of the
+    given lines (None: none)."""
     cfg = tmp_path / "twin.toml"
+    page_table = "" if page is None else f"\n[page]\n{page}\n"
     cfg.write_text(
         f"""[run]
-id = "page-live"
+id = "page-test"
 machine_id = "pump-1"
 machine = "default"
 
@@ -86,11 +71,8 @@ pace = {pace}
 [[sink]]
 type = "sqlite"
 path = "{db}"
-samples = "none"
-
-[page]
-{page}
-"""
+samples = "{samples}"
+{page_table}"""
     )
     return cfg
 
