@@ -90,3 +90,26 @@ def ddl(dialect: str, outputs: list[str]) -> list[str]:
 SAMPLE_COLUMNS = ("run", "seq", "t")
 REVOLUTION_COLUMNS = ("run", *SUMMARY_FIELDS)
 EVENT_COLUMNS = ("run", "seq", "t", "wall_time", "kind", "count", "message")
+
+
+def insert_events(ph: str) -> str:
+    """The INSERT of data-health events, with the driver's placeholder `ph` (? or %s)."""
+    return f"INSERT INTO events ({', '.join(EVENT_COLUMNS)}) VALUES ({', '.join([ph] * 7)})"
+
+
+def upsert_checkpoint(ph: str, rows_only: bool) -> str:
+    """The checkpoint's row of a run, in the same transaction as the rows it covers (docs/plant.md
+    "Exactly once"). `rows_only`: a commit without a new checkpoint moves only the commit number
+    (to settle a COMMIT of unknown outcome); parameters (run, commits, wall_time). Otherwise
+    (run, commits, samples, revolutions, events, wall_time, state)."""
+    cols = "run, commits, samples, revolutions, events, wall_time, state"
+    if rows_only:
+        return (
+            f"INSERT INTO checkpoints ({cols}) VALUES ({ph}, {ph}, 0, 0, 0, {ph}, '') "
+            "ON CONFLICT (run) DO UPDATE SET commits = excluded.commits"
+        )
+    update = ", ".join(f"{c} = excluded.{c}" for c in cols.split(", ")[1:])
+    return (
+        f"INSERT INTO checkpoints ({cols}) VALUES ({', '.join([ph] * 7)}) "
+        f"ON CONFLICT (run) DO UPDATE SET {update}"
+    )

@@ -14,7 +14,7 @@ import numpy as np
 import psycopg
 
 from ...twin import SUMMARY_FIELDS
-from ..schema import SCHEMA_VERSION, column, ddl
+from ..schema import SCHEMA_VERSION, column, ddl, insert_events, upsert_checkpoint
 from .base import RunInfo, Sink, SinkError, uncovered
 
 _COPY_HEADER = b"PGCOPY\n\xff\r\n\x00" + (0).to_bytes(4, "big") + (0).to_bytes(4, "big")
@@ -169,8 +169,7 @@ class PostgresSink(Sink):
                         )
                     if batch.events:
                         cur.executemany(
-                            "INSERT INTO events (run, seq, t, wall_time, kind, count, message) "
-                            "VALUES (%s, %s, %s, %s, %s, %s, %s)",
+                            insert_events("%s"),
                             [
                                 (run, s, e.t, w, e.kind, e.count, e.message)
                                 for s, w, e in batch.events
@@ -179,19 +178,12 @@ class PostgresSink(Sink):
                     if state is None:
                         # Rows only: the commit number moves (to settle an unknown outcome).
                         cur.execute(
-                            "INSERT INTO checkpoints (run, commits, samples, revolutions, events, "
-                            "wall_time, state) VALUES (%s, %s, 0, 0, 0, %s, '') ON CONFLICT (run) "
-                            "DO UPDATE SET commits = excluded.commits",
+                            upsert_checkpoint("%s", rows_only=True),
                             (run, c.commits, time.time()),
                         )
                     else:
                         cur.execute(
-                            "INSERT INTO checkpoints (run, commits, samples, revolutions, events, "
-                            "wall_time, state) VALUES (%s, %s, %s, %s, %s, %s, %s) ON CONFLICT "
-                            "(run) DO UPDATE SET commits = excluded.commits, "
-                            "samples = excluded.samples, revolutions = excluded.revolutions, "
-                            "events = excluded.events, wall_time = excluded.wall_time, "
-                            "state = excluded.state",
+                            upsert_checkpoint("%s", rows_only=False),
                             (
                                 run,
                                 c.commits,

@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from ...twin import SUMMARY_FIELDS
-from ..schema import SCHEMA_VERSION, column, ddl
+from ..schema import SCHEMA_VERSION, column, ddl, insert_events, upsert_checkpoint
 from .base import RunInfo, Sink, SinkError, uncovered
 
 
@@ -137,25 +137,18 @@ class SqliteSink(Sink):
                 )
             if batch.events:
                 db.executemany(
-                    "INSERT INTO events (run, seq, t, wall_time, kind, count, message) "
-                    "VALUES (?, ?, ?, ?, ?, ?, ?)",
+                    insert_events("?"),
                     ((run, s, e.t, w, e.kind, e.count, e.message) for s, w, e in batch.events),
                 )
             if state is None:
                 # Rows only: the commit number moves (to settle a COMMIT of unknown outcome).
                 db.execute(
-                    "INSERT INTO checkpoints (run, commits, samples, revolutions, events, "
-                    "wall_time, state) VALUES (?, ?, 0, 0, 0, ?, '') ON CONFLICT (run) DO UPDATE "
-                    "SET commits = excluded.commits",
+                    upsert_checkpoint("?", rows_only=True),
                     (run, c.commits, time.time()),
                 )
             else:
                 db.execute(
-                    "INSERT INTO checkpoints (run, commits, samples, revolutions, events, "
-                    "wall_time, state) VALUES (?, ?, ?, ?, ?, ?, ?) ON CONFLICT (run) DO UPDATE "
-                    "SET commits = excluded.commits, samples = excluded.samples, "
-                    "revolutions = excluded.revolutions, events = excluded.events, "
-                    "wall_time = excluded.wall_time, state = excluded.state",
+                    upsert_checkpoint("?", rows_only=False),
                     (run, c.commits, c.samples, c.revolutions, c.events, time.time(), state),
                 )
             origin = json.loads(state).get("time_origin") if state else None
