@@ -175,27 +175,14 @@ def draw_beam_units():
         ax.plot(*B, "k^", ms=10)
         ax.plot(*E, "ko", ms=4)
         ax.plot(0, 0, "ko")
+        ax.annotate(
+            "centre bearing", B, textcoords="offset points", xytext=(0, 12), ha="center", fontsize=9
+        )
         if cls == "I":
-            ax.annotate(
-                "centre bearing",
-                B,
-                textcoords="offset points",
-                xytext=(0, 12),
-                ha="center",
-                fontsize=9,
-            )
             ax.annotate(
                 "equalizer", E, textcoords="offset points", xytext=(-8, 8), ha="right", fontsize=9
             )
         else:
-            ax.annotate(
-                "centre bearing",
-                B,
-                textcoords="offset points",
-                xytext=(0, 12),
-                ha="center",
-                fontsize=9,
-            )
             ax.annotate(
                 "equalizer", E, textcoords="offset points", xytext=(10, -14), ha="left", fontsize=9
             )

@@ -17,19 +17,14 @@ import signal
 import sys
 
 
-def quiet_interrupt() -> None:
-    """Ctrl-C while the modules load (numpy, fmpy, dask take a while): a quiet stop with exit code
-    130, not a traceback. `load` puts Python's own handler back before the command runs: each
-    command handles KeyboardInterrupt itself (cli_errors.run_cli: "stopped; resume with ...")."""
-    signal.signal(signal.SIGINT, lambda signum, frame: sys.exit(130))
-
-
 def load(module: str):
-    """Imports a command's module quietly (quiet_interrupt), then restores the default SIGINT
-    handler, under which Ctrl-C raises KeyboardInterrupt in the command."""
+    """Imports a command's module. Ctrl-C while the modules load (numpy, fmpy, dask take a while)
+    is a quiet stop with exit code 130, not a traceback; then Python's own handler is put back,
+    under which Ctrl-C raises KeyboardInterrupt in the command, which handles it itself
+    (cli_errors.run_cli: "stopped; resume with ...")."""
     import importlib
 
-    quiet_interrupt()
+    signal.signal(signal.SIGINT, lambda signum, frame: sys.exit(130))
     mod = importlib.import_module(f"reciprocating_drive.commands.{module}")
     signal.signal(signal.SIGINT, signal.default_int_handler)
     return mod

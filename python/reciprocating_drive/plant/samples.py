@@ -11,10 +11,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-#: The header of the lines made from samples (the twin's CSV input, docs/twin.md "Input") with
-#: every optional column; `sample_header` names only the columns a source has.
-SAMPLE_HEADER = "time,crank_angle,crank_speed,process_force"
-
 
 def sample_header(speed: bool, force: bool) -> str:
     """The header of `sample_lines` for a source that measures speed and/or force. A column the
