@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .batch import format_csv
-from .fmu import FmuError
+from .fmu import Fmu, FmuError
 from .line_input import chunks_of
 from .revolution import TWO_PI
 from .twin import SUMMARY_FIELDS, DataError, Options, Twin, _Segment
@@ -151,6 +151,7 @@ class Scanned:
     options: Options  # resolved
     values: dict
     sigma: float | None
+    offset: float  # crank.angle_offset [rad]
 
 
 def scan(path: str, fmu: str, machine: str, options: Options, stop=None) -> Scanned:
@@ -182,6 +183,7 @@ def scan(path: str, fmu: str, machine: str, options: Options, stop=None) -> Scan
         options=tw.o,
         values=dict(tw.values),
         sigma=cage_decay_rate(tw.values, starts),
+        offset=float(tw.values.get("crank.angle_offset", starts.get("crank.angle_offset", 0.0))),
     )
 
 
@@ -203,27 +205,34 @@ def plan(sc: Scanned, revolutions_per_piece: int | None, overlap: float | None, 
     for a, b in zip(bounds[:-1], bounds[1:]):
         cuts_at = [a]
         if revolutions_per_piece:
-            step = TWO_PI * revolutions_per_piece
-            k = 1
+            # At the model angle's revolution boundaries (crank angle + crank.angle_offset,
+            # docs/fmi-interface.md): the last revolution of a piece then ends at its cut, and
+            # the tail is only the smoothing window's half-width.
+            ma = th[a:b] + sc.offset
+            r = math.ceil(ma[0] / TWO_PI) + revolutions_per_piece
             while True:
-                c = int(np.searchsorted(th[a:b], th[a] + step * k, side="left")) + a
+                c = int(np.searchsorted(ma, TWO_PI * r, side="left")) + a
                 if c >= b:
                     break
                 if c > cuts_at[-1]:
                     cuts_at.append(c)
-                k += 1
+                r += revolutions_per_piece
+        aligned = set(cuts_at)
         cuts_here = sorted({*cuts_at, *(c for c in extra if a < c < b), b})
         for s, e in zip(cuts_here[:-1], cuts_here[1:]):
             # Warm-up: the window's half-width and the sample before, and the cage's time. Near
             # the segment's end the window shifts inward (docs/twin.md "Conditioning"): the
             # last sample's window starts 2·half samples before the end.
-            w = max(a, min(s - half - 2, b - 2 * half - 3))
+            w = max(a, min(s - half - 4, b - 2 * half - 3))
             if warm_s > 0 and s > a:
                 w = min(w, max(a, int(np.searchsorted(t, t[s] - warm_s, side="right")) - 1))
             # Tail: the revolution in progress at e completes within 2π of angle after e-1
             # (model angle = crank angle + a constant; the angle only grows within a segment),
             # then the window's half-width.
-            if e < b:
+            if e < b and e in aligned:
+                # A boundary found from the crank angle may be a sample off the FMU's own.
+                f = min(b, max(e + half + 5, a + 2 * half + 3))
+            elif e < b:
                 x = int(np.searchsorted(th[a:b], th[e - 1] + TWO_PI, side="right")) + a + 1
                 f = min(b, max(max(e, x) + half + 2, a + 2 * half + 3))
             else:
@@ -232,11 +241,22 @@ def plan(sc: Scanned, revolutions_per_piece: int | None, overlap: float | None, 
     return pieces
 
 
-def run_piece(fmu_key_or_path, values, options: dict, half: int, cols: dict, piece, arrays):
+#: FMUs loaded in this (worker) process, by path.
+_LOADED: dict = {}
+
+
+def run_piece(
+    fmu_key_or_path, values, options: dict, half: int, cols: dict, offset: float, piece, arrays
+):
     """On a worker: the formatted rows and summaries of one piece (bytes, bytes, rows)."""
     from .cluster import _RECEIVED, local_fmu
 
-    fmu = local_fmu(fmu_key_or_path) if fmu_key_or_path in _RECEIVED else fmu_key_or_path
+    path = local_fmu(fmu_key_or_path) if fmu_key_or_path in _RECEIVED else fmu_key_or_path
+    # One loaded FMU per worker process, re-initialized at each piece's first sample as the
+    # sequential twin re-initializes it after a gap (fmi2Reset, then initialization).
+    fmu = _LOADED.get(path)
+    if fmu is None:
+        fmu = _LOADED[path] = Fmu(path)
     s, e, w, f = piece[:4]
     line, t, theta, speed, force = arrays
     o = Options(**options)
@@ -258,10 +278,13 @@ def run_piece(fmu_key_or_path, values, options: dict, half: int, cols: dict, pie
     # Rows are exact up to half a window before f, unless f ends the segment (docs/twin.md).
     seg_end = bool(piece[4]) if len(piece) > 4 else False
     exact_end = f - w if seg_end else f - w - half - 1
+    # A revolution belongs to the piece where the crank angle + offset first reaches its start:
+    # the rule the planner cuts by (the same doubles), so each is written exactly once.
+    model = theta + offset
     keep = []
     for sm in sums + sums2:
         r = sm["revolution"]
-        j = int(np.argmax(ang >= TWO_PI * r))
+        j = int(np.argmax(model >= TWO_PI * r))
         if s <= w + j < e:
             done = int(np.argmax(ang >= TWO_PI * (r + 1)))
             if done + 1 >= exact_end and not seg_end:

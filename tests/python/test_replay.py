@@ -55,6 +55,7 @@ def local_pieces(sc, pieces, fmu_path):
             worker_options(sc.options),
             sc.half,
             sc.cols,
+            sc.offset,
             p,
             tuple(sc.data[n][w:f] for n in names),
         )

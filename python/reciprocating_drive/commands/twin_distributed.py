@@ -197,6 +197,7 @@ def _compute(a, sc, pieces, todo, work, progress, stopping) -> int | None:
                     wopts,
                     sc.half,
                     sc.cols,
+                    sc.offset,
                     pieces[i],
                     arrays,
                     pure=False,
