@@ -245,18 +245,41 @@ def plan(sc: Scanned, revolutions_per_piece: int | None, overlap: float | None, 
 _LOADED: dict = {}
 
 
-def run_piece(
-    fmu_key_or_path, values, options: dict, half: int, cols: dict, offset: float, piece, arrays
-):
-    """On a worker: the formatted rows and summaries of one piece (bytes, bytes, rows)."""
+def load_fmu(fmu_key_or_path) -> Fmu:
+    """On a worker: the FMU (shipped by the client, or a path), loaded once per process."""
     from .cluster import _RECEIVED, local_fmu
 
     path = local_fmu(fmu_key_or_path) if fmu_key_or_path in _RECEIVED else fmu_key_or_path
-    # One loaded FMU per worker process, re-initialized at each piece's first sample as the
-    # sequential twin re-initializes it after a gap (fmi2Reset, then initialization).
     fmu = _LOADED.get(path)
     if fmu is None:
         fmu = _LOADED[path] = Fmu(path)
+    return fmu
+
+
+def warm_worker(fmu_key_or_path) -> None:
+    """Run on every worker before the pieces: imports and the FMU's loading happen once, not
+    in the first piece (client.run)."""
+    load_fmu(fmu_key_or_path)
+
+
+def run_piece(
+    fmu_key_or_path,
+    values,
+    options: dict,
+    half: int,
+    cols: dict,
+    offset: float,
+    piece,
+    arrays,
+    work: str | None = None,
+    index: int = 0,
+):
+    """On a worker: the formatted rows and summaries of one piece (bytes, bytes, rows). With
+    `work` (a worker on the client's disk: a LocalCluster) the worker writes the piece there
+    itself (`write_piece`) and returns (None, None, rows): the client then handles no bytes."""
+    # One loaded FMU per worker process, re-initialized at each piece's first sample as the
+    # sequential twin re-initializes it after a gap (fmi2Reset, then initialization).
+    fmu = load_fmu(fmu_key_or_path)
     s, e, w, f = piece[:4]
     line, t, theta, speed, force = arrays
     o = Options(**options)
@@ -294,18 +317,24 @@ def run_piece(
     summ = "".join(
         ",".join("" if sm[k] is None else repr(sm[k]) for k in SUMMARY_FIELDS) + "\n" for sm in keep
     ).encode()
+    if work is not None:
+        write_piece(pathlib.Path(work), index, out, summ)
+        return None, None, e - s
     return out, summ, e - s
 
 
 # ---- the work folder ---------------------------------------------------------------------------
 
 
-def _atomic_write(path: pathlib.Path, data: bytes) -> None:
+def _atomic_write(path: pathlib.Path, data: bytes, sync: bool = True) -> None:
+    """Written beside and renamed over: a kill leaves the old file or the new one. Without
+    `sync` a power loss may leave a damaged file, which is fine where a checksum finds it."""
     tmp = path.with_name(path.name + ".tmp")
     with open(tmp, "wb") as fh:
         fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
+        if sync:
+            fh.flush()
+            os.fsync(fh.fileno())
     os.replace(tmp, path)
 
 
@@ -401,15 +430,16 @@ def _piece_ok(work: pathlib.Path, i: int) -> bool:
 
 def write_piece(work: pathlib.Path, i: int, out: bytes, rev: bytes) -> None:
     """The piece's files, then its record (last: a piece without a valid record is computed
-    again)."""
+    again). Not synced: a piece whose files do not match its record's SHA-256 after a crash is
+    computed again, so the sync (the slowest part of a piece on the client) buys nothing."""
     p_out, p_rev, p_rec = _names(work, i)
-    _atomic_write(p_out, out)
-    _atomic_write(p_rev, rev)
+    _atomic_write(p_out, out, sync=False)
+    _atomic_write(p_rev, rev, sync=False)
     rec = {
         "out": [len(out), hashlib.sha256(out).hexdigest()],
         "rev": [len(rev), hashlib.sha256(rev).hexdigest()],
     }
-    _atomic_write(p_rec, json.dumps(rec).encode())
+    _atomic_write(p_rec, json.dumps(rec).encode(), sync=False)
 
 
 def assemble(work: pathlib.Path, n: int, out: pathlib.Path, summary: pathlib.Path, sc, hdr):
@@ -420,12 +450,33 @@ def assemble(work: pathlib.Path, n: int, out: pathlib.Path, summary: pathlib.Pat
         tmp = target.with_name(target.name + ".tmp")
         with open(tmp, "wb") as fh:
             fh.write((",".join(header) + "\n").encode())
+            fh.flush()
             for i in range(n):
                 with open(_names(work, i)[idx], "rb") as src:
-                    shutil.copyfileobj(src, fh, 1 << 20)
+                    _copy(src, fh)
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, target)
+
+
+def _copy(src, dst) -> None:
+    """Appends the file `src` to `dst` in the kernel (os.copy_file_range) where it can: the
+    result's assembly is sequential, so it is kept to the disk's speed."""
+    size = os.fstat(src.fileno()).st_size
+    try:
+        done = 0
+        while done < size:
+            k = os.copy_file_range(src.fileno(), dst.fileno(), size - done)
+            if k == 0:
+                break
+            done += k
+        if done == size:
+            return
+        src.seek(done)
+    except (AttributeError, OSError):
+        src.seek(0)
+        dst.seek(0, os.SEEK_END)
+    shutil.copyfileobj(src, dst, 1 << 20)
 
 
 class Progress:
@@ -438,6 +489,8 @@ class Progress:
         self.done = 0
         self.done_samples = 0
         self.base = 0  # samples done before the clock started (resumed pieces)
+        self.workers = 0
+        self.t_end = self.t0
 
     def start(self) -> None:
         """The clock starts when the workers are ready (the cluster's start-up is not a rate)."""

@@ -23,6 +23,7 @@ from ..replay import (
     run_piece,
     scan,
     warm_up_time,
+    warm_worker,
     write_piece,
 )
 from ..twin import CheckpointError, DataError, Options
@@ -137,7 +138,18 @@ def run(a, opts: Options, stopping: list) -> int:
         code = _compute(a, sc, pieces, todo, work, progress, stopping)
         if code is not None:
             return code
+    t_assemble = time.monotonic()
     assemble(work, len(pieces), a.out, summary, sc, None)
+    if todo and not a.quiet:
+        # From the workers being ready to the result files written, less the cluster's shut-down
+        # (scripts/bench_replay.py).
+        took = progress.t_end - progress.t0 + time.monotonic() - t_assemble
+        done = progress.done_samples - progress.base
+        print(
+            f"replay: {done} samples computed in {took:.3f} s on {progress.workers} worker(s) "
+            f"({done / max(took, 1e-9):.0f} samples/s, result files written)",
+            file=err,
+        )
     shutil.rmtree(work, ignore_errors=True)
     for m in sc.messages:
         print(f"twin.py: {m}", file=err)
@@ -176,15 +188,20 @@ def _compute(a, sc, pieces, todo, work, progress, stopping) -> int | None:
         except WorkerMismatch as e:
             print(f"twin.py: {e}", file=err)
             return 2
+        client.run(warm_worker, key)
         n_workers = max(1, len(client.scheduler_info()["workers"]))
         progress.start()
+        progress.workers = n_workers
         wopts = worker_options(sc.options)
         names = ("line", "t", "theta", "speed", "force")
         queue = list(todo)
+        # A local cluster's workers write their pieces to the work folder themselves; those of
+        # a cluster that shares no disk send them back as bytes.
+        shared = str(work.resolve()) if a.scheduler is None else None
         running: dict = {}
         # A few pieces per worker in flight: the next is there when one ends, and the data
         # sent ahead stays bounded (arrays, not Python objects).
-        limit = 2 * n_workers
+        limit = 4 * n_workers
         while queue or running:
             while queue and len(running) < limit:
                 i = queue.pop(0)
@@ -200,6 +217,8 @@ def _compute(a, sc, pieces, todo, work, progress, stopping) -> int | None:
                     sc.offset,
                     pieces[i],
                     arrays,
+                    shared,
+                    i,
                     pure=False,
                     key=f"replay-piece-{i}-{os.getpid()}",
                 )
@@ -217,10 +236,12 @@ def _compute(a, sc, pieces, todo, work, progress, stopping) -> int | None:
                 except PieceFailed as e:
                     print(f"twin.py: {a.input}: {e}", file=err)
                     return 1
-                write_piece(work, i, out, rev)
+                if out is not None:
+                    write_piece(work, i, out, rev)
                 progress.step(n)
             if stopping:
                 break
+        progress.t_end = time.monotonic()
         if stopping:
             for fut in running:
                 fut.cancel()
