@@ -266,3 +266,71 @@ def test_hostile_options_and_files(fmu_path, tmp_path):
     one_line_error(p, 2, "manifest.json", "damaged")
     assert (work / "manifest.json").read_text() == '{"version": 1, "pieces": ['
     assert not out.exists()
+
+
+def test_a_cluster_without_shared_disk_and_a_worker_killed(fmu_path, tmp_path):
+    """--scheduler: a real scheduler and two worker processes on 127.0.0.1, started in their own
+    empty folder (the pieces come back as bytes; the FMU arrives through the worker plugin). One
+    worker is killed (SIGKILL) while pieces run: Dask runs its pieces on the other, and the result
+    is still the sequential replay's, byte for byte."""
+    inp = longer_encoder_file(tmp_path / "long.csv", 30.0)
+    seq = sequential(fmu_path, tmp_path, inp, COUNTS)
+    where = tmp_path / "cluster"
+    where.mkdir()
+    port = free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    dask_cli = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "python")}
+    quiet = {"cwd": where, "env": env, "stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
+    procs = [
+        subprocess.Popen(
+            [*dask_cli, "--host", "127.0.0.1", "--port", str(port), "--dashboard-address", ":0"],
+            **quiet,
+        )
+    ]
+    try:
+        for _ in range(2):
+            procs.append(
+                subprocess.Popen(
+                    [sys.executable, "-m", "distributed.cli.dask_worker", address]
+                    + ["--nthreads", "1", "--no-nanny", "--local-directory", str(where)]
+                    + ["--dashboard-address", ":0"],
+                    **quiet,
+                )
+            )
+        from dask.distributed import Client
+
+        with Client(address, timeout=30) as client:
+            client.wait_for_workers(2, timeout=90)
+        out = tmp_path / "d.csv"
+        work = tmp_path / "d.csv.parts"
+        args = [inp, *COUNTS, "--out", out, "--distributed", "--scheduler", address]
+        args += ["--revolutions-per-piece", "1", "--fmu", fmu_path]
+        run = subprocess.Popen(
+            [*TWIN, *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+        try:
+            deadline = time.monotonic() + 120
+            while len(list(work.glob("piece-*.json"))) < 2:
+                assert run.poll() is None, run.communicate()
+                assert time.monotonic() < deadline, "no piece written within 120 s"
+                time.sleep(0.02)
+            procs[1].kill()
+            _, err = run.communicate(timeout=300)
+        finally:
+            if run.poll() is None:
+                run.kill()
+                run.wait(10)
+        assert run.returncode == 0, err
+        assert (out.read_bytes(), (tmp_path / "d-revolutions.csv").read_bytes()) == seq
+        assert procs[1].wait(10) != 0  # it was killed, not done
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait(timeout=10)
