@@ -442,21 +442,47 @@ def write_piece(work: pathlib.Path, i: int, out: bytes, rev: bytes) -> None:
     _atomic_write(p_rec, json.dumps(rec).encode(), sync=False)
 
 
-def assemble(work: pathlib.Path, n: int, out: pathlib.Path, summary: pathlib.Path, sc, hdr):
-    """The output files from the pieces, in order, each written beside and renamed over."""
-    from .twin import summary_header
+class Assembler:
+    """The output files, made from the pieces in order while later pieces still run: each piece
+    is appended as soon as every piece before it is written, so that at the end only the last
+    ones remain to copy (the assembly is the replay's sequential part). The files grow beside
+    the outputs (`<out>.tmp`) and are renamed over them by `finish`; `abort` removes them (the
+    pieces stay in the work folder, and a resumed run assembles afresh)."""
 
-    for target, idx, header in ((out, 0, sc.header), (summary, 1, hdr or summary_header())):
-        tmp = target.with_name(target.name + ".tmp")
-        with open(tmp, "wb") as fh:
+    def __init__(self, work: pathlib.Path, n: int, targets: list):
+        self.work, self.n = work, n
+        self.targets = targets  # (path, header line) of the rows and of the summaries
+        self.files = []
+        for target, header in targets:
+            fh = open(target.with_name(target.name + ".tmp"), "wb")
             fh.write((",".join(header) + "\n").encode())
             fh.flush()
-            for i in range(n):
-                with open(_names(work, i)[idx], "rb") as src:
+            self.files.append(fh)
+        self.ready: set = set()
+        self.next = 0
+
+    def add(self, i: int) -> None:
+        self.ready.add(i)
+        while self.next in self.ready:
+            for idx, fh in enumerate(self.files):
+                with open(_names(self.work, self.next)[idx], "rb") as src:
                     _copy(src, fh)
+            self.ready.discard(self.next)
+            self.next += 1
+
+    def finish(self) -> None:
+        if self.next != self.n:
+            raise RuntimeError(f"{self.n - self.next} pieces not assembled")
+        for (target, _), fh in zip(self.targets, self.files):
             fh.flush()
             os.fsync(fh.fileno())
-        os.replace(tmp, target)
+            fh.close()
+            os.replace(fh.name, target)
+
+    def abort(self) -> None:
+        for fh in self.files:
+            fh.close()
+            pathlib.Path(fh.name).unlink(missing_ok=True)
 
 
 def _copy(src, dst) -> None:

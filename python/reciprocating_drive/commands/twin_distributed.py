@@ -13,10 +13,10 @@ import time
 from ..fmu import FmuError
 from ..line_input import InputChanged
 from ..replay import (
+    Assembler,
     PieceFailed,
     Progress,
     ReplayError,
-    assemble,
     manifest_of,
     open_work,
     plan,
@@ -26,7 +26,7 @@ from ..replay import (
     warm_worker,
     write_piece,
 )
-from ..twin import CheckpointError, DataError, Options
+from ..twin import CheckpointError, DataError, Options, summary_header
 
 #: Options of the sequential twin that a distributed replay does not take (it reads a whole
 #: recorded file; its work folder is its checkpoint).
@@ -134,12 +134,22 @@ def run(a, opts: Options, stopping: list) -> int:
     progress = Progress(len(pieces), n_samples, a.quiet, err)
     progress.done = len(written)
     progress.done_samples = sum(pieces[i][1] - pieces[i][0] for i in written)
-    if todo:
-        code = _compute(a, sc, pieces, todo, work, progress, stopping)
-        if code is not None:
-            return code
-    t_assemble = time.monotonic()
-    assemble(work, len(pieces), a.out, summary, sc, None)
+    a.out.parent.mkdir(parents=True, exist_ok=True)
+    summary.parent.mkdir(parents=True, exist_ok=True)
+    asm = Assembler(work, len(pieces), [(a.out, sc.header), (summary, summary_header())])
+    try:
+        for i in sorted(written):
+            asm.add(i)
+        if todo:
+            code = _compute(a, sc, pieces, todo, work, progress, stopping, asm)
+            if code is not None:
+                asm.abort()
+                return code
+        t_assemble = time.monotonic()
+        asm.finish()
+    except BaseException:
+        asm.abort()
+        raise
     if todo and not a.quiet:
         # From the workers being ready to the result files written, less the cluster's shut-down
         # (scripts/bench_replay.py).
@@ -167,7 +177,7 @@ def run(a, opts: Options, stopping: list) -> int:
     return 0
 
 
-def _compute(a, sc, pieces, todo, work, progress, stopping) -> int | None:
+def _compute(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
     """Runs the pieces `todo` on Dask and writes each to the work folder as it arrives. None when
     all are written, else the exit code."""
     from distributed import wait
@@ -238,6 +248,7 @@ def _compute(a, sc, pieces, todo, work, progress, stopping) -> int | None:
                     return 1
                 if out is not None:
                     write_piece(work, i, out, rev)
+                asm.add(i)
                 progress.step(n)
             if stopping:
                 break
