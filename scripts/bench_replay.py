@@ -21,6 +21,7 @@ import argparse
 import os
 import pathlib
 import re
+import resource
 import subprocess
 import sys
 import tempfile
@@ -58,8 +59,9 @@ def uptime() -> str:
     return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
 
-def distributed(src, out, workers: int, n_rev: int) -> tuple[float, int, int]:
-    """(seconds, samples, pieces) of one distributed replay, from its own last line."""
+def distributed(src, out, workers: int, n_rev: int) -> tuple[float, int, int, float]:
+    """(seconds, samples, pieces, the workers' CPU seconds in the pieces) of one distributed
+    replay, from its own last line."""
     p = subprocess.run(
         [*TWIN, str(src), *ARGS, "--out", str(out), "--distributed", "--workers", str(workers)]
         + ["--revolutions-per-piece", str(n_rev)],
@@ -71,13 +73,18 @@ def distributed(src, out, workers: int, n_rev: int) -> tuple[float, int, int]:
         raise SystemExit(f"bench_replay.py: the distributed replay failed: {p.stderr.strip()}")
     m = re.search(r"replay: (\d+) samples computed in ([0-9.]+) s", p.stderr)
     pieces = re.search(r"in (\d+) pieces", p.stderr)
-    return float(m.group(2)), int(m.group(1)), int(pieces.group(1))
+    cpu = re.search(r"CPU in the pieces ([0-9.]+) s", p.stderr)
+    return float(m.group(2)), int(m.group(1)), int(pieces.group(1)), float(cpu.group(1))
 
 
-def sequential(src, out) -> float:
+def sequential(src, out) -> tuple[float, float]:
+    """(wall seconds, CPU seconds) of one sequential replay (a process, start-up included)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     subprocess.run([*TWIN, str(src), *ARGS, "--out", str(out)], check=True, capture_output=True)
-    return time.perf_counter() - t0
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
 
 
 def main(argv=None) -> int:
@@ -94,9 +101,14 @@ def main(argv=None) -> int:
         one = d / "one.csv"
         one.write_text("\n".join(SAMPLE.read_text().splitlines()[:11]) + "\n")
         start = min(sequential(one, d / "o.csv") for _ in range(a.repeat))
-        seq = min(sequential(src, d / "s.csv") for _ in range(a.repeat)) - start
+        runs = [sequential(src, d / "s.csv") for _ in range(a.repeat)]
+        seq = min(r[0] for r in runs) - start[0]
+        cpu = min(r[1] for r in runs) - start[1]
         print(f"{n} samples ({a.times} × the shipped sample), {os.cpu_count()} cores")
-        print(f"sequential replay: {seq:.3f} s, {n / seq:.0f} samples/s (start-up {start:.2f} s)")
+        print(
+            f"sequential replay: {seq:.3f} s, {n / seq:.0f} samples/s, CPU {cpu:.3f} s "
+            f"(start-up {start[0]:.2f} s, CPU {start[1]:.2f} s, subtracted)"
+        )
         rates = {}
         for k in (1, 2):
             runs = [
@@ -105,11 +117,13 @@ def main(argv=None) -> int:
             ]
             best = min(r[0] for r in runs)
             samples, pieces = runs[0][1], runs[0][2]
+            work_cpu = min(r[3] for r in runs)
             rates[k] = samples / best
             same = (d / f"d{k}.csv").read_bytes() == (d / "s.csv").read_bytes()
             print(
                 f"distributed, {k} worker(s): {best:.3f} s, {rates[k]:.0f} samples/s "
-                f"({pieces} pieces of {a.revolutions_per_piece} revolutions; result "
+                f"(workers' CPU in the pieces {work_cpu:.3f} s; {pieces} pieces of "
+                f"{a.revolutions_per_piece} revolutions; result "
                 f"{'identical to' if same else 'DIFFERENT from'} the sequential one)"
             )
         print(f"2 workers / 1 worker: {rates[2] / rates[1]:.2f}× (target ≥ 1.8×)")

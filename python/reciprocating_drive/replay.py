@@ -274,13 +274,15 @@ def run_piece(
     work: str | None = None,
     index: int = 0,
 ):
-    """On a worker: the formatted rows and summaries of one piece (bytes, bytes, rows). With
-    `work` (a worker on the client's disk: a LocalCluster) the worker writes the piece there
-    itself (`write_piece`) and returns (None, None, rows): the client then handles no bytes."""
+    """On a worker: the formatted rows and summaries of one piece (bytes, bytes, rows, CPU
+    seconds of this thread). With `work` (a worker on the client's disk: a LocalCluster) the
+    worker writes the piece there itself (`write_piece`) and returns None for the bytes: the
+    client then handles none."""
     # One loaded FMU per worker process, re-initialized at each piece's first sample as the
     # sequential twin re-initializes it after a gap (fmi2Reset, then initialization).
     fmu = load_fmu(fmu_key_or_path)
     s, e, w, f = piece[:4]
+    cpu = time.thread_time()
     line, t, theta, speed, force = arrays
     o = Options(**options)
     tw = Twin(fmu, "default", o, values)
@@ -319,8 +321,8 @@ def run_piece(
     ).encode()
     if work is not None:
         write_piece(pathlib.Path(work), index, out, summ)
-        return None, None, e - s
-    return out, summ, e - s
+        return None, None, e - s, time.thread_time() - cpu
+    return out, summ, e - s, time.thread_time() - cpu
 
 
 # ---- the work folder ---------------------------------------------------------------------------
@@ -517,6 +519,7 @@ class Progress:
         self.base = 0  # samples done before the clock started (resumed pieces)
         self.workers = 0
         self.t_end = self.t0
+        self.cpu = 0.0  # the workers' CPU seconds in the pieces
 
     def start(self) -> None:
         """The clock starts when the workers are ready (the cluster's start-up is not a rate)."""

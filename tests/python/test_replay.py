@@ -49,7 +49,7 @@ def local_pieces(sc, pieces, fmu_path):
     outs, revs = [], []
     for p in pieces:
         w, f = p[2], p[3]
-        out, rev, _ = R.run_piece(
+        out, rev, _, _ = R.run_piece(
             fmu_path,
             sc.values,
             worker_options(sc.options),

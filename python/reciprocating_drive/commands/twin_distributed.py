@@ -157,7 +157,8 @@ def run(a, opts: Options, stopping: list) -> int:
         done = progress.done_samples - progress.base
         print(
             f"replay: {done} samples computed in {took:.3f} s on {progress.workers} worker(s) "
-            f"({done / max(took, 1e-9):.0f} samples/s, result files written)",
+            f"({done / max(took, 1e-9):.0f} samples/s, result files written; the workers' CPU "
+            f"in the pieces {progress.cpu:.3f} s)",
             file=err,
         )
     shutil.rmtree(work, ignore_errors=True)
@@ -242,13 +243,14 @@ def _compute(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
             for fut in done:
                 i = running.pop(fut)
                 try:
-                    out, rev, n = fut.result()
+                    out, rev, n, cpu = fut.result()
                 except PieceFailed as e:
                     print(f"twin.py: {a.input}: {e}", file=err)
                     return 1
                 if out is not None:
                     write_piece(work, i, out, rev)
                 asm.add(i)
+                progress.cpu += cpu
                 progress.step(n)
             if stopping:
                 break
