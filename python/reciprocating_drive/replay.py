@@ -523,6 +523,7 @@ class Progress:
         self.workers = 0
         self.t_end = self.t0
         self.cpu = 0.0  # the workers' CPU seconds in the pieces
+        self.client_cpu = 0.0  # this process's CPU seconds while the pieces ran
 
     def start(self) -> None:
         """The clock starts when the workers are ready (the cluster's start-up is not a rate)."""

@@ -158,7 +158,7 @@ def run(a, opts: Options, stopping: list) -> int:
         print(
             f"replay: {done} samples computed in {took:.3f} s on {progress.workers} worker(s) "
             f"({done / max(took, 1e-9):.0f} samples/s, result files written; the workers' CPU "
-            f"in the pieces {progress.cpu:.3f} s)",
+            f"in the pieces {progress.cpu:.3f} s, the client's {progress.client_cpu:.3f} s)",
             file=err,
         )
     shutil.rmtree(work, ignore_errors=True)
@@ -202,6 +202,7 @@ def _compute(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
         client.run(warm_worker, key)
         n_workers = max(1, len(client.scheduler_info()["workers"]))
         progress.start()
+        cpu0 = time.process_time()
         progress.workers = n_workers
         wopts = worker_options(sc.options)
         names = ("line", "t", "theta", "speed", "force")
@@ -255,6 +256,7 @@ def _compute(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
             if stopping:
                 break
         progress.t_end = time.monotonic()
+        progress.client_cpu = time.process_time() - cpu0
         if stopping:
             for fut in running:
                 fut.cancel()
