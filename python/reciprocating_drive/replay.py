@@ -155,14 +155,74 @@ class Scanned:
     offset: float  # crank.angle_offset [rad]
 
 
-def scan(path: str, fmu: str, machine: str, options: Options, stop=None) -> Scanned:
-    """Reads and checks the whole input (DataError naming the line on bad data)."""
+#: The columns the twin reads (docs/twin.md "Input"), the names of a table's columns too.
+COLUMNS = ("time", "crank_angle", "crank_speed", "process_force")
+
+
+def is_sqlite(path) -> bool:
+    """An SQLite database file (its 16-byte header)."""
+    try:
+        with open(path, "rb") as f:
+            return f.read(16) == b"SQLite format 3\x00"
+    except OSError:
+        return False
+
+
+def sqlite_lines(path, table: str, stop=None, rows: int = 1 << 15):
+    """The table's samples as the lines of a CSV file: a header naming its columns among
+    COLUMNS, then one line per row in rowid order, each REAL written as repr writes it (the
+    same double back), NULL as an empty field (refused by the twin like an empty CSV field).
+    Row k is line k + 1 in messages. ReplayError for a database or table that cannot be read."""
+    import sqlite3
+
+    try:
+        con = sqlite3.connect(f"file:{pathlib.Path(path).resolve()}?mode=ro", uri=True)
+    except sqlite3.Error as e:
+        raise ReplayError(f"{path}: cannot be opened as an SQLite database ({e})") from None
+    try:
+        tables = [r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='table'")]
+        if table not in tables:
+            raise ReplayError(
+                f"--table {table!r}: no such table in {path}; it has: {', '.join(tables) or 'none'}"
+            )
+        names = [r[1] for r in con.execute(f'PRAGMA table_info("{table}")')]
+        cols = [c for c in COLUMNS if c in names]
+        yield [",".join(cols or names[:1])]
+        if not cols:
+            return
+        quoted = ", ".join(f'"{c}"' for c in cols)
+        cur = con.execute(f'SELECT {quoted} FROM "{table}" ORDER BY rowid')
+        while not (stop and stop()):
+            got = cur.fetchmany(rows)
+            if not got:
+                break
+            yield [
+                ",".join(
+                    "" if v is None else repr(v) if isinstance(v, float) else str(v) for v in r
+                )
+                for r in got
+            ]
+    except sqlite3.Error as e:
+        raise ReplayError(f"{path}: table {table!r} cannot be read ({e})") from None
+    finally:
+        con.close()
+
+
+def scan(
+    path: str, fmu: str, machine: str, options: Options, stop=None, table: str | None = None
+) -> Scanned:
+    """Reads and checks the whole input, a CSV file or the table `table` of an SQLite database
+    (DataError naming the line on bad data)."""
     tw = _Scan(fmu, machine, options)
     digest = hashlib.sha256()
     size = 0
     lineno = 0
     with open(path, "rb", buffering=0) as src:
-        for lines in chunks_of(src, False, 1 << 20, path=path, stop=stop):
+        if table is not None:
+            chunks = sqlite_lines(path, table, stop)
+        else:
+            chunks = chunks_of(src, False, 1 << 20, path=path, stop=stop)
+        for lines in chunks:
             text = ("\n".join(lines) + "\n").encode()
             digest.update(text)
             size += len(text)

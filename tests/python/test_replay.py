@@ -334,3 +334,32 @@ def test_a_cluster_without_shared_disk_and_a_worker_killed(fmu_path, tmp_path):
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait(timeout=10)
+
+
+def test_a_table_of_an_sqlite_database(fmu_path, tmp_path):
+    """The shipped sample as a table (time REAL, crank_angle INTEGER, and a column the twin does
+    not read): the distributed replay of the table writes the files of the sequential replay of
+    the CSV file, byte for byte. A table that is not there and a NULL are one-line errors."""
+    import sqlite3
+
+    seq = sequential(fmu_path, tmp_path, SAMPLE, COUNTS)
+    t, c = np.loadtxt(SAMPLE, delimiter=",", skiprows=1, unpack=True)
+    db = tmp_path / "history.db"
+    with sqlite3.connect(db) as con:
+        con.execute("CREATE TABLE samples (time REAL, crank_angle INTEGER, note TEXT)")
+        rows = zip(t.tolist(), c.astype(int).tolist(), ["a,b"] * len(t))
+        con.executemany("INSERT INTO samples VALUES (?, ?, ?)", rows)
+        con.execute("CREATE TABLE other (x REAL)")
+    con.close()
+    out = tmp_path / "d.csv"
+    args = [db, *COUNTS, "--out", out, "--distributed", "--workers", "2"]
+    twin([*args, "--revolutions-per-piece", "4"], fmu_path)
+    assert (out.read_bytes(), (tmp_path / "d-revolutions.csv").read_bytes()) == seq
+
+    p = twin([*args, "--table", "nope"], fmu_path, check=False)
+    one_line_error(p, 2, "--table 'nope'", "samples, other")
+    with sqlite3.connect(db) as con:
+        con.execute("UPDATE samples SET crank_angle = NULL WHERE rowid = 7")
+    con.close()
+    p = twin([*args, "--quiet"], fmu_path, check=False)
+    one_line_error(p, 1, "history.db: line 8: crank_angle is empty")

@@ -317,6 +317,12 @@ def main(argv=None, prog: str | None = None) -> int:
         default=None,
         help="folder for the pieces and their manifest (default: <out>.parts)",
     )
+    dist.add_argument(
+        "--table",
+        default=None,
+        help="the input is an SQLite database: its table of samples, columns named as the CSV's "
+        "(default: samples)",
+    )
     dist.add_argument("--quiet", action="store_true", help="no progress on standard error")
     a = ap.parse_args(argv)
     if not a.distributed:
@@ -326,6 +332,7 @@ def main(argv=None, prog: str | None = None) -> int:
             ("--revolutions-per-piece", a.revolutions_per_piece),
             ("--overlap", a.overlap),
             ("--work-dir", a.work_dir),
+            ("--table", a.table),
         ):
             if v is not None:
                 ap.error(f"argument {flag}: needs --distributed")

@@ -17,6 +17,7 @@ from ..replay import (
     PieceFailed,
     Progress,
     ReplayError,
+    is_sqlite,
     manifest_of,
     open_work,
     plan,
@@ -97,10 +98,16 @@ def run(a, opts: Options, stopping: list) -> int:
     t0 = time.monotonic()
     machine = a.machine or "default"
     try:
-        sc = scan(a.input, a.fmu, machine, opts, stop=lambda: bool(stopping))
+        table = a.table
+        if table is None and is_sqlite(a.input):
+            table = "samples"
+        sc = scan(a.input, a.fmu, machine, opts, stop=lambda: bool(stopping), table=table)
     except (DataError, InputChanged) as e:
         print(f"twin.py: {a.input}: {' '.join(str(e).split())}", file=err)
         return 1
+    except ReplayError as e:
+        print(f"twin.py: {e}", file=err)
+        return 2
     except (FmuError, ValueError, OSError) as e:
         print(f"twin.py: {' '.join(str(e).split())}", file=err)
         return 2
