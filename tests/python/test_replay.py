@@ -7,6 +7,7 @@ on 127.0.0.1, and the resume test kills the replay with a real signal."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import signal
@@ -268,28 +269,23 @@ def test_hostile_options_and_files(fmu_path, tmp_path):
     assert not out.exists()
 
 
-def test_a_cluster_without_shared_disk_and_a_worker_killed(fmu_path, tmp_path):
-    """--scheduler: a real scheduler and two worker processes on 127.0.0.1, started in their own
-    empty folder (the pieces come back as bytes; the FMU arrives through the worker plugin). One
-    worker is killed (SIGKILL) while pieces run: Dask runs its pieces on the other, and the result
-    is still the sequential replay's, byte for byte."""
-    inp = longer_encoder_file(tmp_path / "long.csv", 30.0)
-    seq = sequential(fmu_path, tmp_path, inp, COUNTS)
-    where = tmp_path / "cluster"
-    where.mkdir()
+@contextlib.contextmanager
+def scheduler_and_workers(where, n_workers):
+    """A real scheduler and `n_workers` worker processes (no nanny: a killed one stays dead) on
+    127.0.0.1, started in `where`; yields (address, worker processes); stops them all."""
     port = free_port()
     address = f"tcp://127.0.0.1:{port}"
-    dask_cli = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
     env = {**os.environ, "PYTHONPATH": str(ROOT / "python")}
     quiet = {"cwd": where, "env": env, "stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
     procs = [
         subprocess.Popen(
-            [*dask_cli, "--host", "127.0.0.1", "--port", str(port), "--dashboard-address", ":0"],
+            [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1"]
+            + ["--port", str(port), "--dashboard-address", ":0"],
             **quiet,
         )
     ]
     try:
-        for _ in range(2):
+        for _ in range(n_workers):
             procs.append(
                 subprocess.Popen(
                     [sys.executable, "-m", "distributed.cli.dask_worker", address]
@@ -301,29 +297,8 @@ def test_a_cluster_without_shared_disk_and_a_worker_killed(fmu_path, tmp_path):
         from dask.distributed import Client
 
         with Client(address, timeout=30) as client:
-            client.wait_for_workers(2, timeout=90)
-        out = tmp_path / "d.csv"
-        work = tmp_path / "d.csv.parts"
-        args = [inp, *COUNTS, "--out", out, "--distributed", "--scheduler", address]
-        args += ["--revolutions-per-piece", "1", "--fmu", fmu_path]
-        run = subprocess.Popen(
-            [*TWIN, *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-        )
-        try:
-            deadline = time.monotonic() + 120
-            while len(list(work.glob("piece-*.json"))) < 2:
-                assert run.poll() is None, run.communicate()
-                assert time.monotonic() < deadline, "no piece written within 120 s"
-                time.sleep(0.02)
-            procs[1].kill()
-            _, err = run.communicate(timeout=300)
-        finally:
-            if run.poll() is None:
-                run.kill()
-                run.wait(10)
-        assert run.returncode == 0, err
-        assert (out.read_bytes(), (tmp_path / "d-revolutions.csv").read_bytes()) == seq
-        assert procs[1].wait(10) != 0  # it was killed, not done
+            client.wait_for_workers(n_workers, timeout=90)
+        yield address, procs[1:]
     finally:
         for p in procs:
             if p.poll() is None:
@@ -334,6 +309,68 @@ def test_a_cluster_without_shared_disk_and_a_worker_killed(fmu_path, tmp_path):
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait(timeout=10)
+
+
+def start_and_kill_a_worker(args, work, worker, timeout=300):
+    """Runs the replay, kills `worker` once two pieces are written; (exit code, stderr)."""
+    run = subprocess.Popen(
+        [*TWIN, *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while len(list(work.glob("piece-*.json"))) < 2:
+            assert run.poll() is None, run.communicate()
+            assert time.monotonic() < deadline, "no piece written within 120 s"
+            time.sleep(0.02)
+        worker.kill()
+        _, err = run.communicate(timeout=timeout)
+    finally:
+        if run.poll() is None:
+            run.kill()
+            run.wait(10)
+    assert worker.wait(10) != 0  # it was killed, not done
+    return run.returncode, err
+
+
+def test_a_cluster_without_shared_disk_and_a_worker_killed(fmu_path, tmp_path):
+    """--scheduler: a real scheduler and two worker processes on 127.0.0.1, started in their own
+    empty folder (the pieces come back as bytes; the FMU arrives through the worker plugin). One
+    worker is killed (SIGKILL) while pieces run: Dask runs its pieces on the other, and the result
+    is still the sequential replay's, byte for byte."""
+    inp = longer_encoder_file(tmp_path / "long.csv", 30.0)
+    seq = sequential(fmu_path, tmp_path, inp, COUNTS)
+    where = tmp_path / "cluster"
+    where.mkdir()
+    out = tmp_path / "d.csv"
+    with scheduler_and_workers(where, 2) as (address, workers):
+        args = [inp, *COUNTS, "--out", out, "--distributed", "--scheduler", address]
+        args += ["--revolutions-per-piece", "1", "--fmu", fmu_path]
+        code, err = start_and_kill_a_worker(args, tmp_path / "d.csv.parts", workers[0])
+    assert code == 0, err
+    assert (out.read_bytes(), (tmp_path / "d-revolutions.csv").read_bytes()) == seq
+
+
+def test_a_cluster_left_without_workers_stops_bounded_and_resumes(fmu_path, tmp_path):
+    """The only worker killed: the replay does not wait for ever (exit code 1 after 30 s without
+    a worker, one line); on a cluster with a worker again the same command finishes it."""
+    inp = longer_encoder_file(tmp_path / "long.csv", 30.0)
+    seq = sequential(fmu_path, tmp_path, inp, COUNTS)
+    where = tmp_path / "cluster"
+    where.mkdir()
+    out = tmp_path / "d.csv"
+    work = tmp_path / "d.csv.parts"
+    base = [inp, *COUNTS, "--out", out, "--distributed", "--revolutions-per-piece", "1"]
+    base += ["--fmu", fmu_path, "--quiet"]
+    with scheduler_and_workers(where, 1) as (address, workers):
+        t0 = time.monotonic()
+        code, err = start_and_kill_a_worker([*base, "--scheduler", address], work, workers[0])
+        assert time.monotonic() - t0 < 90
+    assert code == 1 and "Traceback" not in err, err
+    assert "no worker on the cluster for 30 s" in err and "run the same command again" in err
+    with scheduler_and_workers(where, 1) as (address, _):
+        p = twin([*base, "--scheduler", address], fmu_path)
+    assert "Traceback" not in p.stderr
+    assert (out.read_bytes(), (tmp_path / "d-revolutions.csv").read_bytes()) == seq
 
 
 def test_a_table_of_an_sqlite_database(fmu_path, tmp_path):

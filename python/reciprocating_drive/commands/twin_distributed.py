@@ -214,6 +214,7 @@ def _compute(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
         wopts = worker_options(sc.options)
         names = ("line", "t", "theta", "speed", "force")
         queue = list(todo)
+        lonely = None  # since when the cluster has had no worker
         # A local cluster's workers write their pieces to the work folder themselves; those of
         # a cluster that shares no disk send them back as bytes.
         shared = str(work.resolve()) if a.scheduler is None else None
@@ -248,18 +249,35 @@ def _compute(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
                 done, _ = wait(list(running), timeout=0.5, return_when="FIRST_COMPLETED")
             except TimeoutError:  # none ended within the half second: look at the signals
                 done = ()
+            fetched = 0
             for fut in done:
-                i = running.pop(fut)
                 try:
-                    out, rev, n, cpu = fut.result()
+                    out, rev, n, cpu = fut.result(timeout=1.0)
+                except TimeoutError:
+                    continue  # its result went with its worker: Dask computes it again
                 except PieceFailed as e:
                     print(f"twin.py: {a.input}: {e}", file=err)
                     return 1
+                i = running.pop(fut)
                 if out is not None:
                     write_piece(work, i, out, rev)
                 asm.add(i)
                 progress.cpu += cpu
                 progress.step(n)
+                fetched += 1
+            # A cluster whose workers are all gone would wait for ever: bounded.
+            if fetched or client.scheduler_info().get("workers"):
+                lonely = None
+            elif lonely is None:
+                lonely = time.monotonic()
+            elif time.monotonic() - lonely > max(a.connect_timeout, 30.0):
+                print(
+                    f"twin.py: no worker on the cluster for {max(a.connect_timeout, 30.0):g} s; "
+                    f"{progress.done} of {progress.total} pieces are in {work}: run the same "
+                    "command again to resume",
+                    file=err,
+                )
+                return 1
             if stopping:
                 break
         progress.t_end = time.monotonic()
