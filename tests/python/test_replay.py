@@ -400,3 +400,34 @@ def test_a_table_of_an_sqlite_database(fmu_path, tmp_path):
     con.close()
     p = twin([*args, "--quiet"], fmu_path, check=False)
     one_line_error(p, 1, "history.db: line 8: crank_angle is empty")
+
+
+def variant(path, kind):
+    """The sample's first 4 s in another form the twin reads (docs/twin.md "Input")."""
+    lines = SAMPLE.read_text().splitlines()[:4001]
+    if kind == "duplicates":  # two repeated timestamps, dropped and counted
+        lines = [*lines[:1000], lines[999], *lines[1000:3000], lines[2999], *lines[3000:]]
+    elif kind == "semicolon":  # a European export
+        lines = [ln.replace(",", ";").replace(".", ",") for ln in lines]
+    elif kind == "speed-force":  # measured speed in rpm and a process force
+        t, c = np.loadtxt(lines[1:], delimiter=",", unpack=True)
+        w = truth(t)[1] * 60 / (2 * math.pi)
+        rows = zip(t.tolist(), c.astype(int).tolist(), w.tolist(), (1000 * np.sin(t)).tolist())
+        lines = ["time,crank_angle,crank_speed,process_force"]
+        lines += [f"{a!r},{b},{s!r},{f!r}" for a, b, s, f in rows]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("kind", ["duplicates", "semicolon", "speed-force"])
+def test_input_forms_are_bit_identical(fmu_path, tmp_path, kind):
+    inp = variant(tmp_path / f"{kind}.csv", kind)
+    args = [*COUNTS] + (["--speed-unit", "rpm"] if kind == "speed-force" else [])
+    seq = sequential(fmu_path, tmp_path, inp, args)
+    o = Options(angle_unit="counts", counts_per_rev=4096)
+    if kind == "speed-force":
+        o.speed_unit = "rpm"
+    sc = R.scan(str(inp), fmu_path, "default", o)
+    assert sc.duplicates == (2 if kind == "duplicates" else 0)
+    for n_rev, cuts in ((1, []), (None, [998, 999, 1000, 2999, 3001])):
+        assert local_pieces(sc, R.plan(sc, n_rev, None, cuts), fmu_path) == seq, (n_rev, cuts)
