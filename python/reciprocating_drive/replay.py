@@ -25,6 +25,7 @@ progress. The distributed replay makes every cut exact as follows.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
@@ -208,19 +209,94 @@ def sqlite_lines(path, table: str, stop=None, rows: int = 1 << 15):
         con.close()
 
 
+def is_postgres(name: str) -> bool:
+    """A PostgreSQL connection URI (postgresql://USER@HOST:PORT/DATABASE)."""
+    return name.startswith(("postgresql://", "postgres://"))
+
+
+def postgres_lines(uri: str, table: str, stop=None, rows: int = 1 << 15):
+    """A PostgreSQL table's samples as the lines of a CSV file, as `sqlite_lines` makes them, in
+    time order (ties in the order the table stores them). A password in the URI is refused: it
+    would show in the process list and in messages (PGPASSWORD or ~/.pgpass hold it)."""
+    import psycopg
+    from psycopg.conninfo import conninfo_to_dict
+
+    try:
+        info = conninfo_to_dict(uri)
+    except psycopg.Error as e:
+        raise ReplayError(f"the input's PostgreSQL URI cannot be read ({e})") from None
+    where = f"postgresql://{info.get('host', '')}:{info.get('port', '')}/{info.get('dbname', '')}"
+    if info.get("password"):
+        raise ReplayError(
+            f"{where}: a password in the URI would show in the process list; give it in "
+            "PGPASSWORD or ~/.pgpass"
+        )
+    try:
+        con = psycopg.connect(uri, connect_timeout=10)
+    except psycopg.Error as e:
+        first = " ".join(str(e).split())[:200]
+        raise ReplayError(f"{where}: cannot connect within 10 s ({first})") from None
+    try:
+        tables = [
+            r[0]
+            for r in con.execute(
+                "SELECT table_name FROM information_schema.tables "
+                "WHERE table_schema = current_schema() ORDER BY table_name"
+            )
+        ]
+        if table not in tables:
+            raise ReplayError(
+                f"--table {table!r}: no such table in {where}; it has: {', '.join(tables) or 'none'}"
+            )
+        names = [
+            r[0]
+            for r in con.execute(
+                "SELECT column_name FROM information_schema.columns WHERE table_schema = "
+                "current_schema() AND table_name = %s ORDER BY ordinal_position",
+                (table,),
+            )
+        ]
+        cols = [c for c in COLUMNS if c in names]
+        yield [",".join(cols or names[:1])]
+        if not cols or "time" not in cols:
+            return
+        quoted = ", ".join(f'"{c}"' for c in cols)
+        with con.cursor(name="rdrive_replay") as cur:  # server side: the table is streamed
+            cur.execute(f'SELECT {quoted} FROM "{table}" ORDER BY "time", ctid')
+            while not (stop and stop()):
+                got = cur.fetchmany(rows)
+                if not got:
+                    break
+                yield [
+                    ",".join(
+                        "" if v is None else repr(v) if isinstance(v, float) else str(v) for v in r
+                    )
+                    for r in got
+                ]
+    except psycopg.Error as e:
+        first = " ".join(str(e).split())[:200]
+        raise ReplayError(f"{where}: table {table!r} cannot be read ({first})") from None
+    finally:
+        con.close()
+
+
 def scan(
     path: str, fmu: str, machine: str, options: Options, stop=None, table: str | None = None
 ) -> Scanned:
     """Reads and checks the whole input, a CSV file or the table `table` of an SQLite database
-    (DataError naming the line on bad data)."""
+    or of a PostgreSQL one (`path` a postgresql:// URI) (DataError naming the line on bad
+    data)."""
     tw = _Scan(fmu, machine, options)
     digest = hashlib.sha256()
     size = 0
     lineno = 0
-    with open(path, "rb", buffering=0) as src:
-        if table is not None:
+    with contextlib.ExitStack() as stack:
+        if is_postgres(path):
+            chunks = postgres_lines(path, table or "samples", stop)
+        elif table is not None:
             chunks = sqlite_lines(path, table, stop)
         else:
+            src = stack.enter_context(open(path, "rb", buffering=0))
             chunks = chunks_of(src, False, 1 << 20, path=path, stop=stop)
         for lines in chunks:
             text = ("\n".join(lines) + "\n").encode()

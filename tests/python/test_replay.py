@@ -431,3 +431,35 @@ def test_input_forms_are_bit_identical(fmu_path, tmp_path, kind):
     assert sc.duplicates == (2 if kind == "duplicates" else 0)
     for n_rev, cuts in ((1, []), (None, [998, 999, 1000, 2999, 3001])):
         assert local_pieces(sc, R.plan(sc, n_rev, None, cuts), fmu_path) == seq, (n_rev, cuts)
+
+
+def test_a_table_of_a_postgresql_database(fmu_path, tmp_path):
+    """The shipped sample as a PostgreSQL table (a real server on 127.0.0.1, double precision
+    columns): the distributed replay writes the sequential replay's files of the CSV, byte for
+    byte. A password in the URI is refused before anything connects."""
+    import psycopg
+    from pg_server import PgServer, pg_bindir
+
+    if pg_bindir() is None:
+        pytest.fail("PostgreSQL is not installed: scripts/test.sh installs it")
+    seq = sequential(fmu_path, tmp_path, SAMPLE, COUNTS)
+    t, c = np.loadtxt(SAMPLE, delimiter=",", skiprows=1, unpack=True)
+    with PgServer() as pg:
+        with psycopg.connect(pg.dsn, autocommit=True) as con:
+            con.execute(
+                "CREATE TABLE history (crank_angle double precision, time double precision)"
+            )
+            with con.cursor().copy("COPY history (time, crank_angle) FROM STDIN") as cp:
+                for row in zip(t.tolist(), c.tolist()):
+                    cp.write_row(row)
+        uri = f"postgresql://twin@127.0.0.1:{pg.port}/twin"
+        out = tmp_path / "d.csv"
+        args = [uri, *COUNTS, "--out", out, "--distributed", "--workers", "2", "--table", "history"]
+        twin([*args, "--revolutions-per-piece", "4"], fmu_path)
+        assert (out.read_bytes(), (tmp_path / "d-revolutions.csv").read_bytes()) == seq
+        p = twin([*args[:-1], "samples"], fmu_path, check=False)
+        one_line_error(p, 2, "--table 'samples'", "it has: history")
+    secret = f"postgresql://twin:hunter2@127.0.0.1:{free_port()}/twin"
+    p = twin([secret, *COUNTS, "--out", out, "--distributed"], fmu_path, check=False)
+    one_line_error(p, 2, "PGPASSWORD")
+    assert "hunter2" not in p.stderr

@@ -183,7 +183,11 @@ def main(argv=None, prog: str | None = None) -> int:
     ap = Parser(
         prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    ap.add_argument("input", help="CSV file, or - for standard input")
+    ap.add_argument(
+        "input",
+        help="CSV file, or - for standard input; with --distributed also an SQLite database or "
+        "a postgresql://USER@HOST:PORT/DATABASE URI (see --table)",
+    )
     ap.add_argument("--fmu", default=str(artifacts.fmu()))
     ap.add_argument(
         "--machine", default=None, help="a preset, 'default' (the default), or an .ssv file"
@@ -274,7 +278,7 @@ def main(argv=None, prog: str | None = None) -> int:
     )
     dist = ap.add_argument_group(
         'distributed replay (docs/twin.md "Distributed replay")',
-        "--distributed replays a recorded file (CSV, or a table of an SQLite database) in\n"
+        "--distributed replays a recorded file (CSV, or a table of SQLite or PostgreSQL) in\n"
         "pieces on Dask and writes the same --out and --summary files: byte for byte those of\n"
         "the sequential replay for a rigid rod. For an elastic rod each piece starts\n"
         "ln(1/1e-8)/sigma before its cut, sigma = B_d/(2 J_m) the cage's decay rate from its\n"
@@ -332,8 +336,8 @@ def main(argv=None, prog: str | None = None) -> int:
         "--table",
         metavar="NAME",
         default=None,
-        help="the input is an SQLite database: its table of samples, columns named as the CSV's "
-        "(default: samples)",
+        help="the input is a database (SQLite or PostgreSQL): its table of samples, columns "
+        "named as the CSV's (default: samples)",
     )
     dist.add_argument("--quiet", action="store_true", help="no progress on standard error")
     a = ap.parse_args(argv)

@@ -17,6 +17,7 @@ from ..replay import (
     PieceFailed,
     Progress,
     ReplayError,
+    is_postgres,
     is_sqlite,
     manifest_of,
     open_work,
@@ -69,14 +70,16 @@ def run(a, opts: Options, stopping: list) -> int:
         return 2
     summary = a.summary or a.out.with_name(a.out.stem + "-revolutions.csv")
     work = a.work_dir or a.out.with_name(a.out.name + ".parts")
+    remote = is_postgres(a.input)
     try:
-        if not os.path.exists(a.input):
+        if remote:
+            pass  # a table of a PostgreSQL database: checked when it is read
+        elif not os.path.exists(a.input):
             raise ReplayError(f"{a.input}: no such file")
         if os.path.isdir(a.input):
             raise ReplayError(f"{a.input}: a folder, not a CSV file")
-        src = pathlib.Path(a.input).resolve()
         named = [("--out", a.out), ("--summary", summary), ("--work-dir", work)]
-        seen = {str(src): "input"}
+        seen = {} if remote else {str(pathlib.Path(a.input).resolve()): "input"}
         for flag, p in named:
             key = str(pathlib.Path(p).resolve())
             if key in seen:
@@ -99,11 +102,12 @@ def run(a, opts: Options, stopping: list) -> int:
     machine = a.machine or "default"
     try:
         table = a.table
-        if table is None and is_sqlite(a.input):
+        if table is None and (remote or is_sqlite(a.input)):
             table = "samples"
         sc = scan(a.input, a.fmu, machine, opts, stop=lambda: bool(stopping), table=table)
     except (DataError, InputChanged) as e:
-        print(f"twin.py: {a.input}: {' '.join(str(e).split())}", file=err)
+        where = "the table" if remote else a.input
+        print(f"twin.py: {where}: {' '.join(str(e).split())}", file=err)
         return 1
     except ReplayError as e:
         print(f"twin.py: {e}", file=err)
