@@ -406,7 +406,9 @@ class Twin:
         self.values = {k: v for k, v in preset.items() if k not in INPUTS}
         self.values.update(extra_values or {})
         try:
-            self.fmu = Fmu(fmu_path)
+            # An Fmu already loaded is taken as it is: the distributed replay (replay.py) runs
+            # many pieces in one worker process, and loading costs more than a small piece.
+            self.fmu = fmu_path if isinstance(fmu_path, Fmu) else Fmu(fmu_path)
         except Exception as e:  # not a zip, not an FMU, no binary for this platform
             raise ValueError(f"--fmu {str(fmu_path)!r}: not a usable FMU ({e})") from None
         self.outputs = list(self.fmu.outputs)
