@@ -78,12 +78,9 @@ def _speed(study: Study, params: dict) -> float:
     return study.crank_speed
 
 
-def run_case(fmu, study: Study, params: dict) -> tuple[dict, float]:
-    """Runs one case on a loaded Fmu; returns (metrics, seconds spent in FMU calls). Raises the
-    FMU's error (FmuError) for a rejected case."""
-    omega = _speed(study, params)
-    if not (omega > 0 and math.isfinite(omega)):
-        raise ValueError(f"crank speed = {omega} rad/s; allowed: > 0")
+def case_values(study: Study, params: dict, omega: float) -> dict:
+    """The values a case sets in initialization mode, in the order they are set: the machine's
+    (without the crank's state), the case's parameters, the crank speed."""
     values = {
         k: v
         for k, v in study.base_values.items()
@@ -91,6 +88,22 @@ def run_case(fmu, study: Study, params: dict) -> tuple[dict, float]:
     }
     values.update({k: v for k, v in params.items() if k not in SPEED_PARAMETERS})
     values["crank.speed"] = omega
+    return values
+
+
+def _check_speed(omega: float) -> None:
+    if not (omega > 0 and math.isfinite(omega)):
+        raise ValueError(f"crank speed = {omega} rad/s; allowed: > 0")
+
+
+def run_case(fmu, study: Study, params: dict) -> tuple[dict, float]:
+    """The reference path of one case, one FMU call per communication step from Python (the
+    sweep runs `run_cases`, whose rows equal this path's bit for bit; the tests compare them, and
+    `run_batch(..., reference=True)` runs it). Returns (metrics, seconds spent in FMU calls);
+    raises the FMU's error (FmuError) for a rejected case."""
+    omega = _speed(study, params)
+    _check_speed(omega)
+    values = case_values(study, params, omega)
     n_rev = study.skip_revolutions + study.revolutions
     n = n_rev * study.steps_per_revolution + 2
     h = TWO_PI / omega / study.steps_per_revolution
@@ -106,14 +119,18 @@ def run_case(fmu, study: Study, params: dict) -> tuple[dict, float]:
             t, [omega * (t - h), omega], rows[k]
         )  # inputs at the step's start (docs/model.md §2)
     inside = time.perf_counter() - t0
-    time_ = np.arange(n + 1) * h
+    return _summary_metrics(study, np.arange(n + 1) * h, rows), inside
+
+
+def _summary_metrics(study: Study, time_: np.ndarray, rows: np.ndarray) -> dict:
+    """The metrics of one run's samples through summarize_revolutions (the reference)."""
     data = {name: rows[:, i] for i, name in enumerate(OUTPUTS)}
     revs = [
         r
         for r in summarize_revolutions(time_, data["crank.model_angle"], data)
         if r.index >= study.skip_revolutions
     ][: study.revolutions]
-    return metrics_of(revs, study.metrics), inside
+    return metrics_of(revs, study.metrics)
 
 
 def metrics_of(revs, wanted) -> dict:
@@ -168,17 +185,32 @@ def _worker_name() -> str:
         return f"pid {os.getpid()}"
 
 
-def run_batch(fmu_path: str, study: Study, cases: list[int], shipped: bool = False) -> list[dict]:
+def run_batch(
+    fmu_path: str, study: Study, cases: list[int], shipped: bool = False, reference: bool = False
+) -> list[dict]:
     """One Dask task: the cases `cases` of `study`, each a result row (never raises for a case).
     `shipped`: `fmu_path` is the SHA-256 of the FMU the client shipped to a cluster that shares no
-    disk with it (cluster.py), otherwise a path on this machine."""
+    disk with it (cluster.py), otherwise a path on this machine. The cases run through the native
+    batch driver with the metrics computed for the whole batch at once (sweep_cases.py);
+    `reference=True` runs the reference path instead, one FMU call per step from Python
+    (`run_case`), whose rows are the same bit for bit (but for the timings)."""
     from .fmu import FmuError
+    from .sweep_cases import run_cases
 
     if shipped:
         from .cluster import local_fmu
 
         fmu_path = local_fmu(fmu_path)
     fmu = _worker_fmu(fmu_path)
+    worker = _worker_name()
+    if not reference:
+        return [
+            {"case": i, **params, **metrics, "status": status, "message": message,
+             "seconds_fmu": inside, "seconds_case": seconds, "worker": worker}
+            for i, params, metrics, status, message, inside, seconds in run_cases(
+                fmu, study, list(cases), OUTPUTS
+            )
+        ]  # fmt: skip
     out = []
     for i in cases:
         params = study.case(i)
@@ -189,7 +221,7 @@ def run_batch(fmu_path: str, study: Study, cases: list[int], shipped: bool = Fal
         except (FmuError, ValueError, RuntimeError) as e:
             status, message = "error", str(e)
             metrics = {m: math.nan for m in study.metrics}
-        row = asdict(Row(i, status, message, inside, time.perf_counter() - t0, _worker_name()))
+        row = asdict(Row(i, status, message, inside, time.perf_counter() - t0, worker))
         out.append({**{"case": i}, **params, **metrics, **row})
     return out
 
