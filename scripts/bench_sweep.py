@@ -1,14 +1,15 @@
 #!/usr/bin/env python3
 """Benchmark of the design sweeps (docs/sweeps.md "Speed"), for each example study in one run:
 
-(a) the floor: the FMU's calls alone for a sample of the study's cases: per case fmi2Reset,
+(a) the floor: the FMU's calls alone for the cases (the study's grid made denser, about
+    --seconds of them, as one batch): per case fmi2Reset,
     fmi2SetupExperiment, fmi2EnterInitializationMode, the fmi2Set* of the case's values,
     fmi2ExitInitializationMode, the first fmi2SetReal/fmi2GetReal, and every step's
     fmi2SetReal/fmi2DoStep/fmi2GetReal driven by the native batch driver (libfmi2_batch.so), with
     every argument prepared beforehand: no Python work per step, none between the calls of a case
     but the calls themselves;
-(b) one worker's time per case: `sweep.run_batch` on the same cases in this process (and the same
-    with `reference=True`, the per-step Python loop, as the baseline);
+(b) one worker's time per case: `sweep.run_batch` on the same cases in this process, one call (and,
+    as the baseline, `reference=True`, the per-step Python loop, on 24 of them);
 (c) cases per second of `run_sweep` on a LocalCluster (processes, one thread each) with 1 and with
     2 workers, on the study with a denser grid (the same cases' kind, enough of them for several
     seconds of one worker's work), from the first submission to the last result.
@@ -17,7 +18,7 @@ The ratios printed: floor time / worker time (≥ 0.8 is the target: a worker's 
 the floor's), and 2-worker / 1-worker cases/s (≥ 1.8). Every time is the minimum over --repeat
 repetitions (wall time; the machine is shared, and the minimum is the run least disturbed).
 
-    .venv/bin/python scripts/bench_sweep.py [--repeat 5] [--sample 24] [--dask-seconds 4]
+    .venv/bin/python scripts/bench_sweep.py [--repeat 5] [--seconds 0.5] [--dask-seconds 8]
     .venv/bin/python scripts/bench_sweep.py --no-dask        # (a) and (b) only
 """
 
@@ -28,6 +29,7 @@ import ctypes
 import math
 import os
 import pathlib
+import platform
 import sys
 import tempfile
 import time
@@ -38,7 +40,7 @@ import numpy as np  # noqa: E402
 from reciprocating_drive import batch, sweep  # noqa: E402
 from reciprocating_drive.fmu import Fmu  # noqa: E402
 from reciprocating_drive.revolution import TWO_PI  # noqa: E402
-from reciprocating_drive.study import SPEED_PARAMETERS, load_study, study_from_dict  # noqa: E402
+from reciprocating_drive.study import load_study, study_from_dict  # noqa: E402
 
 STUDIES = ("unb600a_friction", "kvo630_resonance", "default_balancer")
 
@@ -51,60 +53,54 @@ def sample_cases(study, k: int) -> list[int]:
 
 
 def prepared_calls(fmu: Fmu, study, cases: list[int]) -> list:
-    """Per case the arguments of every FMU call `run_case` makes, built in advance."""
+    """Per case the arguments of every FMU call `run_case` makes, built in advance (the time and
+    input arrays shared by the cases of one speed, one output array for all)."""
     from fmpy.fmi2 import fmi2Boolean, fmi2Integer, fmi2Real, fmi2ValueReference
 
     ctype = {"Real": fmi2Real, "Integer": fmi2Integer, "Boolean": fmi2Boolean}
     ch = fmu.channel(["crank.angle", "crank.speed"], list(sweep.OUTPUTS))
     lib = batch.library()
+    n = (study.skip_revolutions + study.revolutions) * study.steps_per_revolution + 2
+    out = np.empty((n + 1, len(sweep.OUTPUTS)))
+    out0 = out.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+    fail = batch.Failure()
+    inputs: dict = {}
     prepared = []
     for i in cases:
         params = study.case(i)
         omega = sweep._speed(study, params)
-        values = {
-            k: v
-            for k, v in study.base_values.items()
-            if k not in ("crank.angle", "crank.speed", "crank.acceleration")
-        }
-        values.update({k: v for k, v in params.items() if k not in SPEED_PARAMETERS})
-        values["crank.speed"] = omega
         groups: dict = {}
-        for name, v in values.items():
+        for name, v in sweep.case_values(study, params, omega).items():
             var = fmu.variables[name]
             vrs, vals = groups.setdefault(var.type, ([], []))
             vrs.append(var.valueReference)
             vals.append(float(v) if var.type == "Real" else int(v))
         sets = [
-            (
-                fmu._raw[f"fmi2Set{ty}"],
-                (fmi2ValueReference * len(v))(*v),
-                len(v),
-                (ctype[ty] * len(x))(*x),
-            )
+            (fmu._raw[f"fmi2Set{ty}"], (fmi2ValueReference * len(v))(*v), len(v),
+             (ctype[ty] * len(x))(*x))
             for ty, (v, x) in groups.items()
-        ]
-        n = (study.skip_revolutions + study.revolutions) * study.steps_per_revolution + 2
-        h = TWO_PI / omega / study.steps_per_revolution
-        t = np.arange(1, n + 1) * h
-        xin = np.empty((n, 2))
-        xin[:, 0], xin[:, 1] = omega * (t - h), omega
-        out = np.empty((n + 1, len(sweep.OUTPUTS)))
+        ]  # fmt: skip
+        if omega not in inputs:
+            h = TWO_PI / omega / study.steps_per_revolution
+            t = np.arange(1, n + 1) * h
+            xin = np.empty((n, 2))
+            xin[:, 0], xin[:, 1] = omega * (t - h), omega
+            inputs[omega] = (t, xin)
+        t, xin = inputs[omega]
         x0 = (fmi2Real * 2)(0.0, omega)
-        fail = batch.Failure()
         run_args = (
             *ch._addresses, fmu._component, ctypes.addressof(ch._vin), 2,
             ctypes.addressof(ch._vout), len(sweep.OUTPUTS), 0.0, n, t.ctypes.data,
             xin.ctypes.data, 2, out[1:].ctypes.data, len(sweep.OUTPUTS),
             batch.ORDER_SET_STEP_GET, 1, ctypes.byref(fail),
         )  # fmt: skip
-        out0 = out.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
-        prepared.append((sets, x0, out0, run_args, (t, xin, out, fail)))
-    return prepared, ch, lib
+        prepared.append((sets, x0, out0, run_args))
+    return prepared, ch, lib, (inputs, out, fail)
 
 
 def floor_seconds(fmu: Fmu, study, cases: list[int], repeat: int) -> float:
     """(a): the FMU's calls of the cases alone, min over `repeat` (seconds for all cases)."""
-    prepared, ch, lib = prepared_calls(fmu, study, cases)
+    prepared, ch, lib, _keep = prepared_calls(fmu, study, cases)
     raw, c = fmu._raw, fmu._component
     reset, setup = raw["fmi2Reset"], raw["fmi2SetupExperiment"]
     enter, leave = raw["fmi2EnterInitializationMode"], raw["fmi2ExitInitializationMode"]
@@ -114,7 +110,7 @@ def floor_seconds(fmu: Fmu, study, cases: list[int], repeat: int) -> float:
     best = math.inf
     for _ in range(repeat):
         t0 = time.perf_counter()
-        for sets, x0, out0, run_args, _keep in prepared:
+        for sets, x0, out0, run_args in prepared:
             reset(c)
             setup(c, 0, 0.0, 0.0, 0, 0.0)
             enter(c)
@@ -172,53 +168,67 @@ def main(argv=None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("--fmu", default=str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
-    ap.add_argument(
-        "--study", action="append", help="a study name of studies/ (default: all three)"
-    )
+    ap.add_argument("--study", action="append", help="a study of studies/ (default: all three)")
     ap.add_argument("--repeat", type=int, default=5, help="repetitions of (a) and (b); min taken")
     ap.add_argument("--dask-repeat", type=int, default=2, help="repetitions of (c); min taken")
-    ap.add_argument("--sample", type=int, default=24, help="cases per study for (a) and (b)")
     ap.add_argument(
-        "--dask-seconds",
-        type=float,
-        default=4.0,
-        help="seconds of one worker's work per study in (c)",
+        "--seconds", type=float, default=0.5, help="floor seconds of the cases of (a) and (b)"
+    )
+    ap.add_argument(
+        "--dask-seconds", type=float, default=8.0, help="seconds of one worker's work in (c)"
     )
     ap.add_argument("--no-dask", action="store_true", help="skip (c)")
     ap.add_argument("--no-reference", action="store_true", help="skip the per-step baseline")
     a = ap.parse_args(argv)
-    print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores; "
-          f"uptime: {os.popen('uptime').read().strip()}")  # fmt: skip
+    print(f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, {os.cpu_count()} cores, "
+          f"{platform.processor() or platform.machine()}; uptime: {uptime()}")  # fmt: skip
     print("times: minimum over repetitions (wall clock, the machine may be shared)")
     fmu_path = str(pathlib.Path(a.fmu).resolve())
     fmu = Fmu(fmu_path)
+    summary = []
     for name in a.study or STUDIES:
         path = ROOT / "studies" / f"{name}.toml"
         study = load_study(path, fmu=fmu_path)
-        cases = sample_cases(study, a.sample)
-        fl = floor_seconds(fmu, study, cases, a.repeat) / len(cases)
-        wk = worker_seconds(fmu_path, study, cases, a.repeat) / len(cases)
+        pilot = floor_seconds(fmu, study, sample_cases(study, 8), 2) / min(8, study.n_cases)
+        # The cases of (a) and (b): the study's grid made denser, to about --seconds of floor,
+        # as one batch (a sweep's batches hold about a second of work).
+        k = int(min(2000, max(24, a.seconds / pilot)))
+        dense = denser(path, fmu_path, k)
+        cases = sample_cases(dense, k)
+        fl = floor_seconds(fmu, dense, cases, a.repeat) / len(cases)
+        wk = worker_seconds(fmu_path, dense, cases, a.repeat) / len(cases)
         steps = (study.skip_revolutions + study.revolutions) * study.steps_per_revolution + 2
-        print(f"\n{name}: {study.n_cases} cases of {steps} steps; {len(cases)} sampled")
+        print(f"\n{name}: cases of {steps} steps; {len(cases)} cases of its grid made denser")
         print(f"  (a) FMU calls alone     {1e3 * fl:8.3f} ms/case  {1 / fl:8.1f} cases/s")
         print(f"  (b) run_batch           {1e3 * wk:8.3f} ms/case  {1 / wk:8.1f} cases/s"
               f"   (a)/(b) = {fl / wk:.2f}")  # fmt: skip
-        if not a.no_reference and "reference" in sweep.run_batch.__code__.co_varnames:
-            rf = worker_seconds(fmu_path, study, cases, a.repeat, reference=True) / len(cases)
+        row = [name, fl / wk]
+        if not a.no_reference:
+            few = cases[:: max(1, len(cases) // 24)][:24]
+            rf = worker_seconds(fmu_path, dense, few, min(a.repeat, 2), reference=True) / len(few)
             print(f"      per-step reference  {1e3 * rf:8.3f} ms/case  {1 / rf:8.1f} cases/s"
-                  f"   (a)/(ref) = {fl / rf:.2f}")  # fmt: skip
-        if a.no_dask:
-            continue
-        big = denser(path, fmu_path, max(study.n_cases, round(a.dask_seconds / wk)))
-        rate = {}
-        for workers in (1, 2):
-            rate[workers], r = dask_rate(big, fmu_path, workers, a.dask_repeat)
-            print(f"  (c) {workers} worker(s), {big.n_cases} cases: {rate[workers]:8.1f} cases/s "
-                  f"(wall {r.wall:.2f} s; per worker {rate[workers] / workers * fl:.2f}× "
-                  "the floor)")  # fmt: skip
-        print(f"      2 workers / 1 worker = {rate[2] / rate[1]:.2f}")
-    print(f"\nuptime after: {os.popen('uptime').read().strip()}")
+                  f"   (a)/(ref) = {fl / rf:.2f}  ({len(few)} of the cases)")  # fmt: skip
+        if not a.no_dask:
+            big = denser(path, fmu_path, max(study.n_cases, round(a.dask_seconds / wk)))
+            rate = {}
+            for workers in (1, 2):
+                rate[workers], r = dask_rate(big, fmu_path, workers, a.dask_repeat)
+                print(f"  (c) {workers} worker(s), {big.n_cases} cases: {rate[workers]:8.1f} "
+                      f"cases/s (wall {r.wall:.2f} s); per worker "
+                      f"{rate[workers] / workers * fl:.2f}× the floor's cases/s")  # fmt: skip
+            print(f"      2 workers / 1 worker = {rate[2] / rate[1]:.2f}")
+            row += [rate[1] * fl, rate[2] / 2 * fl, rate[2] / rate[1]]
+        summary.append(row)
+    print("\nstudy               (a)/(b)" + ("" if a.no_dask else "  1 worker  2 workers  2/1"))
+    for row in summary:
+        print(f"{row[0]:<20}{row[1]:7.2f}" + "".join(f"{v:10.2f}" for v in row[2:]))
+    print(f"uptime after: {uptime()}")
     return 0
+
+
+def uptime() -> str:
+    with open("/proc/loadavg") as f:
+        return "load average " + ", ".join(f.read().split()[:3])
 
 
 if __name__ == "__main__":
