@@ -233,25 +233,33 @@ def run_batch_csv(
     fmu_path: str, study: Study, cases: list[int], shipped: bool, cols: list, fp: str
 ) -> tuple[str, int, float, float]:
     """One Dask task of `run_sweep`: the rows of `run_batch` as the lines of the result file
-    (columns `cols`, fingerprint `fp`), formatted on the worker: the client only appends them, so
-    it takes no share of the cores from the workers. Returns (text, rows, Σ seconds in FMU calls,
-    Σ seconds of the cases)."""
+    (columns `cols`, which are `columns(study)`; fingerprint `fp`), formatted on the worker: the
+    client only appends them, so it takes no share of the cores from the workers. Returns (text,
+    rows, Σ seconds in FMU calls, Σ seconds of the cases)."""
     import io
 
-    rows = run_batch(fmu_path, study, cases, shipped)
+    from .sweep_cases import run_cases
+
+    if cols != columns(study):
+        raise ValueError("run_batch_csv: the columns are not the study's")
+    if shipped:
+        from .cluster import local_fmu
+
+        fmu_path = local_fmu(fmu_path)
+    worker = _worker_name()
+    lines, inside_sum, seconds_sum = [], 0.0, 0.0
+    for i, params, metrics, status, message, inside, seconds in run_cases(
+        _worker_fmu(fmu_path), study, list(cases), OUTPUTS
+    ):
+        lines.append(
+            [i, *[int(v) if isinstance(v, bool) else v for v in map(params.get, study.varied)],
+             *map(metrics.get, study.metrics), status, message, inside, seconds, worker, fp]
+        )  # fmt: skip
+        inside_sum += inside
+        seconds_sum += seconds
     buf = io.StringIO()
-    csv.writer(buf).writerows([[_cell(r, k, fp) for k in cols] for r in rows])
-    return (
-        buf.getvalue(),
-        len(rows),
-        math.fsum(r["seconds_fmu"] for r in rows),
-        math.fsum(r["seconds_case"] for r in rows),
-    )
-
-
-def _cell(r: dict, k: str, fp: str):
-    v = fp if k == "fingerprint" else r.get(k, "")
-    return int(v) if isinstance(v, bool) else v
+    csv.writer(buf).writerows(lines)
+    return buf.getvalue(), len(lines), inside_sum, seconds_sum
 
 
 def columns(study: Study) -> list[str]:

@@ -180,3 +180,29 @@ def test_batched_metrics_equal_the_reference_on_synthetic_runs():
         ref = _summary_metrics(st, np.arange(n) * h[c], data[c])
         got = dict(zip(st.metrics, values[c].tolist()))
         assert {k: bits(v) for k, v in got.items()} == {k: bits(v) for k, v in ref.items()}, c
+
+
+def test_a_dask_task_returns_the_lines_the_client_wrote_before(fmu_path):
+    """run_batch_csv's text is what csv.DictWriter wrote from the reference rows (but for the
+    timings), rejected cases included."""
+    import csv
+    import io
+
+    st = load_study(ROOT / "studies" / "default_balancer.toml", fmu=fmu_path)
+    cols = sweep.columns(st)
+    cases = [0, 5, 30]
+    text, n, inside, seconds = sweep.run_batch_csv(fmu_path, st, cases, False, cols, "f-p")
+    assert n == 3 and 0 < inside <= seconds
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=cols)
+    for r in run_batch(fmu_path, st, cases, reference=True):
+        w.writerow({k: "f-p" if k == "fingerprint" else r[k] for k in cols})
+    timing = [cols.index("seconds_fmu"), cols.index("seconds_case")]
+
+    def cells(s):
+        return [
+            [c for j, c in enumerate(row) if j not in timing] for row in csv.reader(io.StringIO(s))
+        ]
+
+    assert cells(text) == cells(buf.getvalue())
+    assert text.endswith("\r\n") and text.count("\r\n") == 3
