@@ -605,8 +605,10 @@ def run_sweep(
     done = read_done(csv_path, fp, cols)
     state.found, state.csv = len(done), csv_path
     todo = (i for i in range(study.n_cases) if i not in done)
+    left = study.n_cases - len(done)  # cases not submitted yet
     if stop_after is not None:
         todo = itertools.islice(todo, stop_after)
+        left = min(left, stop_after)
     with _quiet_distributed():
         client, cluster = _client(scheduler, workers, connect_timeout)
     n_workers = len(client.scheduler_info()["workers"]) or 1
@@ -643,7 +645,14 @@ def run_sweep(
         in_flight = 2 * n_workers
 
         def submit():
-            b = list(itertools.islice(todo, size))
+            nonlocal left
+            n = size
+            if batch_size is None and per_case is not None:
+                # The last batches shrink (to no less than a twentieth of batch_seconds), so that
+                # the workers finish together instead of one waiting for another's last batch.
+                n = min(n, max(int(0.05 * batch_seconds / per_case), -(-left // in_flight), 1))
+            b = list(itertools.islice(todo, n))
+            left -= len(b)
             if not b:
                 return None
             return client.submit(run_batch_csv, fmu_ref, study_f, b, shipped, cols, fp, pure=False)
