@@ -12,11 +12,14 @@
     as the baseline, `reference=True`, the per-step Python loop, on 24 of them);
 (c) cases per second of `run_sweep` on a LocalCluster (processes, one thread each) with 1 and with
     2 workers, on the study with a denser grid (the same cases' kind, enough of them for several
-    seconds of one worker's work), from the first submission to the last result.
+    seconds of one worker's work), from the first submission to the last result; and the CPU
+    time the worker processes spent per case (their whole work, the cases and Dask's).
 
 The ratios printed: floor time / worker time (≥ 0.8 is the target: a worker's cases/s at least 0.8×
 the floor's), and 2-worker / 1-worker cases/s (≥ 1.8). Every time is the minimum over --repeat
-repetitions (wall time; the machine is shared, and the minimum is the run least disturbed).
+repetitions, by wall time and by CPU time: on a shared machine the minimum is the run least
+disturbed, and the CPU time leaves out the time other processes had the core (but not their
+effect on the caches).
 
     .venv/bin/python scripts/bench_sweep.py [--repeat 5] [--seconds 0.5] [--dask-seconds 8]
     .venv/bin/python scripts/bench_sweep.py --no-dask        # (a) and (b) only
@@ -157,16 +160,37 @@ def denser(study_path: pathlib.Path, fmu: str, n_cases: int):
     return study_from_dict(doc, base_dir=study_path.parent, source=str(study_path), fmu=fmu)
 
 
-def dask_rate(study, fmu: str, workers: int, repeat: int) -> tuple[float, float]:
-    """(c): cases/s of run_sweep with `workers` LocalCluster workers (best of `repeat`), and the
-    share of the workers' time outside the FMU calls of run_batch."""
+def _cpu() -> float:
+    return time.process_time()
+
+
+def dask_rate(study, fmu: str, workers: int, repeat: int) -> tuple[float, float, object]:
+    """(c): run_sweep on a LocalCluster of `workers` single-threaded worker processes (best of
+    `repeat` by wall time): (cases/s, the workers' CPU seconds per case, the SweepResult). The
+    cluster is started here, as run_sweep starts its own, and attached with `scheduler=`, so that
+    the workers' CPU time (their whole process: the cases and Dask's work) can be read before and
+    after."""
+    import dask
+    from dask.distributed import Client, LocalCluster
+
     best = None
     for _ in range(repeat):
-        with tempfile.TemporaryDirectory() as d:
-            r = sweep.run_sweep(study, fmu, d, workers=workers, progress=False)
-        if best is None or r.wall < best.wall:
-            best = r
-    return best.computed / best.wall, best
+        with (
+            # As run_sweep's own LocalCluster (sweep._client): no statistical profiler.
+            dask.config.set({"distributed.worker.profile.enabled": False}),
+            LocalCluster(
+                n_workers=workers, threads_per_worker=1, processes=True,
+                dashboard_address=":0", host="127.0.0.1",
+            ) as cluster,
+            Client(cluster) as client,
+            tempfile.TemporaryDirectory() as d,
+        ):  # fmt: skip
+            cpu0 = sum(client.run(_cpu).values())
+            r = sweep.run_sweep(study, fmu, d, scheduler=cluster.scheduler_address, progress=False)
+            cpu = (sum(client.run(_cpu).values()) - cpu0) / r.computed
+        if best is None or r.wall < best[2].wall:
+            best = (r.computed / r.wall, cpu, r)
+    return best
 
 
 def main(argv=None) -> int:
@@ -217,25 +241,29 @@ def main(argv=None) -> int:
             rf = worker_seconds(fmu_path, dense, few, min(a.repeat, 2), reference=True) / len(few)
             print(f"      per-step reference ({len(few)} of the cases): {1e3 * rf[0]:.3f} ms/case "
                   f"wall, {1e3 * rf[1]:.3f} CPU; (a)/(reference) wall {fl[0] / rf[0]:.2f}")  # fmt: skip
-        wk, fl = wk[0], fl[0]
         if not a.no_dask:
-            big = denser(path, fmu_path, max(study.n_cases, round(a.dask_seconds / wk)))
+            big = denser(path, fmu_path, max(study.n_cases, round(a.dask_seconds / wk[0])))
             rate = {}
             for workers in (1, 2):
-                rate[workers], r = dask_rate(big, fmu_path, workers, a.dask_repeat)
+                rate[workers], cpu, r = dask_rate(big, fmu_path, workers, a.dask_repeat)
                 print(f"  (c) {workers} worker(s), {big.n_cases} cases: {rate[workers]:8.1f} "
-                      f"cases/s (wall {r.wall:.2f} s); per worker "
-                      f"{rate[workers] / workers * fl:.2f}× the floor's cases/s")  # fmt: skip
+                      f"cases/s (wall {r.wall:.2f} s); per worker {rate[workers] / workers * fl[0]:.2f}"
+                      f"× the floor's cases/s (wall); workers' CPU {1e3 * cpu:.3f} ms/case, "
+                      f"{fl[1] / cpu:.2f}× the floor's (CPU)")  # fmt: skip
+                row += [rate[workers] / workers * fl[0], fl[1] / cpu]
             print(f"      2 workers / 1 worker = {rate[2] / rate[1]:.2f}")
-            row += [rate[1] * fl, rate[2] / 2 * fl, rate[2] / rate[1]]
+            row.append(rate[2] / rate[1])
         summary.append(row)
-    print("\nper worker: cases/s ÷ the floor's (wall); 2/1: cases/s of 2 workers ÷ 1 worker's")
+    print(
+        "\nper worker: a worker's cases/s ÷ the floor's, by wall time and by CPU time; "
+        "2/1: cases/s of 2 workers ÷ 1 worker's"
+    )
     print(
         "study               (a)/(b) wall  (a)/(b) CPU"
-        + ("" if a.no_dask else "  1 worker  2 workers  2/1")
+        + ("" if a.no_dask else "  1 worker wall, CPU  2 workers wall, CPU   2/1")
     )
     for row in summary:
-        print(f"{row[0]:<20}{row[1]:12.2f}{row[2]:13.2f}" + "".join(f"{v:10.2f}" for v in row[3:]))
+        print(f"{row[0]:<20}{row[1]:12.2f}{row[2]:13.2f}" + "".join(f"{v:9.2f}" for v in row[3:]))
     print(f"uptime after: {uptime()}")
     return 0
 
