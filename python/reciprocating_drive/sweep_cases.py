@@ -16,7 +16,7 @@ Anything unusual falls back to the reference path for that one case, which then 
 a case the FMU rejects (its row and message are exactly `run_case`'s), and samples for which the
 batched summary is not certain to hold (a non-finite value, an angle that decreases, an evaluated
 revolution missing or of fewer than three samples, a non-finite metric) go through
-`summarize_revolutions` and `metrics_of` as before.
+`summarize_revolutions` and `metrics_of`, the reference summary.
 """
 
 from __future__ import annotations
