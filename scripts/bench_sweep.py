@@ -250,6 +250,12 @@ def main(argv=None) -> int:
                       f"cases/s (wall {r.wall:.2f} s); per worker {rate[workers] / workers * fl[0]:.2f}"
                       f"× the floor's cases/s (wall); workers' CPU {1e3 * cpu:.3f} ms/case, "
                       f"{fl[1] / cpu:.2f}× the floor's (CPU)")  # fmt: skip
+                # Dask's share: the workers' wall time not spent in tasks (task overhead, transfer,
+                # waiting for the next batch, the last batches' unequal ends).
+                outside = 1 - r.seconds_cases / (r.wall * workers)
+                print(
+                    f"      {r.batches} batches; workers' time outside the tasks: {100 * outside:.1f} %"
+                )
                 row += [rate[workers] / workers * fl[0], fl[1] / cpu]
             print(f"      2 workers / 1 worker = {rate[2] / rate[1]:.2f}")
             row.append(rate[2] / rate[1])

@@ -235,7 +235,7 @@ def run_batch_csv(
     """One Dask task of `run_sweep`: the rows of `run_batch` as the lines of the result file
     (columns `cols`, which are `columns(study)`; fingerprint `fp`), formatted on the worker: the
     client only appends them, so it takes no share of the cores from the workers. Returns (text,
-    rows, Σ seconds in FMU calls, Σ seconds of the cases)."""
+    rows, Σ seconds in FMU calls, seconds of the whole task but loading the FMU)."""
     import io
 
     from .sweep_cases import run_cases
@@ -246,20 +246,22 @@ def run_batch_csv(
         from .cluster import local_fmu
 
         fmu_path = local_fmu(fmu_path)
+    fmu = _worker_fmu(fmu_path)
+    t0 = time.perf_counter()
     worker = _worker_name()
-    lines, inside_sum, seconds_sum = [], 0.0, 0.0
+    lines, inside_sum = [], 0.0
     for i, params, metrics, status, message, inside, seconds in run_cases(
-        _worker_fmu(fmu_path), study, list(cases), OUTPUTS
+        fmu, study, list(cases), OUTPUTS
     ):
         lines.append(
             [i, *[int(v) if isinstance(v, bool) else v for v in map(params.get, study.varied)],
              *map(metrics.get, study.metrics), status, message, inside, seconds, worker, fp]
         )  # fmt: skip
         inside_sum += inside
-        seconds_sum += seconds
     buf = io.StringIO()
     csv.writer(buf).writerows(lines)
-    return buf.getvalue(), len(lines), inside_sum, seconds_sum
+    text = buf.getvalue()
+    return text, len(lines), inside_sum, time.perf_counter() - t0
 
 
 def columns(study: Study) -> list[str]:
@@ -400,6 +402,8 @@ class SweepResult:
     workers: int
     total: int = 0  # rows in the result file at the end
     rejected: int = 0  # of them with status "error"
+    seconds_cases: float = 0.0  # sum over the batches of their time on the workers
+    batches: int = 0  # Dask tasks
 
 
 @dataclass
@@ -631,7 +635,7 @@ def run_sweep(
             client.close()
             raise SweepError(f"--scheduler {scheduler}: {e}") from None
     bar = None
-    computed, fmu_seconds, wall = 0, 0.0, 0.0
+    computed, fmu_seconds, wall, case_seconds, batches = 0, 0.0, 0.0, 0.0, 0
     try:
         study_f = client.scatter(study, broadcast=True)
         new_file = not csv_path.is_file() or csv_path.stat().st_size == 0
@@ -677,6 +681,8 @@ def run_sweep(
                 f.write(text)
                 f.flush()
                 fmu_seconds += inside
+                case_seconds += seconds
+                batches += 1
                 computed += n_rows
                 state.computed = computed
                 if bar is not None:
@@ -696,8 +702,9 @@ def run_sweep(
             _close(client, cluster)
     total, rejected = write_tables(csv_path, pq_path, study)
     return SweepResult(
-        csv_path, pq_path, computed, len(done), wall, fmu_seconds, n_workers, total, rejected
-    )
+        csv_path, pq_path, computed, len(done), wall, fmu_seconds, n_workers, total, rejected,
+        case_seconds, batches,
+    )  # fmt: skip
 
 
 def warnings(study: Study) -> list[str]:
