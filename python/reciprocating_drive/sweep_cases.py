@@ -348,8 +348,11 @@ def _batch_metrics(h, data, study, outputs, w: Workspace):
         return j, np.where(a1 != a0, t0 + (t1 - t0) * (target - a0) / (a1 - a0), t1)
 
     inside = th[:, :1] < lo[None, :]
-    ja, ta = crossing(lo)
-    ja, ta = np.where(inside, ja, 0), np.where(inside, ta, t[:, :1])
+    if inside.any():
+        ja, ta = crossing(lo)
+        ja, ta = np.where(inside, ja, 0), np.where(inside, ta, t[:, :1])
+    else:  # every evaluated revolution starts at the first sample (a rigid study, skip 0)
+        ja, ta = np.zeros((C, R), dtype=np.intp), np.repeat(t[:, :1], R, axis=1)
     jb, tb = crossing(hi)
     good &= (jb - ja >= 3).all(axis=1)
     if not good.any():
@@ -361,6 +364,9 @@ def _batch_metrics(h, data, study, outputs, w: Workspace):
     cols = np.arange(w0, w1)
     masks = []
     for r in range(R):
+        if (ja[good, r] == w0).all() and (jb[good, r] == w1 - 1).all():
+            masks.append(None)  # revolution r is columns w0 .. w1-2 of every good run
+            continue
         m = np.greater_equal(cols, ja[:, r : r + 1], out=w.get(f"mask{r}", (C, W), bool))
         masks.append(np.logical_and(m, np.less(cols, jb[:, r : r + 1], out=flags[:, :W]), out=m))
     TH = th.ravel()
@@ -369,7 +375,9 @@ def _batch_metrics(h, data, study, outputs, w: Workspace):
         return cache[name]
 
     def masked(yw, m, fill):
-        """yw where m, else fill."""
+        """yw where m, else fill (m None: the columns of a revolution that fills the window)."""
+        if m is None:
+            return yw[:, : W - 1]
         out = w.get("masked", (C, W))
         out.fill(fill)
         np.copyto(out, yw, where=m)
