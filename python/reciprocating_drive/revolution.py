@@ -77,11 +77,14 @@ class RevolutionSummary:
 
 
 def _refined_peaks(
-    theta: np.ndarray, y: np.ndarray, i: np.ndarray
+    theta: np.ndarray, y: np.ndarray, i: np.ndarray, inner: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """(values, angles) of the extremes at samples i, each refined by the parabola through i-1, i,
-    i+1 when it has both neighbours and its vertex lies between them (else the sample itself)."""
-    inner = (i > 0) & (i < len(y) - 1)
+    i+1 when it has both neighbours and its vertex lies between them (else the sample itself).
+    `inner`: which samples have both neighbours, when theta and y hold several runs one after
+    the other (the sweep's batches); by default every sample but the first and the last."""
+    if inner is None:
+        inner = (i > 0) & (i < len(y) - 1)
     im, ip = np.where(inner, i - 1, i), np.where(inner, i + 1, i)
     x0, x1, x2 = theta[im], theta[i], theta[ip]
     y0, y1, y2 = y[im], y[i], y[ip]

@@ -59,6 +59,9 @@ OUTPUTS = (
 
 _FMUS: dict = {}
 
+#: The most cases in one Dask task (batches are sized to `batch_seconds` of work).
+_MAX_BATCH = 20_000
+
 
 def _worker_fmu(path: str):
     """The FMU of this worker process, loaded once and reused by every case (fmi2Reset between)."""
@@ -78,12 +81,9 @@ def _speed(study: Study, params: dict) -> float:
     return study.crank_speed
 
 
-def run_case(fmu, study: Study, params: dict) -> tuple[dict, float]:
-    """Runs one case on a loaded Fmu; returns (metrics, seconds spent in FMU calls). Raises the
-    FMU's error (FmuError) for a rejected case."""
-    omega = _speed(study, params)
-    if not (omega > 0 and math.isfinite(omega)):
-        raise ValueError(f"crank speed = {omega} rad/s; allowed: > 0")
+def case_values(study: Study, params: dict, omega: float) -> dict:
+    """The values a case sets in initialization mode, in the order they are set: the machine's
+    (without the crank's state), the case's parameters, the crank speed."""
     values = {
         k: v
         for k, v in study.base_values.items()
@@ -91,6 +91,22 @@ def run_case(fmu, study: Study, params: dict) -> tuple[dict, float]:
     }
     values.update({k: v for k, v in params.items() if k not in SPEED_PARAMETERS})
     values["crank.speed"] = omega
+    return values
+
+
+def _check_speed(omega: float) -> None:
+    if not (omega > 0 and math.isfinite(omega)):
+        raise ValueError(f"crank speed = {omega} rad/s; allowed: > 0")
+
+
+def run_case(fmu, study: Study, params: dict) -> tuple[dict, float]:
+    """The reference path of one case, one FMU call per communication step from Python (the
+    sweep runs `run_cases`, whose rows equal this path's bit for bit; the tests compare them, and
+    `run_batch(..., reference=True)` runs it). Returns (metrics, seconds spent in FMU calls);
+    raises the FMU's error (FmuError) for a rejected case."""
+    omega = _speed(study, params)
+    _check_speed(omega)
+    values = case_values(study, params, omega)
     n_rev = study.skip_revolutions + study.revolutions
     n = n_rev * study.steps_per_revolution + 2
     h = TWO_PI / omega / study.steps_per_revolution
@@ -106,14 +122,18 @@ def run_case(fmu, study: Study, params: dict) -> tuple[dict, float]:
             t, [omega * (t - h), omega], rows[k]
         )  # inputs at the step's start (docs/model.md §2)
     inside = time.perf_counter() - t0
-    time_ = np.arange(n + 1) * h
+    return _summary_metrics(study, np.arange(n + 1) * h, rows), inside
+
+
+def _summary_metrics(study: Study, time_: np.ndarray, rows: np.ndarray) -> dict:
+    """The metrics of one run's samples through summarize_revolutions (the reference)."""
     data = {name: rows[:, i] for i, name in enumerate(OUTPUTS)}
     revs = [
         r
         for r in summarize_revolutions(time_, data["crank.model_angle"], data)
         if r.index >= study.skip_revolutions
     ][: study.revolutions]
-    return metrics_of(revs, study.metrics), inside
+    return metrics_of(revs, study.metrics)
 
 
 def metrics_of(revs, wanted) -> dict:
@@ -168,17 +188,32 @@ def _worker_name() -> str:
         return f"pid {os.getpid()}"
 
 
-def run_batch(fmu_path: str, study: Study, cases: list[int], shipped: bool = False) -> list[dict]:
+def run_batch(
+    fmu_path: str, study: Study, cases: list[int], shipped: bool = False, reference: bool = False
+) -> list[dict]:
     """One Dask task: the cases `cases` of `study`, each a result row (never raises for a case).
     `shipped`: `fmu_path` is the SHA-256 of the FMU the client shipped to a cluster that shares no
-    disk with it (cluster.py), otherwise a path on this machine."""
+    disk with it (cluster.py), otherwise a path on this machine. The cases run through the native
+    batch driver with the metrics computed for the whole batch at once (sweep_cases.py);
+    `reference=True` runs the reference path instead, one FMU call per step from Python
+    (`run_case`), whose rows are the same bit for bit (but for the timings)."""
     from .fmu import FmuError
+    from .sweep_cases import run_cases
 
     if shipped:
         from .cluster import local_fmu
 
         fmu_path = local_fmu(fmu_path)
     fmu = _worker_fmu(fmu_path)
+    worker = _worker_name()
+    if not reference:
+        return [
+            {"case": i, **params, **metrics, "status": status, "message": message,
+             "seconds_fmu": inside, "seconds_case": seconds, "worker": worker}
+            for i, params, metrics, status, message, inside, seconds in run_cases(
+                fmu, study, list(cases), OUTPUTS
+            )
+        ]  # fmt: skip
     out = []
     for i in cases:
         params = study.case(i)
@@ -189,9 +224,44 @@ def run_batch(fmu_path: str, study: Study, cases: list[int], shipped: bool = Fal
         except (FmuError, ValueError, RuntimeError) as e:
             status, message = "error", str(e)
             metrics = {m: math.nan for m in study.metrics}
-        row = asdict(Row(i, status, message, inside, time.perf_counter() - t0, _worker_name()))
+        row = asdict(Row(i, status, message, inside, time.perf_counter() - t0, worker))
         out.append({**{"case": i}, **params, **metrics, **row})
     return out
+
+
+def run_batch_csv(
+    fmu_path: str, study: Study, cases: list[int], shipped: bool, cols: list, fp: str
+) -> tuple[str, int, float, float]:
+    """One Dask task of `run_sweep`: the rows of `run_batch` as the lines of the result file
+    (columns `cols`, which are `columns(study)`; fingerprint `fp`), formatted on the worker: the
+    client only appends them, so it takes no share of the cores from the workers. Returns (text,
+    rows, Σ seconds in FMU calls, seconds of the whole task but loading the FMU)."""
+    import io
+
+    from .sweep_cases import run_cases
+
+    if cols != columns(study):
+        raise ValueError("run_batch_csv: the columns are not the study's")
+    if shipped:
+        from .cluster import local_fmu
+
+        fmu_path = local_fmu(fmu_path)
+    fmu = _worker_fmu(fmu_path)
+    t0 = time.perf_counter()
+    worker = _worker_name()
+    lines, inside_sum = [], 0.0
+    for i, params, metrics, status, message, inside, seconds in run_cases(
+        fmu, study, list(cases), OUTPUTS
+    ):
+        lines.append(
+            [i, *[int(v) if isinstance(v, bool) else v for v in map(params.get, study.varied)],
+             *map(metrics.get, study.metrics), status, message, inside, seconds, worker, fp]
+        )  # fmt: skip
+        inside_sum += inside
+    buf = io.StringIO()
+    csv.writer(buf).writerows(lines)
+    text = buf.getvalue()
+    return text, len(lines), inside_sum, time.perf_counter() - t0
 
 
 def columns(study: Study) -> list[str]:
@@ -332,6 +402,8 @@ class SweepResult:
     workers: int
     total: int = 0  # rows in the result file at the end
     rejected: int = 0  # of them with status "error"
+    seconds_cases: float = 0.0  # sum over the batches of their time on the workers
+    batches: int = 0  # Dask tasks
 
 
 @dataclass
@@ -452,9 +524,14 @@ def _client(scheduler: str | None, workers: int | None, connect_timeout: float):
     n = workers or os.cpu_count() or 1
     # The workers' logging goes to the same terminal: errors only (a batch cancelled after Ctrl-C
     # is not one). Config reaches the spawned workers through the environment.
-    env_key = "DASK_LOGGING__DISTRIBUTED"
-    old_env = os.environ.get(env_key)
-    os.environ[env_key] = "error"
+    # Their statistical profiler feeds the dashboard, which a sweep does not show: without it a
+    # worker spends some percent less CPU per case (scripts/bench_sweep.py, docs/sweeps.md "Speed").
+    env = {
+        "DASK_LOGGING__DISTRIBUTED": "error",
+        "DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False",
+    }
+    old_env = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
     try:
         cluster = LocalCluster(
             n_workers=n,
@@ -465,10 +542,11 @@ def _client(scheduler: str | None, workers: int | None, connect_timeout: float):
             preload=[__name__],  # dask_setup below: the workers ignore Ctrl-C
         )
     finally:
-        if old_env is None:
-            os.environ.pop(env_key, None)
-        else:
-            os.environ[env_key] = old_env
+        for k, v in old_env.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
     return Client(cluster), cluster
 
 
@@ -488,14 +566,6 @@ def _close(client, cluster) -> None:
     if cluster is not None:
         with contextlib.suppress(Exception):
             cluster.close(timeout=10)
-
-
-def _row_out(r: dict, cols: list, fp: str) -> dict:
-    out = {}
-    for k in cols:
-        v = fp if k == "fingerprint" else r.get(k, "")
-        out[k] = int(v) if isinstance(v, bool) else v
-    return out
 
 
 def run_sweep(
@@ -545,8 +615,10 @@ def run_sweep(
     done = read_done(csv_path, fp, cols)
     state.found, state.csv = len(done), csv_path
     todo = (i for i in range(study.n_cases) if i not in done)
+    left = study.n_cases - len(done)  # cases not submitted yet
     if stop_after is not None:
         todo = itertools.islice(todo, stop_after)
+        left = min(left, stop_after)
     with _quiet_distributed():
         client, cluster = _client(scheduler, workers, connect_timeout)
     n_workers = len(client.scheduler_info()["workers"]) or 1
@@ -563,7 +635,7 @@ def run_sweep(
             client.close()
             raise SweepError(f"--scheduler {scheduler}: {e}") from None
     bar = None
-    computed, fmu_seconds, wall = 0, 0.0, 0.0
+    computed, fmu_seconds, wall, case_seconds, batches = 0, 0.0, 0.0, 0.0, 0
     try:
         study_f = client.scatter(study, broadcast=True)
         new_file = not csv_path.is_file() or csv_path.stat().st_size == 0
@@ -583,8 +655,17 @@ def run_sweep(
         in_flight = 2 * n_workers
 
         def submit():
-            b = list(itertools.islice(todo, size))
-            return client.submit(run_batch, fmu_ref, study_f, b, shipped, pure=False) if b else None
+            nonlocal left
+            n = size
+            if batch_size is None and per_case is not None:
+                # The last batches shrink (to no less than a twentieth of batch_seconds), so that
+                # the workers finish together instead of one waiting for another's last batch.
+                n = min(n, max(int(0.05 * batch_seconds / per_case), -(-left // in_flight), 1))
+            b = list(itertools.islice(todo, n))
+            left -= len(b)
+            if not b:
+                return None
+            return client.submit(run_batch_csv, fmu_ref, study_f, b, shipped, cols, fp, pure=False)
 
         t0 = time.perf_counter()
         state.started = True
@@ -596,19 +677,20 @@ def run_sweep(
             first = [x for x in (submit() for _ in range(in_flight)) if x is not None]
             ac = as_completed(first)
             for fut in ac:
-                rows = fut.result()
-                for r in rows:
-                    w.writerow(_row_out(r, cols, fp))
-                    fmu_seconds += r["seconds_fmu"]
+                text, n_rows, inside, seconds = fut.result()
+                f.write(text)
                 f.flush()
-                computed += len(rows)
+                fmu_seconds += inside
+                case_seconds += seconds
+                batches += 1
+                computed += n_rows
                 state.computed = computed
                 if bar is not None:
-                    bar.update(len(rows))
-                if batch_size is None and rows:
-                    t = sum(r["seconds_case"] for r in rows) / len(rows)
+                    bar.update(n_rows)
+                if batch_size is None and n_rows:
+                    t = seconds / n_rows
                     per_case = t if per_case is None else 0.5 * (per_case + t)
-                    size = int(min(10_000, max(1, batch_seconds / max(per_case, 1e-6))))
+                    size = int(min(_MAX_BATCH, max(1, batch_seconds / max(per_case, 1e-6))))
                 nxt = submit()
                 if nxt is not None:
                     ac.add(nxt)
@@ -620,8 +702,9 @@ def run_sweep(
             _close(client, cluster)
     total, rejected = write_tables(csv_path, pq_path, study)
     return SweepResult(
-        csv_path, pq_path, computed, len(done), wall, fmu_seconds, n_workers, total, rejected
-    )
+        csv_path, pq_path, computed, len(done), wall, fmu_seconds, n_workers, total, rejected,
+        case_seconds, batches,
+    )  # fmt: skip
 
 
 def warnings(study: Study) -> list[str]:

@@ -1,0 +1,464 @@
+"""The cases of one sweep batch at the speed of the FMU's own calls (docs/sweeps.md "Speed").
+
+`run_cases` runs the cases of a batch one after the other on a worker's loaded FMU, as
+`sweep.run_case` does, with the same FMI calls in the same order and the same arguments, but:
+
+* what every case of a study needs is built once per worker and study (`_Prepared`): the value
+  references, the typed value arrays in the order `run_case` sets them (a case writes only its
+  varied parameters and the speed into them), the channel's arrays and the call's arguments;
+* the communication steps of a case are one call of the native batch driver (batch.py,
+  tools/fmi2-batch: fmi2SetReal, fmi2DoStep, fmi2GetReal per step, no Python in between);
+* the metrics of all cases of a batch are computed together, vectorised over cases and
+  revolutions (`batch_metrics`), with the arithmetic of `revolution.revolution_table` and
+  `sweep.metrics_of` element for element, so every number is the same bit for bit.
+
+Anything unusual falls back to the reference path for that one case, which then decides the row:
+a case the FMU rejects (its row and message are exactly `run_case`'s), and samples for which the
+batched summary is not certain to hold (a non-finite value, an angle that decreases, an evaluated
+revolution missing or of fewer than three samples, a non-finite metric) go through
+`summarize_revolutions` and `metrics_of`, the reference summary.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import time
+
+import numpy as np
+
+from . import batch
+from .fmu import FmuError
+from .revolution import TWO_PI, _degrees, _refined_peaks
+
+#: Samples × outputs per block of cases whose metrics are computed together (about 16 MB).
+_BLOCK_VALUES = 2_000_000
+
+_PREPARED: dict = {}
+
+_VP, _INT, _SZ = ctypes.c_void_p, ctypes.c_int, ctypes.c_size_t
+# fmi2SetReal/fmi2GetReal(component, vr[], n, value[]) called with plain addresses: fmpy's
+# prototypes would build a ctypes pointer object per call.
+_RW = ctypes.CFUNCTYPE(_INT, _VP, _VP, _SZ, _VP)
+
+
+class _Prepared:
+    """One worker FMU's set-up for the cases of one study, reused by every case."""
+
+    def __init__(self, fmu, study, outputs: tuple):
+        from fmpy.fmi2 import fmi2Boolean, fmi2Integer, fmi2Real, fmi2ValueReference
+
+        from .sweep import SPEED_PARAMETERS, case_values
+
+        self.fmu = fmu
+        # The order of run_case's values: the same dict with placeholders.
+        varied = [k for k in study.varied if k not in SPEED_PARAMETERS]
+        order = case_values(study, {k: 0.0 for k in varied}, 1.0)
+        ctype = {"Real": fmi2Real, "Integer": fmi2Integer, "Boolean": fmi2Boolean}
+        groups: dict = {}
+        for name in order:
+            var = fmu.variables[name]
+            if var.type not in ctype:
+                raise TypeError(f"variables of type {var.type} are not supported")
+            groups.setdefault(var.type, []).append(name)
+        self.sets = []  # (raw fmi2Set*, vr array, n, value array)
+        self.slots = []  # (name, value array, index, conversion) written per case
+        for ty, names in groups.items():
+            conv = float if ty == "Real" else int
+            # Placeholders of the varied values and the speed: every case writes its own.
+            vals = (ctype[ty] * len(names))(*[conv(order[k]) for k in names])
+            vrs = (fmi2ValueReference * len(names))(*[fmu.vr[k] for k in names])
+            self.sets.append((fmu._raw[f"fmi2Set{ty}"], vrs, len(names), vals))
+            for j, k in enumerate(names):
+                if k in varied or k == "crank.speed":
+                    self.slots.append((k, vals, j, conv))
+        raw = fmu._raw
+        self.reset, self.setup = raw["fmi2Reset"], raw["fmi2SetupExperiment"]
+        self.enter = raw["fmi2EnterInitializationMode"]
+        self.leave = raw["fmi2ExitInitializationMode"]
+        ch = fmu.channel(["crank.angle", "crank.speed"], list(outputs))
+        self.vin, self.vout = ch._vin, ch._vout  # kept alive: their addresses are used
+        self.vin_at, self.vout_at = ctypes.addressof(ch._vin), ctypes.addressof(ch._vout)
+        self.n_out = len(outputs)
+        self.set_real = _RW(ch._addresses[0])
+        self.get_real = _RW(ch._addresses[2])
+        self.x0 = np.zeros(2)
+        self.n = (study.skip_revolutions + study.revolutions) * study.steps_per_revolution + 2
+        self.k = np.arange(1, self.n + 1)
+        self.t = np.empty(self.n)
+        self.xin = np.empty((self.n, 2))
+        self.inputs_of = None  # (omega, h) of the inputs in self.t, self.xin
+        self.fail = batch.Failure()
+        self.work = Workspace()
+        self.native = batch.library().fmi2_batch_run
+        self.x0_at = self.x0.ctypes.data
+        # fmi2_batch_run's arguments before and after the outputs' address (batch.run).
+        self.head = (
+            *ch._addresses, fmu._component, self.vin_at, 2, self.vout_at, self.n_out, 0.0,
+            self.n, self.t.ctypes.data, self.xin.ctypes.data, 2,
+        )  # fmt: skip
+        self.end = (self.n_out, batch.ORDER_SET_STEP_GET, 1, ctypes.byref(self.fail))
+
+    def run(self, params: dict, omega: float, h: float, out: int) -> None:
+        """One case: Fmu.start's calls with the case's values, then the channel's first
+        fmi2SetReal/fmi2GetReal and every step through the native driver, into the n+1 rows of
+        outputs at address `out`. A call that returns fmi2Discard or worse raises _Fallback:
+        the reference path runs the case again and makes its row and the FMU's message."""
+        fmu, c = self.fmu, self.fmu._component
+        for name, vals, j, conv in self.slots:
+            vals[j] = conv(omega if name == "crank.speed" else params[name])
+        if fmu._started and self.reset(c) > 1:
+            raise _Fallback
+        fmu._started = True
+        if self.setup(c, 0, 0.0, 0.0, 0, 0.0) > 1 or self.enter(c) > 1:
+            raise _Fallback
+        for function, vrs, k, vals in self.sets:
+            if function(c, vrs, k, vals) > 1:
+                raise _Fallback
+        if self.leave(c) > 1:
+            raise _Fallback
+        fmu.time = 0.0
+        if self.inputs_of != (omega, h):
+            # The inputs of step k are the crank's state at the step's start (docs/model.md §2),
+            # the same numbers as run_case's omega * (k*h - h).
+            t, xin = self.t, self.xin
+            np.multiply(self.k, h, out=t)
+            np.subtract(t, h, out=xin[:, 0])
+            np.multiply(xin[:, 0], omega, out=xin[:, 0])
+            xin[:, 1] = omega
+            self.x0[1] = omega
+            self.inputs_of = (omega, h)
+        if (
+            self.set_real(c, self.vin_at, 2, self.x0_at) > 1
+            or self.get_real(c, self.vout_at, self.n_out, out) > 1
+            or self.native(*self.head, out + 8 * self.n_out, *self.end) != self.n
+        ):
+            raise _Fallback
+        fmu.time = float(self.t[-1])
+
+
+class _Fallback(Exception):
+    """A case for the reference path."""
+
+
+def _prepared(fmu, study, outputs: tuple) -> _Prepared:
+    key = (id(fmu), study.content_hash, outputs)
+    p = _PREPARED.get(key)
+    if p is None or p.fmu is not fmu:
+        _PREPARED.clear()  # one study at a time per worker
+        p = _PREPARED[key] = _Prepared(fmu, study, outputs)
+    return p
+
+
+def run_cases(fmu, study, cases: list[int], outputs: tuple) -> list[tuple]:
+    """The cases `cases` of `study` on a loaded Fmu: per case (case, params, metrics, status,
+    message, seconds in FMU calls, seconds of the case), as run_batch's rows need them."""
+    from .sweep import _speed, _summary_metrics, run_case
+
+    p = _prepared(fmu, study, outputs)
+    n_rows, n_out = p.n + 1, len(outputs)
+    block = max(1, _BLOCK_VALUES // (n_rows * n_out))
+    out = []
+    for b in range(0, len(cases), block):
+        ids = cases[b : b + block]
+        data = p.work.get("data", (len(ids), n_rows, n_out))
+        at, size = data.ctypes.data, 8 * n_rows * n_out
+        hs = np.ones(len(ids))
+        rows: list = [None] * len(ids)
+        fast = []
+        clock = time.perf_counter
+        for c, i in enumerate(ids):
+            t0 = clock()
+            params = study.case(i)
+            t1 = clock()
+            try:
+                omega = _speed(study, params)
+                if not (omega > 0 and math.isfinite(omega)):
+                    raise _Fallback
+                h = TWO_PI / omega / study.steps_per_revolution
+                p.run(params, omega, h, at + c * size)
+            except (_Fallback, ValueError, ArithmeticError):
+                rows[c] = _reference_row(fmu, study, params, run_case, t0)
+                data[c, 0] = np.nan  # not for the batched metrics
+                continue
+            hs[c] = h
+            t2 = clock()
+            rows[c] = [params, None, "ok", "", t2 - t1, t2 - t0]
+            fast.append(c)
+        if fast:
+            t0 = clock()
+            values, good = batch_metrics(hs, data, study, outputs, p.work)
+            share = (clock() - t0) / len(fast)
+            for c in fast:
+                r = rows[c]
+                if good[c]:
+                    r[1] = dict(zip(study.metrics, values[c].tolist()))
+                else:
+                    t1 = clock()
+                    try:
+                        r[1] = _summary_metrics(study, np.arange(n_rows) * hs[c], data[c])
+                    except (ValueError, RuntimeError) as e:
+                        r[1] = {m: math.nan for m in study.metrics}
+                        r[2], r[3] = "error", str(e)
+                    r[5] += clock() - t1
+                r[5] += share
+        out += [(ids[c], *rows[c]) for c in range(len(ids))]
+    return out
+
+
+def _reference_row(fmu, study, params, run_case, t0: float) -> list:
+    """run_batch's row of one case through the reference path (run_case)."""
+    status, message = "ok", ""
+    metrics, inside = {}, 0.0
+    try:
+        metrics, inside = run_case(fmu, study, params)
+    except (FmuError, ValueError, RuntimeError) as e:
+        status, message = "error", str(e)
+        metrics = {m: math.nan for m in study.metrics}
+    return [params, metrics, status, message, inside, time.perf_counter() - t0]
+
+
+def _first_max(v: np.ndarray) -> np.ndarray:
+    """Python's max over the columns of each row (the first of equal values kept)."""
+    m = v[:, 0]
+    for r in range(1, v.shape[1]):
+        m = np.where(v[:, r] > m, v[:, r], m)
+    return m
+
+
+def _first_min(v: np.ndarray) -> np.ndarray:
+    m = v[:, 0]
+    for r in range(1, v.shape[1]):
+        m = np.where(v[:, r] < m, v[:, r], m)
+    return m
+
+
+def _interp(x: np.ndarray, t: np.ndarray, f: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """np.interp(x[c], t[c], f[c]) for every row c at once, with numpy's arithmetic: the value
+    at a sample where x is one, else the slope of the interval times the distance from its start
+    (numpy/_core/src/multiarray/compiled_base.c, arr_interp); beyond the ends the end values."""
+    rows = np.arange(len(t))[:, None]
+    tj, tj1, fj, fj1 = t[rows, j], t[rows, j + 1], f[rows, j], f[rows, j + 1]
+    v = (fj1 - fj) / (tj1 - tj) * (x - tj) + fj
+    v = np.where(x == tj, fj, v)
+    v = np.where(x < t[:, :1], f[:, :1], v)
+    return np.where(x >= t[:, -1:], f[:, -1:], v)
+
+
+class Workspace:
+    """Arrays reused from one block of cases to the next. Fresh temporaries the size of a block
+    (hundreds of kB) come from the kernel as new pages each time (glibc maps and unmaps them, or
+    grows and trims its heap), which costs more than the arithmetic on them."""
+
+    def __init__(self):
+        self._buffers: dict = {}
+
+    def get(self, name: str, shape: tuple, dtype=np.float64) -> np.ndarray:
+        size = math.prod(shape)
+        buf = self._buffers.get(name)
+        if buf is None or buf.dtype != dtype or buf.size < size:
+            buf = self._buffers[name] = np.empty(size, dtype)
+        return buf[:size].reshape(shape)
+
+    def copy(self, name: str, a: np.ndarray) -> np.ndarray:
+        out = self.get(name, a.shape, a.dtype)
+        np.copyto(out, a)
+        return out
+
+
+#: The outputs each metric is computed from.
+_SERIES = {
+    "friction_work": ("link.friction_total", "suspension.position"),
+    "torque_peak": ("crank.torque",),
+    "torque_max": ("crank.torque",),
+    "torque_min": ("crank.torque",),
+    "acceleration_max": ("suspension.acceleration",),
+    "acceleration_max_angle": ("suspension.acceleration",),
+    "acceleration_min": ("suspension.acceleration",),
+    "inertia_force_max": ("inertia.force",),
+    "inertia_force_min": ("inertia.force",),
+    "guide_friction_max": ("guide.friction",),
+    "guide_friction_min": ("guide.friction",),
+    "rod_force_max": ("rod.force",),
+    "rod_force_max_angle": ("rod.force",),
+    "rod_force_min": ("rod.force",),
+    "rod_angle_amplitude": ("rod.angle",),
+    "stress_max": ("rod.stress_max",),
+}
+
+
+def batch_metrics(
+    h: np.ndarray, data: np.ndarray, study, outputs: tuple, work: Workspace | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The metrics of C runs (data[c]: run c's samples, one row per communication point at
+    times k·h[c], one column per output): (values (C × metrics), good (C)). A run whose `good`
+    is False must go through the reference (`sweep._summary_metrics`); its values are
+    meaningless. Every other value equals the reference's bit for bit: the operations of
+    revolution.revolution_table and sweep.metrics_of on the same operands, for all runs and
+    revolutions at once instead of one run at a time."""
+    with np.errstate(all="ignore"):
+        return _batch_metrics(h, data, study, outputs, work or Workspace())
+
+
+def _batch_metrics(h, data, study, outputs, w: Workspace):
+    C, N, _ = data.shape
+    col = {name: i for i, name in enumerate(outputs)}
+    skip, R = study.skip_revolutions, study.revolutions
+    values = np.full((C, len(study.metrics)), np.nan)
+    # Each needed output as a contiguous (C × N) array, copied a few runs at a time: the runs'
+    # rows of all outputs stay in the cache while their columns are taken out.
+    need = ["crank.model_angle", *{q: 0 for m in study.metrics for q in _SERIES[m]}]
+    cache = {q: w.get(q, (C, N)) for q in need}
+    total = np.zeros(C)
+    for a in range(0, C, 16):
+        part = data[a : a + 16]
+        for q in need:
+            np.copyto(cache[q][a : a + 16], part[:, :, col[q]])
+            total[a : a + 16] += cache[q][a : a + 16].sum(axis=1)
+    # A sum is finite only if every term is (an overflow sends a run to the reference too). The
+    # outputs no metric reads are not looked at (the reference fails on a NaN in any of them).
+    good = np.isfinite(total) & np.isfinite(h) & (N >= 3)
+    th = cache["crank.model_angle"]
+    good &= ~np.less(th[:, 1:], th[:, :-1], out=w.get("less", (C, N - 1), bool)).any(axis=1)
+    k0 = np.ceil(th[:, 0] / TWO_PI - 1e-12)
+    ks = np.arange(skip, skip + R)
+    lo, hi = TWO_PI * ks.astype(float), TWO_PI * (ks + 1).astype(float)
+    # Revolutions skip .. skip+R-1 are among revolution_table's (k0 <= skip, the last complete).
+    good &= (k0 <= skip) & (hi[-1] <= th[:, -1])
+    if not good.any():
+        return values, good
+    # np.arange(n + 1) * h of each run
+    t = np.multiply(np.arange(N), h[:, None], out=w.get("t", (C, N)))
+    rows = np.arange(C)[:, None]
+    flags = w.get("flags", (C, N), bool)
+
+    def count(compare, a, x):
+        """Per run and column r of x: how many of a[c] compare true with x[c, r]."""
+        return np.stack(
+            [np.count_nonzero(compare(a, x[:, r : r + 1], out=flags), axis=1) for r in range(R)],
+            axis=1,
+        )
+
+    def crossing(target):
+        """_crossing_times: the first sample j with θ_j ≥ target, the interpolated time."""
+        x = np.broadcast_to(target, (C, R))
+        j = np.minimum(count(np.less, th, x), N - 1)  # searchsorted(side="left")
+        jm = np.maximum(j - 1, 0)
+        t0, t1, a0, a1 = t[rows, jm], t[rows, j], th[rows, jm], th[rows, j]
+        return j, np.where(a1 != a0, t0 + (t1 - t0) * (target - a0) / (a1 - a0), t1)
+
+    inside = th[:, :1] < lo[None, :]
+    if inside.any():
+        ja, ta = crossing(lo)
+        ja, ta = np.where(inside, ja, 0), np.where(inside, ta, t[:, :1])
+    else:  # every evaluated revolution starts at the first sample (a rigid study, skip 0)
+        ja, ta = np.zeros((C, R), dtype=np.intp), np.repeat(t[:, :1], R, axis=1)
+    jb, tb = crossing(hi)
+    good &= (jb - ja >= 3).all(axis=1)
+    if not good.any():
+        return values, good
+    # The samples every evaluated revolution of a good run lies in: columns w0 .. w1-1 (w1-1 is
+    # the sample after the last, which the friction work's last trapezoid reads).
+    w0, w1 = int(ja[good].min()), int(jb[good].max()) + 1
+    W = w1 - w0
+    cols = np.arange(w0, w1)
+    masks = []
+    for r in range(R):
+        if (ja[good, r] == w0).all() and (jb[good, r] == w1 - 1).all():
+            masks.append(None)  # revolution r is columns w0 .. w1-2 of every good run
+            continue
+        m = np.greater_equal(cols, ja[:, r : r + 1], out=w.get(f"mask{r}", (C, W), bool))
+        masks.append(np.logical_and(m, np.less(cols, jb[:, r : r + 1], out=flags[:, :W]), out=m))
+    TH = th.ravel()
+
+    def series(name):
+        return cache[name]
+
+    def masked(yw, m, fill):
+        """yw where m, else fill (m None: the columns of a revolution that fills the window)."""
+        if m is None:
+            return yw[:, : W - 1]
+        out = w.get("masked", (C, W))
+        out.fill(fill)
+        np.copyto(out, yw, where=m)
+        return out
+
+    extremes: dict = {}
+
+    def ext_of(q, key):
+        """The largest (key "max") or smallest value of q in each evaluated revolution and its
+        angle in degrees, (C × R) each: the first sample of the extreme, as np.argmax/argmin
+        choose it (revolution_table's first_where), refined by its parabola."""
+        if (q, key) not in extremes:
+            y = series(q)
+            yw = y[:, w0:w1]
+            fill, pick = (-np.inf, np.argmax) if key == "max" else (np.inf, np.argmin)
+            j = np.stack([w0 + pick(masked(yw, m, fill), axis=1) for m in masks], axis=1)
+            i = rows * N + j
+            v, a = _refined_peaks(TH, y.ravel(), i, (j > 0) & (j < N - 1))
+            extremes[q, key] = v, _degrees(a)
+        return extremes[q, key]
+
+    def seg_max(y):
+        yw = y[:, w0:w1]
+        return np.stack([masked(yw, m, -np.inf).max(axis=1) for m in masks], axis=1)
+
+    def friction_work():
+        f, x = series("link.friction_total"), series("suspension.position")
+        ia = np.clip(count(np.less_equal, t, ta) - 1, 0, N - 2)  # np.interp's interval
+        ib = np.clip(count(np.less_equal, t, tb) - 1, 0, N - 2)
+        fa, fb, xa, xb = _interp(ta, t, f, ia), _interp(tb, t, f, ib), _interp(ta, t, x, ia), \
+            _interp(tb, t, x, ib)  # fmt: skip
+        # The trapezoids over [t_a, t_b] (revolution_table): from t_a to the first sample, between
+        # the samples, from the last sample before t_b to t_b. Inner: 0.5 * (f1 + f0) * (x1 - x0).
+        inner = np.add(f[:, w0 + 1 : w1], f[:, w0 : w1 - 1], out=w.get("inner", (C, W - 1)))
+        np.multiply(0.5, inner, out=inner)
+        dx = np.subtract(x[:, w0 + 1 : w1], x[:, w0 : w1 - 1], out=w.get("dx", (C, W - 1)))
+        np.multiply(inner, dx, out=inner)
+        first = 0.5 * (f[rows, ja] + fa) * (x[rows, ja] - xa)
+        last = 0.5 * (fb + f[rows, jb - 1]) * (xb - x[rows, jb - 1])
+        n = jb - ja
+        work = np.full((C, R), np.nan)
+        # Each revolution's sum by numpy's pairwise sum, row by row: a row of a 2-D reduce
+        # along its last axis is summed exactly as np.add.reduce of the same numbers alone.
+        # Revolutions of the same length and first sample are summed together (in a rigid
+        # study at one speed, all of them).
+        use = good[:, None] & (n >= 1)
+        for length, start in set(zip(n[use].tolist(), ja[use].tolist())):
+            c, r = np.nonzero(use & (n == length) & (ja == start))
+            terms = w.get("terms", (len(c), length + 1))
+            terms[:, 0], terms[:, length] = first[c, r], last[c, r]
+            terms[:, 1:length] = inner[c, start - w0 : start - w0 + length - 1]
+            work[c, r] = np.add.reduce(terms, axis=1)
+        return np.mean(work, axis=1)
+
+    def ext(q, key):
+        v = ext_of(q, key)[0]
+        return _first_max(v) if key == "max" else _first_min(v)
+
+    all_metrics = {
+        "friction_work": friction_work,
+        "torque_peak": lambda: _first_max(
+            np.stack([np.abs(ext("crank.torque", "max")), np.abs(ext("crank.torque", "min"))], 1)
+        ),
+        "torque_max": lambda: ext("crank.torque", "max"),
+        "torque_min": lambda: ext("crank.torque", "min"),
+        "acceleration_max": lambda: ext("suspension.acceleration", "max"),
+        "acceleration_max_angle": lambda: ext_of("suspension.acceleration", "max")[1][:, -1],
+        "acceleration_min": lambda: ext("suspension.acceleration", "min"),
+        "inertia_force_max": lambda: ext("inertia.force", "max"),
+        "inertia_force_min": lambda: ext("inertia.force", "min"),
+        "guide_friction_max": lambda: ext("guide.friction", "max"),
+        "guide_friction_min": lambda: ext("guide.friction", "min"),
+        "rod_force_max": lambda: ext("rod.force", "max"),
+        "rod_force_max_angle": lambda: ext_of("rod.force", "max")[1][:, -1],
+        "rod_force_min": lambda: ext("rod.force", "min"),
+        "rod_angle_amplitude": lambda: _first_max(
+            seg_max(np.abs(series("rod.angle"), out=w.get("abs", (C, N))))
+        ),
+        "stress_max": lambda: _first_max(seg_max(series("rod.stress_max"))),
+    }
+    for m, name in enumerate(study.metrics):
+        values[:, m] = all_metrics[name]()
+    good &= np.isfinite(values).all(axis=1)
+    return values, good

@@ -1,0 +1,208 @@
+"""The sweep's fast path (sweep_cases.py: the native batch driver, set-up reused across a batch,
+metrics vectorised over the batch) against the reference path it replaces (sweep.run_case: one
+FMU call per step from Python, metrics through summarize_revolutions one run at a time): every
+row of every example study, of rejected cases and of every metric on every machine is the same
+bit for bit (but for the timings). docs/sweeps.md "Speed"."""
+
+from __future__ import annotations
+
+import math
+import struct
+
+import numpy as np
+import pytest
+from conftest import ROOT
+from reciprocating_drive import sweep, sweep_cases
+from reciprocating_drive.study import load_study, study_from_dict
+from reciprocating_drive.sweep import OUTPUTS, _summary_metrics, run_batch
+
+ALL_METRICS = [
+    "friction_work",
+    "torque_peak",
+    "torque_max",
+    "torque_min",
+    "acceleration_max",
+    "acceleration_max_angle",
+    "acceleration_min",
+    "inertia_force_max",
+    "inertia_force_min",
+    "guide_friction_max",
+    "guide_friction_min",
+    "rod_force_max",
+    "rod_force_max_angle",
+    "rod_force_min",
+    "rod_angle_amplitude",
+    "stress_max",
+]
+
+
+def bits(v):
+    """A value as its exact bits (a float's sign of zero and NaN included)."""
+    return struct.pack("<d", v) if isinstance(v, float) else v
+
+
+def assert_rows_equal(fast: list[dict], ref: list[dict]) -> None:
+    assert len(fast) == len(ref)
+    for a, b in zip(fast, ref):
+        keys = [k for k in b if not k.startswith("seconds_")]
+        assert [k for k in a if not k.startswith("seconds_")] == keys
+        for k in keys:
+            assert bits(a[k]) == bits(b[k]), (a["case"], k, a[k], b[k], a["message"])
+
+
+@pytest.fixture
+def no_reference(monkeypatch):
+    """The reference path made unusable: a test that passes with it runs the fast path."""
+
+    def refuse(*a, **k):
+        raise AssertionError("the per-step reference path ran")
+
+    monkeypatch.setattr(sweep, "run_case", refuse)
+
+
+@pytest.mark.parametrize("name", sorted(p.stem for p in (ROOT / "studies").glob("*.toml")))
+def test_every_row_of_an_example_study_equals_the_reference_bit_for_bit(fmu_path, name):
+    st = load_study(ROOT / "studies" / f"{name}.toml", fmu=fmu_path)
+    cases = list(range(st.n_cases))
+    ref = run_batch(fmu_path, st, cases, reference=True)
+    assert all(r["status"] == "ok" for r in ref)
+    assert_rows_equal(run_batch(fmu_path, st, cases), ref)
+
+
+def test_the_example_studies_need_no_per_step_path(fmu_path, no_reference):
+    """Every case of the examples goes through the native driver and the batched metrics."""
+    for p in sorted((ROOT / "studies").glob("*.toml")):
+        st = load_study(p, fmu=fmu_path)
+        rows = run_batch(fmu_path, st, list(range(st.n_cases)))
+        assert all(r["status"] == "ok" for r in rows)
+
+
+@pytest.mark.parametrize(
+    "machine,skip,revs,steps,spm,mass",
+    [("default", 0, 2, 90, 700, 600), ("unb600a", 0, 1, 120, 700, 600),
+     ("sk8-3.5-4000", 1, 2, 72, 700, 6000), ("kvo630", 3, 2, 180, 3000, 0.04)],
+)  # fmt: skip
+def test_every_metric_on_every_machine_equals_the_reference(
+    fmu_path, machine, skip, revs, steps, spm, mass
+):
+    """A random design over the speed and the mass: 16 metrics, several revolutions per case
+    (and on kvo630 cases whose steps the FMU rejects)."""
+    st = study_from_dict(
+        {
+            "name": "all",
+            "machine": machine,
+            "skip_revolutions": skip,
+            "revolutions": revs,
+            "steps_per_revolution": steps,
+            "metrics": ALL_METRICS,
+            "design": {"kind": "random", "samples": 12, "seed": 3},
+            "parameters": {
+                "strokes_per_minute": {"min": 30, "max": spm},
+                "mass.reciprocating": {"min": mass / 12, "max": mass},
+            },
+        },
+        fmu=fmu_path,
+    )
+    cases = list(range(st.n_cases))
+    ref = run_batch(fmu_path, st, cases, reference=True)
+    assert sum(r["status"] == "ok" for r in ref) >= 4
+    assert_rows_equal(run_batch(fmu_path, st, cases), ref)
+
+
+def test_rejected_cases_have_the_reference_rows_and_messages(fmu_path):
+    """rod_length 0.15 m < crank radius 0.2 m: the linkage cannot assemble."""
+    st = study_from_dict(
+        {
+            "name": "rejected",
+            "machine": "default",
+            "skip_revolutions": 0,
+            "revolutions": 1,
+            "steps_per_revolution": 120,
+            "metrics": ["friction_work", "torque_peak"],
+            "parameters": {
+                "mass.reciprocating": {"values": [200.0, 300.0]},
+                "geometry.rod_length": {"values": [1.19, 0.15, 1.3]},
+            },
+        },
+        fmu=fmu_path,
+    )
+    cases = list(range(st.n_cases))
+    ref = run_batch(fmu_path, st, cases, reference=True)
+    assert [r["status"] for r in ref] == ["ok", "error", "ok"] * 2
+    assert "geometry.rod_length" in ref[1]["message"]
+    assert_rows_equal(run_batch(fmu_path, st, cases), ref)
+
+
+def synthetic(rng, n_runs: int, n: int, steps: int):
+    """Runs of smooth random outputs whose model angle starts anywhere in (−2π, 0] and advances
+    unevenly (a crank that speeds up and slows down), at random step sizes."""
+    h = rng.uniform(1e-4, 1e-2, n_runs)
+    data = np.empty((n_runs, n, len(OUTPUTS)))
+    k = np.arange(n)
+    for c in range(n_runs):
+        dth = 2 * math.pi / steps * (1 + 0.3 * np.sin(k / rng.uniform(5, 40)))
+        data[c, :, 0] = -rng.uniform(0, 2 * math.pi) + np.concatenate([[0], np.cumsum(dth[1:])])
+        for j in range(1, len(OUTPUTS)):
+            a = rng.normal(size=4) * 10.0 ** rng.uniform(-3, 4)
+            data[c, :, j] = a[0] * np.sin(k / steps * 2 * math.pi * (j % 3 + 1) + a[1]) + a[2]
+            data[c, :, j] += a[3] * 1e-3 * rng.normal(size=n)
+    return h, data
+
+
+def test_batched_metrics_equal_the_reference_on_synthetic_runs():
+    """Independent of the FMU: uneven angles, arbitrary starts, noisy outputs, ties (a constant
+    output), and runs the batch must leave to the reference (NaN, infinity, an angle that falls
+    back, too few revolutions)."""
+    rng = np.random.default_rng(7)
+    steps, skip, revs = 50, 1, 3
+    n = (skip + revs + 1) * steps
+    h, data = synthetic(rng, 40, n, steps)
+    data[3, :, OUTPUTS.index("guide.friction")] = 0.0  # every sample a tie
+    data[4, :, OUTPUTS.index("crank.torque")] = -0.0
+    data[5, 100, 3] = math.nan
+    data[6, 17, 6] = math.inf
+    data[7, 60, 0] = data[7, 59, 0] - 1e-3  # the angle decreases once
+    data[8, :, 0] *= 0.5  # not enough revolutions
+    st = study_from_dict(
+        {
+            "name": "synthetic",
+            "skip_revolutions": skip,
+            "revolutions": revs,
+            "steps_per_revolution": steps,
+            "metrics": ALL_METRICS,
+            "parameters": {"mass.reciprocating": {"values": [1.0]}},
+        }
+    )
+    values, good = sweep_cases.batch_metrics(h, data, st, OUTPUTS)
+    assert not good[[5, 6, 7, 8]].any()
+    assert good.sum() >= 30
+    for c in np.flatnonzero(good):
+        ref = _summary_metrics(st, np.arange(n) * h[c], data[c])
+        got = dict(zip(st.metrics, values[c].tolist()))
+        assert {k: bits(v) for k, v in got.items()} == {k: bits(v) for k, v in ref.items()}, c
+
+
+def test_a_dask_task_returns_the_lines_the_client_wrote_before(fmu_path):
+    """run_batch_csv's text is what csv.DictWriter wrote from the reference rows (but for the
+    timings), rejected cases included."""
+    import csv
+    import io
+
+    st = load_study(ROOT / "studies" / "default_balancer.toml", fmu=fmu_path)
+    cols = sweep.columns(st)
+    cases = [0, 5, 30]
+    text, n, inside, seconds = sweep.run_batch_csv(fmu_path, st, cases, False, cols, "f-p")
+    assert n == 3 and 0 < inside <= seconds
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=cols)
+    for r in run_batch(fmu_path, st, cases, reference=True):
+        w.writerow({k: "f-p" if k == "fingerprint" else r[k] for k in cols})
+    timing = [cols.index("seconds_fmu"), cols.index("seconds_case")]
+
+    def cells(s):
+        return [
+            [c for j, c in enumerate(row) if j not in timing] for row in csv.reader(io.StringIO(s))
+        ]
+
+    assert cells(text) == cells(buf.getvalue())
+    assert text.endswith("\r\n") and text.count("\r\n") == 3
