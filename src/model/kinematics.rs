@@ -1,30 +1,39 @@
 //! The result every kinematic law returns (docs/model.md §2): the stroke coordinate and its exact
 //! derivatives with respect to the crank angle, plus the connecting rod's swing.
 
+use num_dual::DualNum;
+
+/// A real scalar of the model's generic code: `f64` for evaluation, a dual number
+/// (`num_dual::Dual64`) for the exact directional derivatives by forward-mode automatic
+/// differentiation (docs/fmi-interface.md "Directional derivatives").
+pub trait Scalar: DualNum<Primitive = f64> + Copy {}
+impl<D: DualNum<Primitive = f64> + Copy> Scalar for D {}
+
 /// Position-level kinematics at one crank angle θ (model angle, offset already applied).
+/// Generic over the scalar (`f64` unless a dual number carries derivatives, see [`Scalar`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Kinematics {
+pub struct Kinematics<T = f64> {
     /// Stroke coordinate s [m], 0 at the outer end of the stroke (§2).
-    pub s: f64,
+    pub s: T,
     /// Torque factor TF = ds/dθ [m/rad].
-    pub tf: f64,
+    pub tf: T,
     /// TF' = d²s/dθ² [m/rad²].
-    pub tfp: f64,
+    pub tfp: T,
     /// Rod swing angle [rad]: β of the slider rod (§3.1) or the pitman's inclination (§3.2).
-    pub rod_angle: f64,
+    pub rod_angle: T,
     /// dβ/dθ [1], so that the swing rate is `rod_angle_rate * ω`.
-    pub rod_angle_rate: f64,
+    pub rod_angle_rate: T,
 }
 
-impl Kinematics {
+impl<T: Scalar> Kinematics<T> {
     /// Velocity v = TF·ω (§2).
     #[inline]
-    pub fn velocity(&self, omega: f64) -> f64 {
+    pub fn velocity(&self, omega: T) -> T {
         self.tf * omega
     }
     /// Acceleration a = TF·ε + TF'·ω² (§2).
     #[inline]
-    pub fn acceleration(&self, omega: f64, epsilon: f64) -> f64 {
+    pub fn acceleration(&self, omega: T, epsilon: T) -> T {
         self.tf * epsilon + self.tfp * omega * omega
     }
 }
