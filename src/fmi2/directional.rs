@@ -22,6 +22,11 @@ pub struct StateRefs<'a> {
 /// No continuous state is addressable (co-simulation: the state is held).
 pub const NO_STATES: StateRefs<'static> = StateRefs { state: &|_| None, derivative: &|_| None };
 
+/// Tables up to this many variables keep the seed on the stack.
+const STACK_VALUES: usize = 256;
+/// Continuous states a model may have here.
+const MAX_STATES: usize = 8;
+
 fn name<M: FmuModel>(vr: u32) -> String {
     match M::table().variables.get(vr as usize) {
         Some(v) => format!("{vr} (\"{}\")", v.name),
@@ -55,8 +60,23 @@ pub fn directional_derivative<M: FmuModel>(
             "{function}: only after the end of initialization (the machine is built there)"
         )));
     };
-    let mut d_values = vec![0.0; values.len()];
-    let mut d_states = vec![0.0; n_states];
+    // On the stack for the tables of this crate (a heap allocation per call costs as much as a
+    // quarter of the derivative itself, docs/performance.md "Directional derivatives").
+    let (mut values_stack, mut values_heap) = ([0.0; STACK_VALUES], Vec::new());
+    let d_values: &mut [f64] = if values.len() <= STACK_VALUES {
+        &mut values_stack[..values.len()]
+    } else {
+        values_heap.resize(values.len(), 0.0);
+        &mut values_heap
+    };
+    let mut d_states = [0.0; MAX_STATES];
+    let mut d_derivatives = [0.0; MAX_STATES];
+    if n_states > MAX_STATES {
+        return Err(Failure::error(format!(
+            "{function}: more than {MAX_STATES} continuous states (internal limit)"
+        )));
+    }
+    let (d_states, d_derivatives) = (&mut d_states[..n_states], &mut d_derivatives[..n_states]);
     for (i, (&vr, &dv)) in knowns.iter().zip(seed).enumerate() {
         if !dv.is_finite() {
             return Err(Failure::error(format!(
@@ -91,8 +111,7 @@ pub fn directional_derivative<M: FmuModel>(
         }
     }
     let mut tangent = M::Outputs::default();
-    let mut d_derivatives = vec![0.0; n_states];
-    M::tangent(built, values, state, &d_values, &d_states, &mut tangent, &mut d_derivatives)
+    M::tangent(built, values, state, d_values, d_states, &mut tangent, d_derivatives)
         .map_err(|e| Failure::error(format!("{function}: {e}")))?;
     for (i, &vr) in unknowns.iter().enumerate() {
         let v = match info.get(vr as usize).and_then(|v| v.output) {

@@ -140,13 +140,12 @@ impl Loop {
     /// division shared by both reciprocals.
     #[inline(always)]
     fn solve<T: Scalar>(&self, kappa: f64, px: T, py: T) -> (T, T, T) {
-        let dx = -px + self.bx;
-        let dy = -py + self.by;
+        let dx = T::from(self.bx) - px;
+        let dy = T::from(self.by) - py;
         let rho2 = dx * dx + dy * dy;
-        let cnum = (-rho2 + self.p2 - self.c2) * self.sigma;
-        // > 0 on a validated crank-rocker (|cos α| < 1); the guard only catches the last ulp.
-        let sd2 = rho2 * self.four_c2 - cnum * cnum;
-        let sd = if sd2.re() > 0.0 { sd2.sqrt() } else { T::from(0.0) };
+        let cnum = (T::from(self.p2) - rho2 - self.c2) * self.sigma;
+        // > 0 on a validated crank-rocker (|cos α| < 1); max() only guards the last ulp.
+        let sd = (rho2 * self.four_c2 - cnum * cnum).at_least_zero().sqrt();
         let two_c_rho2 = rho2 * self.two_c;
         let t = (two_c_rho2 * sd).recip();
         let scale = t * sd;
@@ -335,7 +334,7 @@ impl BeamUnit {
         let wx = ux * self.sc + self.lp.bx - px;
         let wy = uy * self.sc + self.lp.by - py;
         // dE/db = σC·u⊥ ; dCp/dq = R(cos q, −sin q) = (py, −px).
-        let (ebx, eby) = (-(uy * self.sc), ux * self.sc);
+        let (ebx, eby) = (uy * -self.sc, ux * self.sc);
         let (cqx, cqy) = (py, -px);
         // W·E_b = σC·(D·u⊥) = −σκ·sd/2 exactly (u from `Loop::solve`): no extra division.
         let inv_den = inv_sd * self.neg_two_sk;
@@ -346,9 +345,8 @@ impl BeamUnit {
         let bqq =
             -((vx * vx + vy * vy - w_dot_u * self.sc * bq * bq + wx * px + wy * py) * inv_den);
         // Clamp only the last-ulp undershoot at the bottom dead position (s ≥ 0, §2).
-        let s = (b - self.b_min) * self.a;
         Kinematics {
-            s: if s.re() > 0.0 { s } else { T::from(0.0) },
+            s: ((b - self.b_min) * self.a).at_least_zero(),
             tf: bq * (self.a * self.rot),
             tfp: bqq * self.a,
             // Same fast path: |W| = P, and the pitman points up within 60° of the vertical.

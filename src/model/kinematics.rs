@@ -6,8 +6,29 @@ use num_dual::DualNum;
 /// A real scalar of the model's generic code: `f64` for evaluation, a dual number
 /// (`num_dual::Dual64`) for the exact directional derivatives by forward-mode automatic
 /// differentiation (docs/fmi-interface.md "Directional derivatives").
-pub trait Scalar: DualNum<Primitive = f64> + Copy {}
-impl<D: DualNum<Primitive = f64> + Copy> Scalar for D {}
+pub trait Scalar: DualNum<Primitive = f64> + Copy {
+    /// `max(self, 0)` on the real part (a guard against the last ulp below 0): `f64::max`,
+    /// branch-free, for `f64`.
+    fn at_least_zero(self) -> Self;
+}
+
+impl Scalar for f64 {
+    #[inline(always)]
+    fn at_least_zero(self) -> f64 {
+        self.max(0.0)
+    }
+}
+
+impl Scalar for num_dual::Dual64 {
+    #[inline(always)]
+    fn at_least_zero(self) -> Self {
+        if self.re > 0.0 {
+            self
+        } else {
+            Self::from(0.0)
+        }
+    }
+}
 
 /// Position-level kinematics at one crank angle θ (model angle, offset already applied).
 /// Generic over the scalar (`f64` unless a dual number carries derivatives, see [`Scalar`]).

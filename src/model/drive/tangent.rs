@@ -70,7 +70,7 @@ impl Model {
         };
         let p_base = f_ext + inertia_force + balancer_force;
         let guide = match &self.guide {
-            Some(g) => g.solve_rigid_tangent(k.s, velocity, p_base, side_slope)?.1,
+            Some(g) => g.solve_rigid_tangent(k.s, velocity, p_base, side_slope, &value.guide)?,
             None => GuideOutputs { rod_force: p_base.eps, ..GuideOutputs::default() },
         };
         // T = −P·TF (§4).

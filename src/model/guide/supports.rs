@@ -619,8 +619,10 @@ impl SupportSystem {
     }
 
     /// The rigid rod's load cases of [`SupportSystem::influence`] only (base, per Q): what
-    /// `Guide::solve_rigid` needs, without building the rest.
-    #[inline]
+    /// `Guide::solve_rigid` needs, without building the rest. Always inlined: the rigid
+    /// evaluation's hot path (a second caller, the directional derivative, would otherwise make
+    /// it an out-of-line call there).
+    #[inline(always)]
     pub fn rigid_influence(
         &self,
         s: f64,

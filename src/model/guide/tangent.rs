@@ -26,16 +26,16 @@ fn rate(law: &FrictionLaw, fm: ForceMoment, d: ForceMoment) -> f64 {
 }
 
 impl Guide {
-    /// [`Guide::solve_rigid`] and the tangent of every output along the direction carried by
-    /// the dual parts of `s`, `v`, `p_base` and `tan_beta`: (values, tangents).
+    /// The tangent of every output of [`Guide::solve_rigid`] along the direction carried by the
+    /// dual parts of `s`, `v`, `p_base` and `tan_beta`, whose real parts gave `value`.
     pub fn solve_rigid_tangent(
         &self,
         s: Dual64,
         v: Dual64,
         p_base: Dual64,
         tan_beta: Dual64,
-    ) -> Result<(GuideOutputs, GuideOutputs), ModelError> {
-        let value = self.solve_rigid(s.re, v.re, p_base.re, tan_beta.re)?;
+        value: &GuideOutputs,
+    ) -> Result<GuideOutputs, ModelError> {
         let (base, per_q) = self.system.rigid_influence(s.re)?;
         let Some((dbase, dper_q)) = self.system.rigid_influence_rate(s.re)? else {
             return Err(ModelError::evaluation(format!(
@@ -93,6 +93,6 @@ impl Guide {
             reaction_c: dfm[2].r,
             friction_total: fr[0] + fr[1] + fr[2],
         };
-        Ok((value, tangent))
+        Ok(tangent)
     }
 }
