@@ -5,7 +5,7 @@
 //! J the partial derivatives of the unknowns with respect to the knowns at the current inputs
 //! and state, the state held (co-simulation) or a known (Model Exchange).
 
-use crate::fmi2::instance::{Failure, Instance};
+use crate::fmi2::instance::{Failure, Instance, Mode};
 use crate::fmi2::model::FmuModel;
 use crate::fmi2::variables::Causality;
 use crate::model::error::num;
@@ -48,6 +48,9 @@ pub fn directional_derivative<M: FmuModel>(
 ) -> Result<(), Failure> {
     if !M::DIRECTIONAL_DERIVATIVES {
         return Err(Failure::error(format!("{function}: not provided by this FMU")));
+    }
+    if inst.mode() == Mode::Fatal {
+        return Err(Failure::illegal(function, Mode::Fatal));
     }
     let n_states = M::CONTINUOUS_STATES.len();
     let states_known = inst.model_exchange;

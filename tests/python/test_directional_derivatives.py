@@ -548,3 +548,46 @@ def test_drive_train_model_structure_matches_the_derivatives(fmu_path, tmp_path)
                     assert (v != 0.0) == (k in deps[u]), (u, k, v, sorted(deps[u]))
     finally:
         me.close()
+
+
+def test_fmi3_argument_counts_and_mode_are_checked(fmu_path, tmp_path):
+    """fmi3GetDirectionalDerivative: nSeed ≠ nKnowns and nSensitivity ≠ nUnknowns are refused in
+    one line; so is a call in initialization mode (the machine is built at its end); a valid call
+    afterwards works."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi3 import FMU3Slave
+
+    path = sibling(fmu_path, "ReciprocatingDrive-fmi3.fmu")
+    md = read_model_description(path)
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    d = extract(path, unzipdir=str(tmp_path / "args"))
+    messages = []
+    s = FMU3Slave(
+        guid=md.guid, unzipDirectory=d, modelIdentifier="ReciprocatingDrive", instanceName="a"
+    )
+    s.instantiate(loggingOn=True, logMessage=lambda e, st, c, m: messages.append(m.decode()))
+    dll, c = s.dll, s.component
+    u = (ctypes.c_uint32 * 1)(vr["crank.torque"])
+    k = (ctypes.c_uint32 * 1)(vr["crank.acceleration"])
+    seed = (ctypes.c_double * 2)(1.0, 0.0)
+    out = (ctypes.c_double * 2)()
+
+    def call(nu, nk, ns, nsens):
+        n = ctypes.c_size_t
+        return dll.fmi3GetDirectionalDerivative(c, u, n(nu), k, n(nk), seed, n(ns), out, n(nsens))
+
+    try:
+        s.enterInitializationMode()
+        assert call(1, 1, 1, 1) == 3
+        assert any("only after the end of initialization" in m for m in messages), messages
+        s.exitInitializationMode()
+        s.setFloat64([vr["crank.angle"]], [1.0])
+        messages.clear()
+        assert call(1, 1, 2, 1) == 3
+        assert call(1, 1, 1, 2) == 3
+        lines = [m for m in messages if "fmi3GetDirectionalDerivative" in m]
+        assert len(lines) == 2 and all("must equal" in m and "\n" not in m for m in lines), lines
+        assert call(1, 1, 1, 1) == 0 and out[0] != 0.0
+    finally:
+        s.terminate()
+        s.freeInstance()
