@@ -37,7 +37,13 @@ impl Guide {
         value: &GuideOutputs,
     ) -> Result<GuideOutputs, ModelError> {
         let (base, per_q) = self.system.rigid_influence(s.re)?;
-        let Some((dbase, dper_q)) = self.system.rigid_influence_rate(s.re)? else {
+        // The rate with respect to s is needed only when the direction moves the link.
+        let influence_rate = if s.eps == 0.0 {
+            Some(([ForceMoment::default(); 3], [ForceMoment::default(); 3]))
+        } else {
+            self.system.rigid_influence_rate(s.re)?
+        };
+        let Some((dbase, dper_q)) = influence_rate else {
             return Err(ModelError::evaluation(format!(
                 "directional derivative: the support reactions at s = {} m come from a linear \
                  solve at each position (more than one support fixed in the frame, or the load \
