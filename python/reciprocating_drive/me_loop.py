@@ -7,11 +7,11 @@ pump's crank torque and the drive's crank acceleration is solved exactly (docs/c
 "The algebraic loop"): the pump's torque is affine in the crank acceleration ε,
 T(ε) = T₀ + k·ε (k = m·TF², the reciprocating mass seen at the crank), and the drive's
 acceleration is affine in the load torque, ε(T) = a + b·T (b = −1/J). Each line is read from its
-FMU with two evaluations (exact up to rounding: the functions are affine, no step size to choose),
-and the loop's solution ε = (a + b·T₀)/(1 − b·k), one secant step, is set into both FMUs (guide
-friction makes T(ε) piecewise affine: further secant steps end on the right piece). The slope
-comes from two evaluations, not from a directional derivative: the FMUs do not provide one yet. There is no stability
-condition: ρ_eff ≥ 1, which makes the co-simulation diverge, is just another machine here.
+FMU with one evaluation and one exact directional derivative (fmi3GetDirectionalDerivative,
+docs/fmi-interface.md "Directional derivatives"), and the loop's solution, one Newton step
+ε ← ε − r/(1 − b·k) on r(ε) = ε − (a + b·T(ε)), is set into both FMUs (guide friction makes T(ε)
+piecewise affine: further Newton steps end on the right piece). There is no stability condition:
+ρ_eff ≥ 1, which makes the co-simulation diverge, is just another machine here.
 """
 
 from __future__ import annotations
@@ -103,41 +103,40 @@ def run_model_exchange(
             y0 = [x[0], x[1]]
             crank = ["crank.angle", "crank.speed", "crank.acceleration"]
 
+            der_speed, load = q.vr["der(crank.speed)"], q.vr["load.torque"]
+            torque_vr, acc_vr = p.vr["crank.torque"], p.vr["crank.acceleration"]
+            last = [0.0]
+
             def solve(t, y):
                 """Sets (θ, ω) and the loop's exact ε and T into both FMUs; returns ε."""
                 for m in (p, q):
                     m.fmu.setTime(t)
                 x[0], x[1] = y
                 q.fmu.setContinuousStates(x, 2)
-                # The drive's line ε(T) = a + b·T.
+                # The drive's line ε(T) = a + b·T: its value at T = 0 and its exact slope.
                 q.set(["load.torque"], [0.0])
                 q.fmu.getContinuousStateDerivatives(dx, 2)
                 a = dx[1]
-                q.set(["load.torque"], [1.0])
-                q.fmu.getContinuousStateDerivatives(dx, 2)
-                b = dx[1] - a
-                p.set(crank, [y[0], y[1], 0.0])
-
-                def residual(eps):
-                    p.set(["crank.acceleration"], [eps])
-                    torque = p.get(["crank.torque"])[0]
-                    return eps - (a + b * torque), torque
-
-                # The pump's T(ε) is affine (T₀ + k·ε), so the first secant step from ε = 0 and
-                # 1 is the solution; with guide friction it is piecewise affine (the friction
-                # follows |normal force|), and the secant steps end on the right piece.
-                e0, (r0, _) = 0.0, residual(0.0)
-                e1, (r1, torque) = 1.0, residual(1.0)
+                b = q.fmu.getDirectionalDerivative([der_speed], [load], [1.0])[0]
+                # Newton from the last solution: T(ε) and k = ∂T/∂ε exact on the affine piece
+                # of T the iterate lies on, so one step solves it there; with guide friction a
+                # further step moves to the right piece.
+                eps = last[0]
+                p.set(crank, [y[0], y[1], eps])
                 for _ in range(50):
+                    torque = p.get(["crank.torque"])[0]
+                    r = eps - (a + b * torque)
                     # Solved to rounding (ε's own and that of the torque it passes through).
-                    if r1 == r0 or abs(r1) <= 1e-12 * (1.0 + abs(e1)):
+                    if abs(r) <= 1e-12 * (1.0 + abs(eps)):
                         break
-                    e0, e1, r0 = e1, e1 - r1 * (e1 - e0) / (r1 - r0), r1
-                    r1, torque = residual(e1)
+                    k = p.fmu.getDirectionalDerivative([torque_vr], [acc_vr], [1.0])[0]
+                    eps -= r / (1.0 - b * k)
+                    p.set(["crank.acceleration"], [eps])
                 else:
                     raise RuntimeError(f"Model Exchange loop: no ε solves the loop at t = {t}")
+                last[0] = eps
                 q.set(["load.torque"], [torque])
-                return e1
+                return eps
 
             def rhs(t, y):
                 eps = solve(t, y)

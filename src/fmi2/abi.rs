@@ -552,15 +552,56 @@ pub unsafe fn fmi2DeSerializeFMUstate<M: FmuModel>(
 #[inline]
 pub unsafe fn fmi2GetDirectionalDerivative<M: FmuModel>(
     c: fmi2Component,
-    _vUnknown_ref: *const fmi2ValueReference,
-    _nUnknown: usize,
-    _vKnown_ref: *const fmi2ValueReference,
-    _nKnown: usize,
-    _dvKnown: *const fmi2Real,
-    _dvUnknown: *mut fmi2Real,
+    vUnknown_ref: *const fmi2ValueReference,
+    nUnknown: usize,
+    vKnown_ref: *const fmi2ValueReference,
+    nKnown: usize,
+    dvKnown: *const fmi2Real,
+    dvUnknown: *mut fmi2Real,
 ) -> fmi2Status {
-    call::<M>(c, "fmi2GetDirectionalDerivative", |_| {
-        Err(Failure::error("fmi2GetDirectionalDerivative: not provided by this FMU (providesDirectionalDerivative=\"false\")"))
+    fmi2_directional_derivative::<M>(
+        c,
+        vUnknown_ref,
+        nUnknown,
+        vKnown_ref,
+        nKnown,
+        dvKnown,
+        dvUnknown,
+        &crate::fmi2::directional::NO_STATES,
+    )
+}
+
+/// `fmi2GetDirectionalDerivative` with the value references of the continuous states and their
+/// derivatives of a Model Exchange instance (`refs`; co-simulation: `NO_STATES`), every
+/// argument checked, inside the panic barrier (`crate::fmi2::directional`).
+#[allow(clippy::too_many_arguments)]
+pub unsafe fn fmi2_directional_derivative<M: FmuModel>(
+    c: fmi2Component,
+    vUnknown_ref: *const fmi2ValueReference,
+    nUnknown: usize,
+    vKnown_ref: *const fmi2ValueReference,
+    nKnown: usize,
+    dvKnown: *const fmi2Real,
+    dvUnknown: *mut fmi2Real,
+    refs: &crate::fmi2::directional::StateRefs,
+) -> fmi2Status {
+    let f = "fmi2GetDirectionalDerivative";
+    call::<M>(c, f, |inst| {
+        let unknowns =
+            slice(vUnknown_ref, nUnknown).ok_or_else(|| null_argument(f, "vUnknown_ref"))?;
+        let knowns = slice(vKnown_ref, nKnown).ok_or_else(|| null_argument(f, "vKnown_ref"))?;
+        let seed = slice(dvKnown, nKnown).ok_or_else(|| null_argument(f, "dvKnown"))?;
+        if nUnknown > 0 && dvUnknown.is_null() {
+            return Err(null_argument(f, "dvUnknown"));
+        }
+        let out: &mut [fmi2Real] = if nUnknown == 0 {
+            &mut []
+        } else {
+            std::slice::from_raw_parts_mut(dvUnknown, nUnknown)
+        };
+        crate::fmi2::directional::directional_derivative::<M>(
+            inst, f, unknowns, knowns, seed, out, refs,
+        )
     })
 }
 

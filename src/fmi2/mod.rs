@@ -4,6 +4,7 @@
 //! The models and their variable tables live in [`crate::fmus`].
 
 pub mod abi;
+pub mod directional;
 pub mod display_units;
 pub mod documentation;
 pub mod fmu_state;

@@ -220,4 +220,40 @@ pub trait FmuModel: Sized + 'static {
     ) -> Result<(), ModelError> {
         Ok(())
     }
+
+    /// Directional derivatives (`fmi2GetDirectionalDerivative`, `fmi3GetDirectionalDerivative`)
+    /// are provided: `providesDirectionalDerivative(s)="true"` in the model descriptions.
+    const DIRECTIONAL_DERIVATIVES: bool = false;
+
+    /// The exact directional derivative at (`values`, `state`) with the state held: with the
+    /// inputs changing at `d_values` (indexed by value reference, 0 except for inputs) and the
+    /// continuous states at `d_states` (Model Exchange; zeros otherwise), writes the change of
+    /// every output into `tangent` (read with [`FmuModel::read`]) and of the state derivatives
+    /// into `d_derivatives`. An error fails the call (the FMU's state is unchanged).
+    #[allow(clippy::too_many_arguments)]
+    fn tangent(
+        _built: &Self::Built,
+        _values: &[f64],
+        _state: &Self::State,
+        _d_values: &[f64],
+        _d_states: &[f64],
+        _tangent: &mut Self::Outputs,
+        _d_derivatives: &mut [f64],
+    ) -> Result<(), ModelError> {
+        Err(ModelError::evaluation("directional derivatives are not provided by this FMU"))
+    }
+
+    /// Model Exchange: the continuous states (indices into `CONTINUOUS_STATES`) each output
+    /// depends on, by the output's name; an output not named depends on none. With the table's
+    /// `depends_on` (inputs) these are the `<ModelStructure>` dependencies.
+    const OUTPUT_STATES: &'static [(&'static str, &'static [usize])] = &[];
+
+    /// Model Exchange: for each continuous state, the inputs and the states its derivative
+    /// depends on; empty: not declared (an importer then assumes every known).
+    const DERIVATIVE_DEPENDENCIES: &'static [(&'static [Self::Input], &'static [usize])] = &[];
+
+    /// The states output `name` depends on ([`FmuModel::OUTPUT_STATES`]).
+    fn output_states(name: &str) -> &'static [usize] {
+        Self::OUTPUT_STATES.iter().find(|(n, _)| *n == name).map_or(&[], |(_, s)| s)
+    }
 }

@@ -49,8 +49,9 @@ fn body<M: FmuModel>() -> String {
     );
     let _ = writeln!(
         w,
-        r#"  <CoSimulation modelIdentifier="{}" needsExecutionTool="false" canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" maxOutputDerivativeOrder="0" canRunAsynchronuously="false" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="true" canSerializeFMUstate="true" providesDirectionalDerivative="false"/>"#,
-        info.model_identifier
+        r#"  <CoSimulation modelIdentifier="{}" needsExecutionTool="false" canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" maxOutputDerivativeOrder="0" canRunAsynchronuously="false" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="true" canSerializeFMUstate="true" providesDirectionalDerivative="{}"/>"#,
+        info.model_identifier,
+        provides_directional_derivative::<M>()
     );
     let _ = writeln!(w, "  <UnitDefinitions>");
     for (name, [kg, m, s, rad]) in M::table().units {
@@ -182,6 +183,17 @@ pub fn guid<M: FmuModel>() -> &'static str {
             c & 0xffff_ffff_ffff
         )
     })
+}
+
+/// The value of `providesDirectionalDerivative` of the 2.0 interface elements (co-simulation and
+/// Model Exchange): whether the model gives exact directional derivatives
+/// ([`FmuModel::DIRECTIONAL_DERIVATIVES`], `crate::fmi2::directional`).
+pub fn provides_directional_derivative<M: FmuModel>() -> &'static str {
+    if M::DIRECTIONAL_DERIVATIVES {
+        "true"
+    } else {
+        "false"
+    }
 }
 
 /// The complete modelDescription.xml.

@@ -29,7 +29,7 @@ use crate::fmi2::instance::{
 };
 use crate::fmi2::logging::{Category, Logger};
 use crate::fmi2::model::FmuModel;
-use crate::fmi2::variables::{Binding, VarType};
+use crate::fmi2::variables::VarType;
 use crate::fmi3::model_description::{time_vr, token};
 use std::path::PathBuf;
 
@@ -671,15 +671,12 @@ pub unsafe fn fmi3SetClock<M: FmuModel>(
 /// The inputs an output depends on (the table's `depends_on`, as in `<ModelStructure>`); an
 /// error for a value reference that is not an output.
 fn dependencies<M: FmuModel>(function: &str, vr: fmi3ValueReference) -> Result<Vec<u32>, Failure> {
-    let table = M::table();
-    match table.variables.get(vr as usize).map(|v| v.binding) {
-        Some(Binding::Output { depends_on, .. }) => {
-            Ok(depends_on.iter().filter_map(|s| table.input_vr(*s)).map(|i| i as u32).collect())
-        }
-        _ => Err(Failure::error(format!(
-            "{function}: value reference {vr} is not an output or calculated parameter"
-        ))),
-    }
+    crate::fmi3::model_description::dependencies_of::<M>(vr as usize).ok_or_else(|| {
+        Failure::error(format!(
+            "{function}: value reference {vr} is not an output, calculated parameter or state \
+             derivative with declared dependencies"
+        ))
+    })
 }
 
 pub unsafe fn fmi3GetNumberOfVariableDependencies<M: FmuModel>(
@@ -836,22 +833,47 @@ pub unsafe fn fmi3DeserializeFMUState<M: FmuModel>(
 
 // ------------------------------------------------------------------------------ derivatives
 
+#[allow(clippy::too_many_arguments)]
 pub unsafe fn fmi3GetDirectionalDerivative<M: FmuModel>(
     c: fmi3Instance,
-    _unknowns: *const fmi3ValueReference,
-    _nUnknowns: usize,
-    _knowns: *const fmi3ValueReference,
-    _nKnowns: usize,
-    _seed: *const fmi3Float64,
-    _nSeed: usize,
-    _sensitivity: *mut fmi3Float64,
-    _nSensitivity: usize,
+    unknowns: *const fmi3ValueReference,
+    nUnknowns: usize,
+    knowns: *const fmi3ValueReference,
+    nKnowns: usize,
+    seed: *const fmi3Float64,
+    nSeed: usize,
+    sensitivity: *mut fmi3Float64,
+    nSensitivity: usize,
 ) -> fmi3Status {
-    unsupported::<M>(
-        c,
-        "fmi3GetDirectionalDerivative",
-        "not provided by this FMU (providesDirectionalDerivatives=\"false\")",
-    )
+    use crate::fmi2::directional::{directional_derivative, StateRefs};
+    use crate::fmi3::model_description::{derivative_vr, state_vr};
+    let f = "fmi3GetDirectionalDerivative";
+    call::<M>(c, f, |inst| {
+        if nSeed != nKnowns || nSensitivity != nUnknowns {
+            return Err(Failure::error(format!(
+                "{f}: nSeed = {nSeed} must equal nKnowns = {nKnowns} and nSensitivity = \
+                 {nSensitivity} must equal nUnknowns = {nUnknowns}"
+            )));
+        }
+        let u = slice(unknowns, nUnknowns).ok_or_else(|| null_argument(f, "unknowns"))?;
+        let k = slice(knowns, nKnowns).ok_or_else(|| null_argument(f, "knowns"))?;
+        let s = slice(seed, nSeed).ok_or_else(|| null_argument(f, "seed"))?;
+        if nSensitivity > 0 && sensitivity.is_null() {
+            return Err(null_argument(f, "sensitivity"));
+        }
+        let out: &mut [fmi3Float64] = if nSensitivity == 0 {
+            &mut []
+        } else {
+            std::slice::from_raw_parts_mut(sensitivity, nSensitivity)
+        };
+        // FMI 3.0 numbering (`model_description.rs`): a state is its table variable, its
+        // derivative follows `time`.
+        let n = M::CONTINUOUS_STATES.len();
+        let state = |vr: u32| (0..n).find(|&j| state_vr::<M>(j) == vr as usize);
+        let derivative = |vr: u32| (0..n).find(|&j| derivative_vr::<M>(j) == vr);
+        let refs = StateRefs { state: &state, derivative: &derivative };
+        directional_derivative::<M>(inst, f, u, k, s, out, &refs)
+    })
 }
 
 pub unsafe fn fmi3GetAdjointDerivative<M: FmuModel>(

@@ -45,14 +45,16 @@ fn body<M: FmuModel>() -> String {
     if M::MODEL_EXCHANGE {
         let _ = writeln!(
             w,
-            r#"  <ModelExchange modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="false" providesAdjointDerivatives="false" needsCompletedIntegratorStep="false" providesEvaluateDiscreteStates="false"/>"#,
-            info.model_identifier
+            r#"  <ModelExchange modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="{}" providesAdjointDerivatives="false" needsCompletedIntegratorStep="false" providesEvaluateDiscreteStates="false"/>"#,
+            info.model_identifier,
+            crate::fmi2::model_description::provides_directional_derivative::<M>()
         );
     }
     let _ = writeln!(
         w,
-        r#"  <CoSimulation modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="false" providesAdjointDerivatives="false" canHandleVariableCommunicationStepSize="true" maxOutputDerivativeOrder="0" providesIntermediateUpdate="false" mightReturnEarlyFromDoStep="false" canReturnEarlyAfterIntermediateUpdate="false" hasEventMode="false"/>"#,
-        info.model_identifier
+        r#"  <CoSimulation modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="{}" providesAdjointDerivatives="false" canHandleVariableCommunicationStepSize="true" maxOutputDerivativeOrder="0" providesIntermediateUpdate="false" mightReturnEarlyFromDoStep="false" canReturnEarlyAfterIntermediateUpdate="false" hasEventMode="false"/>"#,
+        info.model_identifier,
+        crate::fmi2::model_description::provides_directional_derivative::<M>()
     );
     let _ = writeln!(w, "  <UnitDefinitions>");
     for (name, [kg, m, s, rad]) in table.units {
@@ -160,12 +162,8 @@ fn body<M: FmuModel>() -> String {
     let _ = writeln!(w, "  </ModelVariables>");
     let _ = writeln!(w, "  <ModelStructure>");
     for (vr, v) in table.variables.iter().enumerate() {
-        if let (Causality::Output, Binding::Output { depends_on, .. }) = (v.causality, v.binding) {
-            let deps: Vec<String> = depends_on
-                .iter()
-                .filter_map(|s| table.input_vr(*s))
-                .map(|i| i.to_string())
-                .collect();
+        if let (Causality::Output, Binding::Output { .. }) = (v.causality, v.binding) {
+            let deps: Vec<String> = dependencies::<M>(vr).iter().map(|i| i.to_string()).collect();
             let kinds: Vec<&str> = deps.iter().map(|_| "dependent").collect();
             let _ = writeln!(
                 w,
@@ -176,10 +174,19 @@ fn body<M: FmuModel>() -> String {
         }
     }
     for k in 0..M::CONTINUOUS_STATES.len() {
+        let vr = derivative_vr::<M>(k);
+        if M::DERIVATIVE_DEPENDENCIES.is_empty() {
+            let _ = writeln!(w, r#"    <ContinuousStateDerivative valueReference="{vr}"/>"#);
+            continue;
+        }
+        let deps: Vec<String> =
+            dependencies::<M>(vr as usize).iter().map(|i| i.to_string()).collect();
+        let kinds: Vec<&str> = deps.iter().map(|_| "dependent").collect();
         let _ = writeln!(
             w,
-            r#"    <ContinuousStateDerivative valueReference="{}"/>"#,
-            derivative_vr::<M>(k)
+            r#"    <ContinuousStateDerivative valueReference="{vr}" dependencies="{}" dependenciesKind="{}"/>"#,
+            deps.join(" "),
+            kinds.join(" ")
         );
     }
     // Outputs and calculated parameters are computed at initialization from all knowns (inputs
@@ -195,6 +202,39 @@ fn body<M: FmuModel>() -> String {
     let _ = writeln!(w, "  </ModelStructure>");
     let _ = writeln!(w, "</fmiModelDescription>");
     x
+}
+
+/// The knowns (value references of inputs and continuous states, ascending) the output or state
+/// derivative `vr` depends on: the table's `depends_on` and [`FmuModel::OUTPUT_STATES`], or
+/// [`FmuModel::DERIVATIVE_DEPENDENCIES`]; None for any other value reference (or a derivative
+/// whose dependencies are not declared).
+pub fn dependencies_of<M: FmuModel>(vr: usize) -> Option<Vec<u32>> {
+    let table = M::table();
+    let (inputs, states): (&[M::Input], &[usize]) = match table.variables.get(vr) {
+        Some(v) => match v.binding {
+            Binding::Output { depends_on, .. } => (depends_on, M::output_states(v.name)),
+            _ => return None,
+        },
+        None => {
+            let k =
+                (0..M::CONTINUOUS_STATES.len()).find(|&k| derivative_vr::<M>(k) as usize == vr)?;
+            let (i, s) = M::DERIVATIVE_DEPENDENCIES.get(k)?;
+            (i, s)
+        }
+    };
+    let mut deps: Vec<u32> = inputs
+        .iter()
+        .filter_map(|s| table.input_vr(*s))
+        .chain(states.iter().map(|&k| state_vr::<M>(k)))
+        .map(|i| i as u32)
+        .collect();
+    deps.sort_unstable();
+    deps.dedup();
+    Some(deps)
+}
+
+fn dependencies<M: FmuModel>(vr: usize) -> Vec<u32> {
+    dependencies_of::<M>(vr).unwrap_or_default()
 }
 
 /// The value reference of the independent variable `time`: the first after the table's.

@@ -33,7 +33,7 @@
 //! `TF = A·rotation·b_q`, `TF' = A·b_qq` (rotation² = 1). No finite differences (docs/model.md §2).
 
 use crate::model::error::{given, num, ModelError};
-use crate::model::kinematics::Kinematics;
+use crate::model::kinematics::{Kinematics, Scalar};
 
 /// Lever class of the beam unit (docs/model.md §1, mechanism kinds 2 and 3).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -139,19 +139,19 @@ impl Loop {
     /// `(cnum·D + kappa·sd·D⊥)/(2Cρ²)`, `sd = sqrt(4C²ρ² − cnum²)`: one square root, and one
     /// division shared by both reciprocals.
     #[inline(always)]
-    fn solve(&self, kappa: f64, px: f64, py: f64) -> (f64, f64, f64) {
-        let dx = self.bx - px;
-        let dy = self.by - py;
+    fn solve<T: Scalar>(&self, kappa: f64, px: T, py: T) -> (T, T, T) {
+        let dx = T::from(self.bx) - px;
+        let dy = T::from(self.by) - py;
         let rho2 = dx * dx + dy * dy;
-        let cnum = self.sigma * (self.p2 - rho2 - self.c2);
+        let cnum = (T::from(self.p2) - rho2 - self.c2) * self.sigma;
         // > 0 on a validated crank-rocker (|cos α| < 1); max() only guards the last ulp.
-        let sd = (self.four_c2 * rho2 - cnum * cnum).max(0.0).sqrt();
-        let two_c_rho2 = self.two_c * rho2;
-        let t = 1.0 / (two_c_rho2 * sd);
+        let sd = (rho2 * self.four_c2 - cnum * cnum).at_least_zero().sqrt();
+        let two_c_rho2 = rho2 * self.two_c;
+        let t = (two_c_rho2 * sd).recip();
         let scale = t * sd;
         (
-            (cnum * dx - kappa * sd * dy) * scale,
-            (cnum * dy + kappa * sd * dx) * scale,
+            (cnum * dx - sd * kappa * dy) * scale,
+            (cnum * dy + sd * kappa * dx) * scale,
             t * two_c_rho2,
         )
     }
@@ -315,34 +315,47 @@ impl BeamUnit {
     /// * `rod_angle_rate = d(rod_angle)/dθ = rotation·(W × V)/P²`.
     #[inline]
     pub fn kinematics(&self, theta: f64) -> Kinematics {
-        let q = self.rot * theta;
+        self.kinematics_of(theta)
+    }
+
+    /// [`BeamUnit::kinematics`] for any [`Scalar`]: with a dual number it also gives the exact
+    /// derivatives of every field (the directional derivatives); with `f64` it is the same
+    /// arithmetic in the same order.
+    #[inline(always)]
+    pub fn kinematics_of<T: Scalar>(&self, theta: T) -> Kinematics<T> {
+        let q = theta * self.rot;
         let (sq, cq) = q.sin_cos();
-        let (px, py) = (self.r * sq, self.r * cq);
+        let (px, py) = (sq * self.r, cq * self.r);
         let (ux, uy, inv_sd) = self.lp.solve(self.kappa, px, py);
         // |u| = 1 (to rounding), so b = asin(u_y) while the beam is within 60° of horizontal
         // (always, for a real unit): well conditioned there and about twice as fast as atan2.
-        let b = if ux > 0.5 { uy.asin() } else { uy.atan2(ux) };
+        let b = if ux.re() > 0.5 { uy.asin() } else { uy.atan2(ux) };
         // Pitman W = E − Cp.
-        let wx = self.lp.bx + self.sc * ux - px;
-        let wy = self.lp.by + self.sc * uy - py;
+        let wx = ux * self.sc + self.lp.bx - px;
+        let wy = uy * self.sc + self.lp.by - py;
         // dE/db = σC·u⊥ ; dCp/dq = R(cos q, −sin q) = (py, −px).
-        let (ebx, eby) = (-self.sc * uy, self.sc * ux);
+        let (ebx, eby) = (uy * -self.sc, ux * self.sc);
         let (cqx, cqy) = (py, -px);
         // W·E_b = σC·(D·u⊥) = −σκ·sd/2 exactly (u from `Loop::solve`): no extra division.
-        let inv_den = self.neg_two_sk * inv_sd;
+        let inv_den = inv_sd * self.neg_two_sk;
         let bq = (wx * cqx + wy * cqy) * inv_den;
         let (vx, vy) = (ebx * bq - cqx, eby * bq - cqy);
         let w_dot_u = wx * ux + wy * uy;
         // W·E_bb = −σC (W·u);  −W·Cp_qq = +W·Cp.
-        let bqq = -(vx * vx + vy * vy - self.sc * w_dot_u * bq * bq + wx * px + wy * py) * inv_den;
+        let bqq =
+            -((vx * vx + vy * vy - w_dot_u * self.sc * bq * bq + wx * px + wy * py) * inv_den);
+        // Clamp only the last-ulp undershoot at the bottom dead position (s ≥ 0, §2).
         Kinematics {
-            // Clamp only the last-ulp undershoot at the bottom dead position (s ≥ 0, §2).
-            s: (self.a * (b - self.b_min)).max(0.0),
-            tf: self.a * self.rot * bq,
-            tfp: self.a * bqq,
+            s: ((b - self.b_min) * self.a).at_least_zero(),
+            tf: bq * (self.a * self.rot),
+            tfp: bqq * self.a,
             // Same fast path: |W| = P, and the pitman points up within 60° of the vertical.
-            rod_angle: if wy > self.half_p { (-wx * self.inv_p).asin() } else { (-wx).atan2(wy) },
-            rod_angle_rate: self.rot * (wx * vy - wy * vx) * self.inv_p2,
+            rod_angle: if wy.re() > self.half_p {
+                (-(wx * self.inv_p)).asin()
+            } else {
+                (-wx).atan2(wy)
+            },
+            rod_angle_rate: (wx * vy - wy * vx) * self.rot * self.inv_p2,
         }
     }
 

@@ -6,7 +6,7 @@
 //! (never finite differences, never the truncated λ-series of older handbooks, §2).
 
 use crate::model::error::{given, num, require_finite, ModelError};
-use crate::model::kinematics::Kinematics;
+use crate::model::kinematics::{Kinematics, Scalar};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CrankSlider {
@@ -59,21 +59,29 @@ impl CrankSlider {
     /// crosshead is −P·tanβ (§5.4).
     #[inline]
     pub fn kinematics_and_tan_beta(&self, theta: f64) -> (Kinematics, f64) {
+        self.kinematics_and_tan_beta_of(theta)
+    }
+
+    /// [`CrankSlider::kinematics_and_tan_beta`] for any [`Scalar`]: with a dual number it also
+    /// gives the exact derivatives of every field (the directional derivatives); with `f64` it is
+    /// the same arithmetic in the same order.
+    #[inline(always)]
+    pub fn kinematics_and_tan_beta_of<T: Scalar>(&self, theta: T) -> (Kinematics<T>, T) {
         let (sin, cos) = theta.sin_cos();
         let (r, l) = (self.r, self.l);
-        let sin_beta = (r * sin - self.e) / l;
+        let sin_beta = (sin * r - self.e) / l;
         // l > r + |e| keeps |sinβ| < 1, so cosβ > 0 and the square root is safe.
-        let cos_beta = (1.0 - sin_beta * sin_beta).sqrt();
+        let cos_beta = (T::from(1.0) - sin_beta * sin_beta).sqrt();
         let tan_beta = sin_beta / cos_beta;
         // dβ/dθ from differentiating l·sinβ = r·sinθ − e.
-        let beta_rate = r * cos / (l * cos_beta);
-        let x = r * cos + l * cos_beta;
+        let beta_rate = cos * r / (cos_beta * l);
+        let x = cos * r + cos_beta * l;
         // TF = −dX/dθ = r sinθ + l sinβ·β' = r sinθ + r cosθ·tanβ.
-        let tf = r * sin + r * cos * tan_beta;
+        let tf = sin * r + cos * r * tan_beta;
         // TF' = d/dθ of the line above, using d(tanβ)/dθ = β'/cos²β.
-        let tfp = r * cos - r * sin * tan_beta + r * cos * beta_rate / (cos_beta * cos_beta);
+        let tfp = cos * r - sin * r * tan_beta + cos * r * beta_rate / (cos_beta * cos_beta);
         let k = Kinematics {
-            s: self.x_max - x,
+            s: T::from(self.x_max) - x,
             tf,
             tfp,
             rod_angle: sin_beta.asin(),

@@ -22,6 +22,8 @@ use crate::model::loads;
 use cage_step::solve_on_table;
 
 mod cage_step;
+mod tangent;
+pub use tangent::Seed;
 
 use crate::model::params::{
     Params, MECHANISM_BEAM_CLASS_I, MECHANISM_BEAM_CLASS_III, MECHANISM_CRANK_SLIDER,

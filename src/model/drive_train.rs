@@ -12,6 +12,9 @@
 //! (θ, ω) is integrated inside the step with error control by the same Verner 6(5) pair as the
 //! elastic rod (`crate::model::integrator`), seen as the second-order equation θ̈ = ω̇(θ̇).
 
+use num_dual::Dual64;
+
+use crate::model::kinematics::Scalar;
 use serde::{Deserialize, Serialize};
 
 use crate::model::error::{given, num, ModelError};
@@ -177,9 +180,43 @@ impl DriveTrain {
     /// Motor slip and torque [N·m, motor shaft] at crank speed ω (Kloss).
     #[inline]
     pub fn motor(&self, omega: f64) -> (f64, f64) {
-        let s = 1.0 - self.p.gear_ratio * omega / self.p.synchronous_speed;
+        self.motor_of(omega)
+    }
+
+    /// [`DriveTrain::motor`] for any [`Scalar`] (a dual number carries its exact derivative, for
+    /// the directional derivatives); with `f64` the same arithmetic in the same order.
+    #[inline(always)]
+    pub fn motor_of<T: Scalar>(&self, omega: T) -> (T, T) {
+        let s = T::from(1.0) - omega * self.p.gear_ratio / self.p.synchronous_speed;
         let sb = self.p.breakdown_slip;
-        (s, 2.0 * self.p.breakdown_torque * s * sb / (s * s + sb * sb))
+        (s, s * (2.0 * self.p.breakdown_torque) * sb / (s * s + sb * sb))
+    }
+
+    /// The outputs at `state` with load `load` and their tangent along the changes `d_angle`,
+    /// `d_speed` of the state and `d_load` of the load (forward-mode automatic
+    /// differentiation), and the tangent of d/dt (θ, ω).
+    pub fn tangent(
+        &self,
+        state: &DriveState,
+        load: f64,
+        d_angle: f64,
+        d_speed: f64,
+        d_load: f64,
+    ) -> (DriveOutputs, [f64; 2]) {
+        let w = Dual64::new(state.speed, d_speed);
+        let (slip, torque) = self.motor_of(w);
+        let motor_speed = w * self.p.gear_ratio;
+        let acceleration = (torque * self.p.gear_ratio - Dual64::new(load, d_load)) / self.inertia;
+        let out = DriveOutputs {
+            angle: d_angle,
+            speed: d_speed,
+            acceleration: acceleration.eps,
+            motor_speed: motor_speed.eps,
+            motor_torque: torque.eps,
+            slip: slip.eps,
+            motor_power: (torque * motor_speed).eps,
+        };
+        (out, [d_speed, acceleration.eps])
     }
 
     /// ω̇ = (i·T_m − T_L)/J.

@@ -1,30 +1,60 @@
 //! The result every kinematic law returns (docs/model.md §2): the stroke coordinate and its exact
 //! derivatives with respect to the crank angle, plus the connecting rod's swing.
 
-/// Position-level kinematics at one crank angle θ (model angle, offset already applied).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Kinematics {
-    /// Stroke coordinate s [m], 0 at the outer end of the stroke (§2).
-    pub s: f64,
-    /// Torque factor TF = ds/dθ [m/rad].
-    pub tf: f64,
-    /// TF' = d²s/dθ² [m/rad²].
-    pub tfp: f64,
-    /// Rod swing angle [rad]: β of the slider rod (§3.1) or the pitman's inclination (§3.2).
-    pub rod_angle: f64,
-    /// dβ/dθ [1], so that the swing rate is `rod_angle_rate * ω`.
-    pub rod_angle_rate: f64,
+use num_dual::DualNum;
+
+/// A real scalar of the model's generic code: `f64` for evaluation, a dual number
+/// (`num_dual::Dual64`) for the exact directional derivatives by forward-mode automatic
+/// differentiation (docs/fmi-interface.md "Directional derivatives").
+pub trait Scalar: DualNum<Primitive = f64> + Copy {
+    /// `max(self, 0)` on the real part (a guard against the last ulp below 0): `f64::max`,
+    /// branch-free, for `f64`.
+    fn at_least_zero(self) -> Self;
 }
 
-impl Kinematics {
+impl Scalar for f64 {
+    #[inline(always)]
+    fn at_least_zero(self) -> f64 {
+        self.max(0.0)
+    }
+}
+
+impl Scalar for num_dual::Dual64 {
+    #[inline(always)]
+    fn at_least_zero(self) -> Self {
+        if self.re > 0.0 {
+            self
+        } else {
+            Self::from(0.0)
+        }
+    }
+}
+
+/// Position-level kinematics at one crank angle θ (model angle, offset already applied).
+/// Generic over the scalar (`f64` unless a dual number carries derivatives, see [`Scalar`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Kinematics<T = f64> {
+    /// Stroke coordinate s [m], 0 at the outer end of the stroke (§2).
+    pub s: T,
+    /// Torque factor TF = ds/dθ [m/rad].
+    pub tf: T,
+    /// TF' = d²s/dθ² [m/rad²].
+    pub tfp: T,
+    /// Rod swing angle [rad]: β of the slider rod (§3.1) or the pitman's inclination (§3.2).
+    pub rod_angle: T,
+    /// dβ/dθ [1], so that the swing rate is `rod_angle_rate * ω`.
+    pub rod_angle_rate: T,
+}
+
+impl<T: Scalar> Kinematics<T> {
     /// Velocity v = TF·ω (§2).
     #[inline]
-    pub fn velocity(&self, omega: f64) -> f64 {
+    pub fn velocity(&self, omega: T) -> T {
         self.tf * omega
     }
     /// Acceleration a = TF·ε + TF'·ω² (§2).
     #[inline]
-    pub fn acceleration(&self, omega: f64, epsilon: f64) -> f64 {
+    pub fn acceleration(&self, omega: T, epsilon: T) -> T {
         self.tf * epsilon + self.tfp * omega * omega
     }
 }

@@ -1,5 +1,6 @@
 //! Loads on the reciprocating link, docs/model.md §4. Forces are positive along +s.
 
+use crate::model::kinematics::Scalar;
 use crate::model::params::{LOAD_PROFILE_DOUBLE_ACTING, LOAD_PROFILE_SINGLE_ACTING};
 
 /// d'Alembert inertia force Φ = −m·a of the reciprocating mass reduced to the link (§4).
@@ -23,12 +24,29 @@ pub fn process_force_profile(
     velocity: f64,
     velocity_scale: f64,
 ) -> f64 {
+    process_force_profile_of(profile, mean, amplitude, phase, theta, velocity, velocity_scale)
+}
+
+/// [`process_force_profile`] for any [`Scalar`] (a dual number carries its exact derivatives);
+/// with `f64` the same arithmetic in the same order.
+#[inline(always)]
+pub fn process_force_profile_of<T: Scalar>(
+    profile: i32,
+    mean: f64,
+    amplitude: f64,
+    phase: f64,
+    theta: T,
+    velocity: T,
+    velocity_scale: f64,
+) -> T {
     match profile {
-        LOAD_PROFILE_DOUBLE_ACTING => -mean * (velocity / velocity_scale).tanh(),
-        LOAD_PROFILE_SINGLE_ACTING => 0.5 * mean * (1.0 - (velocity / velocity_scale).tanh()),
+        LOAD_PROFILE_DOUBLE_ACTING => (velocity / velocity_scale).tanh() * -mean,
+        LOAD_PROFILE_SINGLE_ACTING => {
+            (T::from(1.0) - (velocity / velocity_scale).tanh()) * (0.5 * mean)
+        }
         // The cosine costs as much as the rest of the kinematics: skip it when it contributes 0.
-        _ if amplitude == 0.0 => mean,
-        _ => mean + amplitude * (theta + phase).cos(),
+        _ if amplitude == 0.0 => T::from(mean),
+        _ => (theta + phase).cos() * amplitude + mean,
     }
 }
 

@@ -82,6 +82,13 @@ class Machine:
         """All outputs at input angle θ_in (model angle θ = θ_in + offset), speed ω, acceleration
         ε and input process force F_ext. Returns floats."""
         with mpmath.workdps(DPS):
+            vals = self.outputs_mp(theta_in, omega, eps, f_ext)
+            return {k: float(x) for k, x in vals.items()}
+
+    def outputs_mp(self, theta_in, omega, eps=0.0, f_ext=0.0) -> dict:
+        """`outputs` as mpf, at DPS digits or the caller's higher precision (mpmath.diff raises it
+        to differentiate)."""
+        with mpmath.workdps(max(DPS, mpmath.mp.dps)):
             th = mpmath.mpf(theta_in) + mpmath.mpf(self.angle_offset)
             w, ep = mpmath.mpf(omega), mpmath.mpf(eps)
             s = self.xmax() - self._X(th)
@@ -101,7 +108,7 @@ class Machine:
             beta = self._beta(th)
             beta_dot = mpmath.diff(self._beta, th, 1) * w
             vals = (s, v, a, tf, phi, p, torque, beta, beta_dot)
-            return {k: float(x) for k, x in zip(OUTPUTS, vals)}
+            return dict(zip(OUTPUTS, vals))
 
     def scales(self, omega, eps=0.0, f_ext=0.0) -> dict:
         """The natural magnitude of each output, to make tolerances relative to it."""

@@ -109,6 +109,22 @@ impl FmuModel for DriveTrainFmu {
     const CONTINUOUS_STATES: &'static [(&'static str, &'static str)] =
         &[("crank.angle", "rad/s"), ("crank.speed", "rad/s2")];
 
+    /// θ itself, ω itself, and every other output through ω (docs/closed-loop.md); the
+    /// acceleration also through the load (the table).
+    const OUTPUT_STATES: &'static [(&'static str, &'static [usize])] = &[
+        ("crank.angle", &[0]),
+        ("crank.speed", &[1]),
+        ("crank.acceleration", &[1]),
+        ("motor.speed", &[1]),
+        ("motor.torque", &[1]),
+        ("motor.slip", &[1]),
+        ("motor.power", &[1]),
+    ];
+
+    /// dθ/dt = ω; dω/dt = (i·T_m(ω) − T_L)/J.
+    const DERIVATIVE_DEPENDENCIES: &'static [(&'static [InputSlot], &'static [usize])] =
+        &[(&[], &[1]), (&[InputSlot::LoadTorque], &[1])];
+
     fn continuous_states(state: &DriveState, x: &mut [f64]) {
         x[0] = state.angle;
         x[1] = state.speed;
@@ -127,6 +143,25 @@ impl FmuModel for DriveTrainFmu {
     ) -> Result<(), ModelError> {
         dx[0] = state.speed;
         dx[1] = d.acceleration(state.speed, load(values));
+        Ok(())
+    }
+
+    /// Exact directional derivatives (docs/fmi-interface.md "Directional derivatives"): of the
+    /// outputs and d/dt (θ, ω) with respect to load.torque and, in Model Exchange, the states.
+    const DIRECTIONAL_DERIVATIVES: bool = true;
+
+    fn tangent(
+        d: &DriveTrain,
+        values: &[f64],
+        state: &DriveState,
+        d_values: &[f64],
+        d_states: &[f64],
+        tangent: &mut DriveOutputs,
+        d_derivatives: &mut [f64],
+    ) -> Result<(), ModelError> {
+        let (out, dd) = d.tangent(state, load(values), d_states[0], d_states[1], load(d_values));
+        *tangent = out;
+        d_derivatives.copy_from_slice(&dd);
         Ok(())
     }
 

@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 use crate::fmi2::model::{FmuModel, GroupedOutput, ModelInfo};
 use crate::fmi2::variables::Table;
 use crate::model::crank::CrankState;
-use crate::model::drive::{Inputs, Model, Outputs, RodState};
+use crate::model::drive::{Inputs, Model, Outputs, RodState, Seed};
 use crate::model::error::{num, ModelError};
 use crate::model::integrator::IntegratorStats;
 use crate::model::params::Params;
@@ -196,6 +196,29 @@ impl FmuModel for ReciprocatingDrive {
              offer: run it as co-simulation"
                 .to_string()
         })
+    }
+
+    /// Exact directional derivatives of the outputs with respect to the inputs at the current
+    /// state (docs/fmi-interface.md "Directional derivatives"), rigid rods.
+    const DIRECTIONAL_DERIVATIVES: bool = true;
+
+    fn tangent(
+        model: &Model,
+        values: &[f64],
+        state: &State,
+        d_values: &[f64],
+        _d_states: &[f64],
+        tangent: &mut Outputs,
+        _d_derivatives: &mut [f64],
+    ) -> Result<(), ModelError> {
+        let seed = Seed {
+            angle: d_values[input_vr(InputSlot::CrankAngle)],
+            speed: d_values[input_vr(InputSlot::CrankSpeed)],
+            acceleration: d_values[input_vr(InputSlot::CrankAcceleration)],
+            external_force: d_values[input_vr(InputSlot::ExternalForce)],
+        };
+        *tangent = model.tangent(&state.crank, &inputs(values), &state.rod, &seed)?.1;
+        Ok(())
     }
 
     fn default_tolerance(model: &Model) -> f64 {

@@ -27,6 +27,8 @@
 // `!(a > b)` tests deliberately reject NaN; index loops mirror the lanes.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 
+use num_dual::{Dual64, DualNum};
+
 use super::supports::{ForceMoment, LoadSet};
 
 /// The tabulated quantities (lanes): b_k for the unit loads Q, M0, V (SI-scaled), e − g for R
@@ -232,6 +234,50 @@ impl GlandTable {
     ) -> Result<([ForceMoment; 3], [ForceMoment; 3]), Miss> {
         let (v, b0, inv) = self.lanes(s_scaled)?;
         Ok((self.base(&v, b0, inv, s_scaled), Self::column(&v, v[B_Q] * inv, &self.pre[1])))
+    }
+}
+
+impl GlandTable {
+    /// d/ds̃ of [`GlandTable::evaluate_rigid`] (base, per Q) at scaled s̃, for the exact
+    /// directional derivatives (docs/fmi-interface.md "Directional derivatives"): the same
+    /// polynomials and the same division by S, evaluated by Horner's rule in dual numbers
+    /// (forward-mode automatic differentiation), so the rate is that of the tabulated rational
+    /// function itself, which equals the condensed solve to rounding.
+    pub fn evaluate_rigid_rate(
+        &self,
+        s_scaled: f64,
+    ) -> Result<([ForceMoment; 3], [ForceMoment; 3]), Miss> {
+        // The same checks (range, singularity) as the value.
+        self.lanes(s_scaled)?;
+        let mut i = 0;
+        while s_scaled > self.ends[i] {
+            i += 1;
+        }
+        let p = &self.pieces[i];
+        let t = Dual64::new((s_scaled - p.mid) * p.inv_half, p.inv_half);
+        let mut v: [Dual64; CUBIC] = p.cubic[3].map(Dual64::from);
+        for d in (0..3).rev() {
+            for l in 0..CUBIC {
+                v[l] = v[l] * t + p.cubic[d][l];
+            }
+        }
+        let mut h: [Dual64; LANES - CUBIC] = p.high[DEGREE].map(Dual64::from);
+        for d in (0..DEGREE).rev() {
+            for l in 0..LANES - CUBIC {
+                h[l] = h[l] * t + p.high[d][l];
+            }
+        }
+        let inv = h[SCHUR - CUBIC].recip();
+        // Reactions pre + (b/S)·(e − g); the base case's pre grows with s̃ at pre_base_rate.
+        let column = |b_over_s: Dual64, pre_rate: [ForceMoment; 3]| -> [ForceMoment; 3] {
+            std::array::from_fn(|x| ForceMoment {
+                r: pre_rate[x].r + (b_over_s * v[E_MINUS_G + 2 * x]).eps,
+                m: pre_rate[x].m + (b_over_s * v[E_MINUS_G + 1 + 2 * x]).eps,
+            })
+        };
+        let base = column(h[B_BASE - CUBIC] * inv, self.pre_base_rate);
+        let per_q = column(v[B_Q] * inv, [ForceMoment::default(); 3]);
+        Ok((base, per_q))
     }
 }
 

@@ -22,6 +22,7 @@ mod friction;
 mod gland;
 mod link_beam;
 mod supports;
+mod tangent;
 mod validation;
 
 #[cfg(test)]

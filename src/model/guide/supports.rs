@@ -89,6 +89,9 @@ impl ForceMoment {
     }
 }
 
+/// The rigid rod's load cases (base, per Q) of the three supports, or their rates.
+pub(super) type RigidInfluence = ([ForceMoment; 3], [ForceMoment; 3]);
+
 /// Support reactions at one s as affine functions of the loads (SI units).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(super) struct Influence {
@@ -616,8 +619,10 @@ impl SupportSystem {
     }
 
     /// The rigid rod's load cases of [`SupportSystem::influence`] only (base, per Q): what
-    /// `Guide::solve_rigid` needs, without building the rest.
-    #[inline]
+    /// `Guide::solve_rigid` needs, without building the rest. Always inlined: the rigid
+    /// evaluation's hot path (a second caller, the directional derivative, would otherwise make
+    /// it an out-of-line call there).
+    #[inline(always)]
     pub fn rigid_influence(
         &self,
         s: f64,
@@ -635,6 +640,29 @@ impl SupportSystem {
         }
         let infl = self.solve(s / self.length, LoadSet::Rigid, false)?;
         Ok((infl.base, infl.per_q))
+    }
+
+    /// d/ds of [`SupportSystem::rigid_influence`] (base, per Q) [N/m, N·m/m, 1/m], for the exact
+    /// directional derivatives: exact where the reactions are known in closed form in s (nothing
+    /// moves along the link: base affine in s; one gland: the tabulated rational functions,
+    /// `gland.rs`). None where only a linear solve at each s gives them (more than one
+    /// frame-fixed contact, or a frame-fixed load point): no rate is offered there.
+    pub fn rigid_influence_rate(&self, s: f64) -> Result<Option<RigidInfluence>, ModelError> {
+        if let Some((_, rate)) = &self.precomputed {
+            return Ok(Some((*rate, [ForceMoment::default(); 3])));
+        }
+        if let Some(g) = &self.gland {
+            let per_metre = 1.0 / self.length;
+            let scale = |a: [ForceMoment; 3]| {
+                a.map(|f| ForceMoment { r: f.r * per_metre, m: f.m * per_metre })
+            };
+            return match g.evaluate_rigid_rate(s / self.length) {
+                Ok((base, per_q)) => Ok(Some((scale(base), scale(per_q)))),
+                Err(Miss::Singular) => Err(self.singular_error(s / self.length)),
+                Err(Miss::OutOfRange) => Ok(None),
+            };
+        }
+        Ok(None)
     }
 
     /// The clamp load cases of [`SupportSystem::influence`] only (base, per M0, per V): what the

@@ -1,0 +1,134 @@
+//! The glue of `fmi2GetDirectionalDerivative` and `fmi3GetDirectionalDerivative`
+//! (docs/fmi-interface.md "Directional derivatives"), for any instance kind: value references
+//! resolved and checked, the model's exact tangent ([`FmuModel::tangent`]) evaluated once for
+//! the whole seed, the unknowns read from it. The standard's meaning: `dvUnknown = J·dvKnown`,
+//! J the partial derivatives of the unknowns with respect to the knowns at the current inputs
+//! and state, the state held (co-simulation) or a known (Model Exchange).
+
+use crate::fmi2::instance::{Failure, Instance, Mode};
+use crate::fmi2::model::FmuModel;
+use crate::fmi2::variables::Causality;
+use crate::model::error::num;
+
+/// How an importer's value references map onto the continuous states of a Model Exchange
+/// instance, which each standard numbers its own way (FMI 3.0: `crate::fmi3::model_description`).
+pub struct StateRefs<'a> {
+    /// The index of the continuous state whose value reference this is, if any.
+    pub state: &'a dyn Fn(u32) -> Option<usize>,
+    /// The index of the continuous state whose derivative has this value reference, if any.
+    pub derivative: &'a dyn Fn(u32) -> Option<usize>,
+}
+
+/// No continuous state is addressable (co-simulation: the state is held).
+pub const NO_STATES: StateRefs<'static> = StateRefs { state: &|_| None, derivative: &|_| None };
+
+/// Tables up to this many variables keep the seed on the stack.
+const STACK_VALUES: usize = 256;
+/// Continuous states a model may have here.
+const MAX_STATES: usize = 8;
+
+fn name<M: FmuModel>(vr: u32) -> String {
+    match M::table().variables.get(vr as usize) {
+        Some(v) => format!("{vr} (\"{}\")", v.name),
+        None => vr.to_string(),
+    }
+}
+
+/// `sensitivity[i]` = the change of `unknowns[i]` for the inputs and states `knowns` changing by
+/// `seed`. Every argument is checked before anything is evaluated; a failure names the array,
+/// the index, the value reference and what is allowed, and changes nothing.
+pub fn directional_derivative<M: FmuModel>(
+    inst: &Instance<M>,
+    function: &str,
+    unknowns: &[u32],
+    knowns: &[u32],
+    seed: &[f64],
+    sensitivity: &mut [f64],
+    refs: &StateRefs,
+) -> Result<(), Failure> {
+    if !M::DIRECTIONAL_DERIVATIVES {
+        return Err(Failure::error(format!("{function}: not provided by this FMU")));
+    }
+    if inst.mode() == Mode::Fatal {
+        return Err(Failure::illegal(function, Mode::Fatal));
+    }
+    let n_states = M::CONTINUOUS_STATES.len();
+    let states_known = inst.model_exchange;
+    let what_known =
+        if states_known && n_states > 0 { "an input or a continuous state" } else { "an input" };
+    let table = M::table();
+    let info = table.info();
+    let Some((built, values, state)) = inst.me_parts() else {
+        return Err(Failure::error(format!(
+            "{function}: only after the end of initialization (the machine is built there)"
+        )));
+    };
+    // On the stack for the tables of this crate (a heap allocation per call costs as much as a
+    // quarter of the derivative itself, docs/performance.md "Directional derivatives").
+    let (mut values_stack, mut values_heap) = ([0.0; STACK_VALUES], Vec::new());
+    let d_values: &mut [f64] = if values.len() <= STACK_VALUES {
+        &mut values_stack[..values.len()]
+    } else {
+        values_heap.resize(values.len(), 0.0);
+        &mut values_heap
+    };
+    let mut d_states = [0.0; MAX_STATES];
+    let mut d_derivatives = [0.0; MAX_STATES];
+    if n_states > MAX_STATES {
+        return Err(Failure::error(format!(
+            "{function}: more than {MAX_STATES} continuous states (internal limit)"
+        )));
+    }
+    let (d_states, d_derivatives) = (&mut d_states[..n_states], &mut d_derivatives[..n_states]);
+    for (i, (&vr, &dv)) in knowns.iter().zip(seed).enumerate() {
+        if !dv.is_finite() {
+            return Err(Failure::error(format!(
+                "{function}: seed[{i}] = {} for value reference {} is not finite",
+                num(dv),
+                name::<M>(vr)
+            )));
+        }
+        match (info.get(vr as usize), (refs.state)(vr)) {
+            (_, Some(k)) if states_known && k < n_states => d_states[k] += dv,
+            (Some(v), _) if v.causality == Causality::Input => d_values[vr as usize] += dv,
+            _ => {
+                return Err(Failure::error(format!(
+                    "{function}: known[{i}] = value reference {} is not {what_known}",
+                    name::<M>(vr)
+                )))
+            }
+        }
+    }
+    // The unknowns: outputs of the table, or state derivatives (Model Exchange).
+    for (i, &vr) in unknowns.iter().enumerate() {
+        let is_output = info
+            .get(vr as usize)
+            .is_some_and(|v| v.causality == Causality::Output && v.output.is_some());
+        let is_derivative = states_known && (refs.derivative)(vr).is_some_and(|k| k < n_states);
+        if !is_output && !is_derivative {
+            return Err(Failure::error(format!(
+                "{function}: unknown[{i}] = value reference {} is not an output{}",
+                name::<M>(vr),
+                if states_known && n_states > 0 { " or a state derivative" } else { "" }
+            )));
+        }
+    }
+    let mut tangent = M::Outputs::default();
+    M::tangent(built, values, state, d_values, d_states, &mut tangent, d_derivatives)
+        .map_err(|e| Failure::error(format!("{function}: {e}")))?;
+    for (i, &vr) in unknowns.iter().enumerate() {
+        let v = match info.get(vr as usize).and_then(|v| v.output) {
+            Some(get) => M::read(&tangent, get).unwrap_or(f64::NAN),
+            None => (refs.derivative)(vr).map_or(f64::NAN, |k| d_derivatives[k]),
+        };
+        if !v.is_finite() {
+            return Err(Failure::error(format!(
+                "{function}: the derivative of value reference {} is not finite ({}) here",
+                name::<M>(vr),
+                num(v)
+            )));
+        }
+        sensitivity[i] = v;
+    }
+    Ok(())
+}

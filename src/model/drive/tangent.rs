@@ -1,0 +1,193 @@
+//! Exact directional derivatives of the outputs (docs/fmi-interface.md "Directional
+//! derivatives"): forward-mode automatic differentiation over the model's own code. The
+//! kinematics (§2, §3) and the loads that do not depend on P (§4, §7) are generic over the
+//! scalar and run once with a dual number (`num_dual::Dual64`) whose dual part is the direction;
+//! the rod force, implicit through the guide friction, is differentiated implicitly
+//! (`guide/tangent.rs`).
+
+use num_dual::Dual64;
+
+use super::{groups, Inputs, Mechanism, Model, Outputs, RodState};
+use crate::model::crank::CrankState;
+use crate::model::error::ModelError;
+use crate::model::guide::GuideOutputs;
+use crate::model::loads;
+
+/// A direction in the space of the inputs: the changes of crank.angle, crank.speed,
+/// crank.acceleration and link.external_force.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Seed {
+    pub angle: f64,
+    pub speed: f64,
+    pub acceleration: f64,
+    pub external_force: f64,
+}
+
+impl Model {
+    /// The outputs at (crank, inputs, rod) and their directional derivatives along `seed`
+    /// (the tangent, in the same fields; `ready` marks every group of both). The state of an
+    /// elastic rod is held; its outputs' derivatives are not provided (an evaluation error).
+    pub fn tangent(
+        &self,
+        crank: &CrankState,
+        inputs: &Inputs,
+        rod: &RodState,
+        seed: &Seed,
+    ) -> Result<(Outputs, Outputs), ModelError> {
+        let value = self.evaluate(crank, inputs, rod)?;
+        let dual = Dual64::new;
+        let theta = dual(self.model_angle(crank), seed.angle);
+        let w = dual(crank.speed, seed.speed);
+        let eps = dual(crank.acceleration, seed.acceleration);
+        let (k, side_slope) = match &self.mechanism {
+            Mechanism::CrankSlider(m) => m.kinematics_and_tan_beta_of(theta),
+            Mechanism::BeamUnit(m) => (m.kinematics_of(theta), Dual64::from(0.0)),
+            Mechanism::ElasticRodSlider(..) => {
+                return Err(ModelError::evaluation(
+                    "directional derivative: not provided for an elastic connecting rod \
+                     (rod.kind = 1 or 2); it is provided for rigid rods (rod.kind = 0)",
+                ))
+            }
+        };
+        let velocity = k.velocity(w);
+        let acceleration = k.acceleration(w, eps);
+        let p = &self.params;
+        // The same loads as `Model::loads_at` (§4, §7), in dual numbers.
+        let inertia_force = acceleration * -p.mass;
+        let f_ext = dual(inputs.external_force, seed.external_force)
+            + loads::process_force_profile_of(
+                p.load_profile,
+                p.load_mean,
+                p.load_amplitude,
+                p.load_phase,
+                theta,
+                velocity,
+                p.velocity_scale,
+            );
+        let balancer_force = match &self.balancer {
+            Some(b) => (k.s - b.neutral_position) * -b.stiffness,
+            None => Dual64::from(0.0),
+        };
+        let p_base = f_ext + inertia_force + balancer_force;
+        let guide = match &self.guide {
+            Some(g) => g.solve_rigid_tangent(k.s, velocity, p_base, side_slope, &value.guide)?,
+            None => GuideOutputs { rod_force: p_base.eps, ..GuideOutputs::default() },
+        };
+        // T = −P·TF (§4).
+        let crank_torque = -(guide.rod_force * k.tf.re + value.rod_force * k.tf.eps);
+        let tangent = Outputs {
+            ready: groups::ALL,
+            p_base: p_base.eps,
+            side_slope: side_slope.eps,
+            model_angle: seed.angle,
+            model_speed: seed.speed,
+            position: k.s.eps,
+            velocity: velocity.eps,
+            acceleration: acceleration.eps,
+            torque_factor: k.tf.eps,
+            inertia_force: inertia_force.eps,
+            rod_force: guide.rod_force,
+            crank_torque,
+            rod_angle: k.rod_angle.eps,
+            rod_angular_velocity: (k.rod_angle_rate * w).eps,
+            balancer_force: balancer_force.eps,
+            balancer_residual: (inertia_force + balancer_force).eps,
+            balancer_stiffness_used: 0.0,
+            guide,
+            rod_stress_max: 0.0,
+            rod_axial_deflection: 0.0,
+        };
+        Ok((value, tangent))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The dual-number kinematics against the hand-derived closed forms of §3 (two independent
+    //! derivations of the same derivatives): d(s)/dθ by AD equals TF, d(TF)/dθ equals TF', and
+    //! d(β)/dθ equals dβ/dθ, to 1e-13 of each one's largest magnitude over a revolution.
+    use num_dual::Dual64;
+
+    use super::{Mechanism, Model};
+    use crate::model::kinematics::Kinematics;
+    use crate::model::params::Params;
+
+    fn machines() -> Vec<(&'static str, Params)> {
+        let offset = Params { slider_offset: 0.07, ..Params::default() };
+        let beam = |mechanism: i32, rotation: i32| {
+            let mut p = Params { mechanism, rotation, ..Params::default() };
+            if mechanism == 2 {
+                // sk8-3.5-4000 (docs/model.md §8).
+                (p.beam_front_arm, p.beam_rear_arm, p.pivot_dx, p.pivot_dy) =
+                    (3.5, 2.5, 2.195, 3.0);
+                (p.rod_length, p.crank_radius) = (3.0, 1.01);
+            } else {
+                // The Mark II-like class III geometry of beam_unit.rs's tests.
+                (p.beam_front_arm, p.beam_rear_arm, p.pivot_dx, p.pivot_dy) = (3.8, 2.4, 1.4, 3.2);
+                (p.rod_length, p.crank_radius) = (3.4, 0.9);
+            }
+            p.supports.iter_mut().for_each(|s| s.kind = 0);
+            p
+        };
+        vec![
+            ("central crank-slider", Params::default()),
+            ("offset crank-slider", offset),
+            ("class I clockwise", beam(2, 1)),
+            ("class I counter-clockwise", beam(2, -1)),
+            ("class III clockwise", beam(3, 1)),
+            ("class III counter-clockwise", beam(3, -1)),
+        ]
+    }
+
+    #[test]
+    fn dual_kinematics_match_the_closed_form_derivatives() {
+        for (name, p) in machines() {
+            let m = Model::new(&p).unwrap_or_else(|e| panic!("{name}: {e}"));
+            let at = |theta: f64| -> (Kinematics, Kinematics<Dual64>) {
+                let d = Dual64::new(theta, 1.0);
+                match &m.mechanism {
+                    Mechanism::CrankSlider(c) => {
+                        (c.kinematics(theta), c.kinematics_and_tan_beta_of(d).0)
+                    }
+                    Mechanism::BeamUnit(b) => (b.kinematics(theta), b.kinematics_of(d)),
+                    Mechanism::ElasticRodSlider(..) => unreachable!(),
+                }
+            };
+            let n = 720;
+            let samples: Vec<_> =
+                (0..n).map(|i| at(std::f64::consts::TAU * (i as f64 + 0.37) / n as f64)).collect();
+            let max = |f: &dyn Fn(&Kinematics) -> f64| {
+                samples.iter().map(|(k, _)| f(k).abs()).fold(0.0, f64::max)
+            };
+            let (tf_max, tfp_max, rate_max) =
+                (max(&|k| k.tf), max(&|k| k.tfp), max(&|k| k.rod_angle_rate));
+            for (k, d) in &samples {
+                // The real parts are the f64 values (to rounding: a dual divides through a
+                // reciprocal).
+                for (a, b, scale) in
+                    [(k.s, d.s.re, 1.0), (k.tf, d.tf.re, tf_max), (k.tfp, d.tfp.re, tfp_max)]
+                {
+                    assert!((a - b).abs() <= 4.0 * f64::EPSILON * scale, "{name}: {a} vs {b}");
+                }
+                assert!(
+                    (d.s.eps - k.tf).abs() <= 1e-13 * tf_max,
+                    "{name}: {} vs {}",
+                    d.s.eps,
+                    k.tf
+                );
+                assert!(
+                    (d.tf.eps - k.tfp).abs() <= 1e-13 * tfp_max,
+                    "{name}: {} vs {}",
+                    d.tf.eps,
+                    k.tfp
+                );
+                assert!(
+                    (d.rod_angle.eps - k.rod_angle_rate).abs() <= 1e-13 * rate_max,
+                    "{name}: {} vs {}",
+                    d.rod_angle.eps,
+                    k.rod_angle_rate
+                );
+            }
+        }
+    }
+}

@@ -1,0 +1,616 @@
+"""Exact directional derivatives (docs/fmi-interface.md "Directional derivatives"):
+fmi2GetDirectionalDerivative (co-simulation) and fmi3GetDirectionalDerivative (co-simulation and
+Model Exchange) of both FMUs against independent references.
+
+References, none of which shares code with the FMU's derivatives:
+* the crank-slider without friction: tests/python/reference.py (the vector loop at 30 digits),
+  differentiated by mpmath.diff at 30 digits, so its own error is ~1e-25 relative;
+* everything else (guide friction, the beam units, the balancer, the load profiles, DriveTrain):
+  an 8th-order central difference of the FMU's own f64 outputs, its sums evaluated in mpmath
+  (30 digits) so that only the f64 outputs' rounding and the stencil's truncation remain. With
+  step h the rounding contributes about 1e-16·|f|/h and the truncation about (h/ℓ)^8 (ℓ the
+  length over which the output bends: ~1e-2 rad in θ where tanh(v/v_ε) switches, ~1 elsewhere).
+  The steps below (h = 2e-4 in the scaled input) keep both below 1e-11 of the derivative's
+  scale, far under the 1e-8 asked of the FMU; a stencil that straddles a kink of the piecewise-
+  linear friction law (a support reaction through zero) shows as a disagreement between the
+  difference at h and at h/2, and that point is skipped for that input (counted, and bounded).
+
+Tolerance: |FMU − reference| ≤ 1e-8 · (the largest |∂y/∂u| of that pair over the sampled points),
+the issue's "1e-8 relative of the derivative's scale", plus the difference's own rounding bound
+(16 ulps of |y| over h/2) where a partial is small beside its output (a support reaction of a few
+hundred newtons changing by 5e-4 N per rad/s²); a pair whose reference is 0 everywhere must be
+exactly 0.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import math
+import pathlib
+import random
+
+import mpmath
+import pytest
+from reciprocating_drive.presets import preset_values
+from reference import OUTPUTS as REFERENCE_OUTPUTS
+from reference import Machine
+from test_lowlevel import Log
+
+INPUTS = ["crank.angle", "crank.speed", "crank.acceleration", "link.external_force"]
+TOL = 1e-8
+# 8th-order central difference: f'(x) ≈ Σ c_k (f(x + k h) − f(x − k h)) / h.
+STENCIL = [
+    mpmath.mpf(4) / 5,
+    mpmath.mpf(-1) / 5,
+    mpmath.mpf(4) / 105,
+    mpmath.mpf(-1) / 280,
+]
+
+# Machines: every mechanism, friction on and off, the balancer, each load profile.
+FRICTIONLESS = {"support_A.kind": 0, "support_B.kind": 0, "support_C.kind": 0}
+MACHINES = {
+    "crank-slider, guide friction (default machine)": {},
+    "offset crank-slider, friction, cosine load": {
+        "geometry.slider_offset": 0.06,
+        "load.amplitude": 4.0e4,
+        "load.phase": 0.4,
+    },
+    "crank-slider, no friction, balancer": {
+        **FRICTIONLESS,
+        "balancer.enabled": True,
+        "balancer.tuning": 2,
+        "balancer.design_speed": 6.0,
+    },
+    "crank-slider, friction, balancer, single-acting load": {
+        "balancer.enabled": True,
+        "balancer.tuning": 1,
+        "balancer.design_speed": 6.0,
+        "load.profile": 2,
+        "load.mean": 5.0e4,
+    },
+    "unb600a (crank-slider, gland, double-acting load)": "unb600a",
+    "sk8-3.5-4000 (beam unit class I, clamp friction)": "sk8-3.5-4000",
+    "sk8-3.5-4000 without friction": ("sk8-3.5-4000", FRICTIONLESS),
+    "sk8-3.5-4000 counter-clockwise": ("sk8-3.5-4000", {"rotation": -1}),
+    # A Mark II-like class III unit (the geometry of beam_unit.rs's tests), clamp friction.
+    "beam unit class III": (
+        "sk8-3.5-4000",
+        {
+            "mechanism": 3,
+            "geometry.beam_front_arm": 3.8,
+            "geometry.beam_rear_arm": 2.4,
+            "geometry.pivot_dx": 1.4,
+            "geometry.pivot_dy": 3.2,
+            "geometry.rod_length": 3.4,
+            "geometry.crank_radius": 0.9,
+        },
+    ),
+}
+
+
+def machine_values(spec) -> dict:
+    if isinstance(spec, str):
+        return preset_values(spec)
+    if isinstance(spec, tuple):
+        return {**preset_values(spec[0]), **spec[1]}
+    return dict(spec)
+
+
+def sibling(fmu_path, name: str) -> str:
+    p = pathlib.Path(fmu_path).parent / name
+    assert p.is_file(), f"scripts/build-fmu.sh builds {p.name}"
+    return str(p)
+
+
+class Probe:
+    """One instance of an FMU, co-simulation 2.0 ("cs2"), co-simulation 3.0 ("cs3") or Model
+    Exchange 3.0 ("me3"), initialized with `start` and ready to evaluate."""
+
+    def __init__(self, path: str, kind: str, start: dict, tmp_path, tag: str):
+        from fmpy import extract, read_model_description
+
+        self.kind = kind
+        self.md = read_model_description(path)
+        self.var = {v.name: v for v in self.md.modelVariables}
+        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
+        d = extract(path, unzipdir=str(tmp_path / f"{kind}-{tag}"))
+        ident = (self.md.coSimulation or self.md.modelExchange).modelIdentifier
+        self._messages: list[str] = []
+        if kind == "cs2":
+            from fmpy.fmi2 import FMU2Slave
+
+            self.f = FMU2Slave(
+                guid=self.md.guid, unzipDirectory=d, modelIdentifier=ident, instanceName="p"
+            )
+            self.log = Log()
+            self.f.instantiate(callbacks=self.log.callbacks, loggingOn=True)
+            self.f.setupExperiment(startTime=0.0)
+        else:
+            from fmpy.fmi3 import FMU3Model, FMU3Slave
+
+            cls = FMU3Slave if kind == "cs3" else FMU3Model
+            self.f = cls(
+                guid=self.md.guid, unzipDirectory=d, modelIdentifier=ident, instanceName="p"
+            )
+            self.f.instantiate(
+                loggingOn=True,
+                logMessage=lambda e, st, cat, msg: self._messages.append(msg.decode()),
+            )
+        self.f.enterInitializationMode()
+        for k, v in start.items():
+            self.set_any(k, v)
+        self.f.exitInitializationMode()
+        if kind == "me3":
+            self.f.updateDiscreteStates()
+            self.f.enterContinuousTimeMode()
+
+    @property
+    def messages(self) -> list[str]:
+        return self.log.messages() if self.kind == "cs2" else self._messages
+
+    def clear(self):
+        if self.kind == "cs2":
+            self.log.lines.clear()
+        else:
+            self._messages.clear()
+
+    def set_any(self, name, value):
+        t = self.var[name].type
+        vr = [self.vr[name]]
+        if t in ("Real", "Float64"):
+            self.set([name], [float(value)])
+        elif t in ("Integer", "Int32"):
+            (self.f.setInteger if self.kind == "cs2" else self.f.setInt32)(vr, [int(value)])
+        else:
+            self.f.setBoolean(vr, [bool(value)])
+
+    def set(self, names, values):
+        vrs = [self.vr[n] for n in names]
+        (self.f.setReal if self.kind == "cs2" else self.f.setFloat64)(vrs, list(values))
+
+    def get(self, names):
+        vrs = [self.vr[n] for n in names]
+        return (self.f.getReal if self.kind == "cs2" else self.f.getFloat64)(vrs)
+
+    def dd(self, unknowns, knowns, seed):
+        u = [self.vr[n] for n in unknowns]
+        k = [self.vr[n] for n in knowns]
+        return list(self.f.getDirectionalDerivative(u, k, list(seed)))
+
+    def states(self, x):
+        n = len(x)
+        self.f.setContinuousStates((ctypes.c_double * n)(*x), n)
+
+    def derivatives(self, n=2):
+        dx = (ctypes.c_double * n)()
+        self.f.getContinuousStateDerivatives(dx, n)
+        return list(dx)
+
+    def close(self):
+        self.f.terminate()
+        self.f.freeInstance()
+
+
+def central_difference(f, x: float, h: float):
+    """8th-order central difference of the vector function f at x with step h, summed in mpmath
+    (the differences of f64 values are exact there)."""
+    acc = None
+    for k, c in enumerate(STENCIL, start=1):
+        fp, fm = f(x + k * h), f(x - k * h)
+        term = [c * (mpmath.mpf(a) - mpmath.mpf(b)) for a, b in zip(fp, fm)]
+        acc = term if acc is None else [s + t for s, t in zip(acc, term)]
+    return [s / h for s in acc]
+
+
+def random_points(rng, nominal_speed: float, force_scale: float, n: int):
+    pts = []
+    for _ in range(n):
+        w = nominal_speed * rng.uniform(0.3, 1.5) * rng.choice([1.0, 1.0, -1.0])
+        pts.append(
+            [
+                rng.uniform(0.0, 2.0 * math.pi),
+                w,
+                rng.uniform(-3.0, 3.0) * abs(w),
+                rng.uniform(-1.0, 1.0) * force_scale,
+            ]
+        )
+    return pts
+
+
+def pump_outputs(md) -> list[str]:
+    return [v.name for v in md.modelVariables if v.causality == "output"]
+
+
+def check_against_differences(probe: Probe, outputs, points, steps, knowns=(0, 1, 2, 3)):
+    """The FMU's partials of `outputs` wrt each input at `points` against the central difference;
+    returns (worst error / scale, number of (point, input) pairs skipped at a kink)."""
+    fmu, ref, noise = {}, {}, {}
+    skipped = 0
+    for p, x0 in enumerate(points):
+        for j in knowns:
+
+            def f(x, j=j, x0=x0):
+                x1 = list(x0)
+                x1[j] = x
+                probe.set(INPUTS, x1)
+                return probe.get(outputs)
+
+            h = steps[j]
+            d1 = central_difference(f, x0[j], h)
+            d2 = central_difference(f, x0[j], h / 2)
+            probe.set(INPUTS, x0)
+            at_x0 = probe.get(outputs)
+            seed = [0.0] * 4
+            seed[j] = 1.0
+            got = probe.dd(outputs, INPUTS, seed)
+            scale = max(abs(float(v)) for v in d1) or 1.0
+            if any(abs(float(a - b)) > 1e-10 * scale for a, b in zip(d1, d2)):
+                skipped += 1
+                continue
+            for i, o in enumerate(outputs):
+                fmu[(p, j, o)] = got[i]
+                ref[(p, j, o)] = float(d2[i])
+                # The difference's own rounding: each f64 output is off by a few ulps, and the
+                # stencil's weights sum to < 2.1 in absolute value, divided by h/2.
+                noise[(p, j, o)] = 16 * 2.3e-16 * abs(at_x0[i]) / (h / 2)
+    worst = 0.0
+    for (p, j, o), r in ref.items():
+        scale = max(abs(v) for (q, k, u), v in ref.items() if k == j and u == o)
+        err = abs(fmu[(p, j, o)] - r)
+        if scale == 0.0:
+            assert fmu[(p, j, o)] == 0.0, (o, INPUTS[j], fmu[(p, j, o)])
+            continue
+        rel = max(err - noise[(p, j, o)], 0.0) / scale
+        assert rel <= TOL, (
+            f"∂{o}/∂{INPUTS[j]} at {points[p]}: FMU {fmu[(p, j, o)]!r}, reference {r!r}, "
+            f"error {rel:.2e} of the scale {scale:.3e}"
+        )
+        worst = max(worst, rel)
+    return worst, skipped
+
+
+@pytest.mark.parametrize("kind", ["cs2", "cs3", "me3"])
+@pytest.mark.parametrize("machine", list(MACHINES))
+def test_partials_match_high_order_differences(fmu_path, tmp_path, machine, kind):
+    """Every output wrt every input, every mechanism, friction on and off, FMI 2.0 CS, FMI 3.0 CS
+    and ME, at 6 random points, against the 8th-order central difference (module doc)."""
+    values = machine_values(MACHINES[machine])
+    path = fmu_path if kind == "cs2" else sibling(fmu_path, "ReciprocatingDrive-fmi3.fmu")
+    probe = Probe(path, kind, values, tmp_path, "m")
+    try:
+        nominal = float(values.get("crank.speed", probe.var["crank.speed"].start))
+        outputs = pump_outputs(probe.md)
+        rng = random.Random(hash(machine) % 1000 + 27)
+        points = random_points(rng, nominal, 2.0e4, 6)
+        steps = [2e-4, 2e-4 * abs(nominal), 2e-4 * (1 + nominal**2), 2e-4 * 2.0e4]
+        worst, skipped = check_against_differences(probe, outputs, points, steps)
+        # Kinks are rare: at most a quarter of the (point, input) pairs sit next to one.
+        assert skipped <= len(points) * len(INPUTS) // 4, skipped
+        assert worst <= TOL
+    finally:
+        probe.close()
+
+
+@pytest.mark.parametrize(
+    "machine",
+    [
+        Machine(),
+        Machine(e=0.08, m=420.0, angle_offset=0.3, load_mean=-2.0e4),
+        Machine(r=0.15, l=0.7, e=-0.05, load_mean=3.0e4, load_amplitude=1.5e4, load_phase=1.1),
+    ],
+)
+def test_crank_slider_partials_match_the_mpmath_reference(fmu_path, tmp_path, machine):
+    """The crank-slider without friction: the FMU's partials of the reference's outputs wrt the
+    four inputs equal mpmath.diff of the independent 30-digit vector-loop reference, to 1e-10 of
+    each partial's scale (the f64 evaluation's rounding is ~1e-15 of it)."""
+    probe = Probe(fmu_path, "cs2", machine.start_values(), tmp_path, "ref")
+    try:
+        rng = random.Random(11)
+        points = random_points(rng, 6.0, 2.0e4, 5)
+        got_all, ref_all = [], []
+        for x0 in points:
+            probe.set(INPUTS, x0)
+            for j in range(4):
+                seed = [0.0] * 4
+                seed[j] = 1.0
+                got = probe.dd(list(REFERENCE_OUTPUTS), INPUTS, seed)
+
+                def g(x, o, j=j, x0=x0):
+                    args = [mpmath.mpf(v) for v in x0]
+                    args[j] = x
+                    return machine.outputs_mp(*args)[o]
+
+                with mpmath.workdps(30):
+                    ref = [
+                        mpmath.diff(lambda x, o=o: g(x, o), mpmath.mpf(x0[j]))
+                        for o in REFERENCE_OUTPUTS
+                    ]
+                got_all.append(got)
+                ref_all.append([float(r) for r in ref])
+        for i, o in enumerate(REFERENCE_OUTPUTS):
+            for j in range(4):
+                pairs = [
+                    (g[i], r[i]) for k, (g, r) in enumerate(zip(got_all, ref_all)) if k % 4 == j
+                ]
+                scale = max(abs(r) for _, r in pairs)
+                for gv, rv in pairs:
+                    if scale == 0.0:
+                        assert gv == 0.0, (o, INPUTS[j], gv)
+                    else:
+                        assert abs(gv - rv) <= 1e-10 * scale, (o, INPUTS[j], gv, rv, scale)
+    finally:
+        probe.close()
+
+
+def test_three_interfaces_give_the_same_derivatives(fmu_path, tmp_path):
+    """FMI 2.0 CS, FMI 3.0 CS and FMI 3.0 ME share the model's derivative code: equal to the bit,
+    including a seed along several inputs at once (J·seed, linear in the seed)."""
+    values = machine_values(MACHINES["unb600a (crank-slider, gland, double-acting load)"])
+    fmi3 = sibling(fmu_path, "ReciprocatingDrive-fmi3.fmu")
+    probes = [
+        Probe(fmu_path, "cs2", values, tmp_path, "a"),
+        Probe(fmi3, "cs3", values, tmp_path, "b"),
+        Probe(fmi3, "me3", values, tmp_path, "c"),
+    ]
+    try:
+        outputs = pump_outputs(probes[0].md)
+        x0 = [1.3, 5.5, -2.0, 3.0e4]
+        seed = [0.3, -1.2, 2.5, 1.0e3]
+        results = []
+        for pr in probes:
+            pr.set(INPUTS, x0)
+            results.append(pr.dd(outputs, INPUTS, seed))
+        assert results[0] == results[1] == results[2]
+        singles = []
+        for j in range(4):
+            e = [0.0] * 4
+            e[j] = 1.0
+            singles.append(probes[0].dd(outputs, INPUTS, e))
+        for i in range(len(outputs)):
+            combo = sum(seed[j] * singles[j][i] for j in range(4))
+            scale = sum(abs(seed[j] * singles[j][i]) for j in range(4))
+            assert abs(results[0][i] - combo) <= 1e-14 * scale + 1e-300, outputs[i]
+    finally:
+        for pr in probes:
+            pr.close()
+
+
+def test_drive_train_partials(fmu_path, tmp_path):
+    """DriveTrain: the outputs wrt load.torque in co-simulation (the state held), and in Model
+    Exchange the outputs and the state derivatives wrt load.torque and both states, against the
+    8th-order central difference; der(crank.angle) = crank.speed exactly."""
+    cs = Probe(sibling(fmu_path, "DriveTrain.fmu"), "cs2", {}, tmp_path, "dcs")
+    me = Probe(sibling(fmu_path, "DriveTrain-fmi3.fmu"), "me3", {}, tmp_path, "dme")
+    try:
+        outputs = [v.name for v in cs.md.modelVariables if v.causality == "output"]
+        for load in [0.0, 350.0, -800.0, 2500.0]:
+            cs.set(["load.torque"], [load])
+            got = cs.dd(outputs, ["load.torque"], [1.0])
+
+            def f(x):
+                cs.set(["load.torque"], [x])
+                return cs.get(outputs)
+
+            ref = central_difference(f, load, 1.0)
+            cs.set(["load.torque"], [load])
+            for o, g, r in zip(outputs, got, ref):
+                assert abs(g - float(r)) <= TOL * max(abs(float(v)) for v in ref), (o, g, r)
+        unknowns = outputs + ["der(crank.angle)", "der(crank.speed)"]
+        rng = random.Random(5)
+        for _ in range(5):
+            x0 = [rng.uniform(-3.0, 3.0), rng.uniform(5.0, 16.0), rng.uniform(-500.0, 3000.0)]
+            for j, known in enumerate(["crank.angle", "crank.speed", "load.torque"]):
+
+                def f(x, j=j, x0=x0):
+                    x1 = list(x0)
+                    x1[j] = x
+                    me.states(x1[:2])
+                    me.set(["load.torque"], [x1[2]])
+                    return me.get(outputs) + me.derivatives()
+
+                h = [1e-3, 1e-3, 1.0][j]
+                ref = central_difference(f, x0[j], h)
+                me.states(x0[:2])
+                me.set(["load.torque"], [x0[2]])
+                got = me.dd(unknowns, [known], [1.0])
+                scale = max(abs(float(v)) for v in ref)
+                for o, g, r in zip(unknowns, got, ref):
+                    assert abs(g - float(r)) <= TOL * scale, (o, known, g, r)
+                if known == "crank.speed":
+                    assert got[unknowns.index("der(crank.angle)")] == 1.0
+    finally:
+        cs.close()
+        me.close()
+
+
+def dependencies_2(md) -> dict:
+    """Output name → the names of the inputs the 2.0 ModelStructure lists."""
+    out = {}
+    for u in md.outputs:
+        out[u.variable.name] = {d.name for d in (u.dependencies or [])}
+    return out
+
+
+@pytest.mark.parametrize("machine", list(MACHINES))
+def test_model_structure_matches_the_derivatives(fmu_path, tmp_path, machine):
+    """Every partial the model description says is absent is exactly 0 at random points, and every
+    listed one is non-zero at some point (the ModelStructure is consistent with the derivative
+    code), for every mechanism."""
+    values = machine_values(MACHINES[machine])
+    probe = Probe(fmu_path, "cs2", values, tmp_path, "ms")
+    try:
+        deps = dependencies_2(probe.md)
+        outputs = list(deps)
+        nominal = float(values.get("crank.speed", probe.var["crank.speed"].start))
+        seen_nonzero = {(o, i): False for o in outputs for i in INPUTS}
+        for x0 in random_points(random.Random(3), nominal, 2.0e4, 8):
+            probe.set(INPUTS, x0)
+            for j, name in enumerate(INPUTS):
+                seed = [0.0] * 4
+                seed[j] = 1.0
+                for o, v in zip(outputs, probe.dd(outputs, INPUTS, seed)):
+                    if name not in deps[o]:
+                        assert v == 0.0, f"∂{o}/∂{name} = {v!r}, but the ModelStructure omits it"
+                    elif v != 0.0:
+                        seen_nonzero[(o, name)] = True
+        # Listed dependencies that are identically 0 for this machine (e.g. the friction outputs
+        # without friction) are allowed; but each output must depend on something it lists.
+        for o in outputs:
+            if deps[o]:
+                assert any(seen_nonzero[(o, i)] for i in deps[o]) or o.startswith(
+                    ("guide.", "support_", "link.friction", "rod.stress", "rod.axial", "balancer.")
+                ), o
+    finally:
+        probe.close()
+
+
+def call_dd(probe: Probe, unknowns, knowns, seed):
+    """fmi2GetDirectionalDerivative through ctypes (raw value references): (status, values)."""
+    nu, nk = len(unknowns), len(knowns)
+    out = (ctypes.c_double * max(nu, 1))()
+    st = probe.f.dll.fmi2GetDirectionalDerivative(
+        probe.f.component,
+        (ctypes.c_uint32 * max(nu, 1))(*unknowns),
+        ctypes.c_size_t(nu),
+        (ctypes.c_uint32 * max(nk, 1))(*knowns),
+        ctypes.c_size_t(nk),
+        (ctypes.c_double * max(nk, 1))(*seed),
+        out,
+    )
+    return st, list(out)[:nu]
+
+
+def test_bad_arguments_are_refused_in_one_line(fmu_path, tmp_path):
+    """Unknown value references, a known that is not an input, an unknown that is not an output,
+    a non-finite seed, NULL arrays: fmi2Error with one line naming the reference; the elastic rod
+    (whose derivatives are not provided) is refused the same way."""
+    probe = Probe(fmu_path, "cs2", {}, tmp_path, "bad")
+    vr = probe.vr
+    torque, acc = vr["crank.torque"], vr["crank.acceleration"]
+    try:
+        probe.f.dll.fmi2GetDirectionalDerivative.restype = ctypes.c_int
+        cases = [
+            (
+                [torque],
+                [vr["crank.torque"]],
+                [1.0],
+                f'value reference {torque} ("crank.torque") is not an input',
+            ),
+            ([torque], [vr["mass.reciprocating"]], [1.0], '("mass.reciprocating") is not an input'),
+            ([torque], [99999], [1.0], "value reference 99999 is not an input"),
+            ([vr["mass.reciprocating"]], [acc], [1.0], "is not an output"),
+            ([99999], [acc], [1.0], "unknown[0] = value reference 99999 is not an output"),
+            ([torque], [acc], [math.nan], "seed[0] = NaN"),
+        ]
+        for unknowns, knowns, seed, text in cases:
+            probe.clear()
+            st, _ = call_dd(probe, unknowns, knowns, seed)
+            assert st == 3, (text, st)
+            lines = [m for m in probe.messages if "fmi2GetDirectionalDerivative" in m]
+            assert len(lines) == 1 and "\n" not in lines[0] and text in lines[0], (text, lines)
+        probe.clear()
+        st = probe.f.dll.fmi2GetDirectionalDerivative(
+            probe.f.component, None, ctypes.c_size_t(1), None, ctypes.c_size_t(0), None, None
+        )
+        assert st == 3 and any("vUnknown_ref is NULL" in m for m in probe.messages)
+        # The call still works after the refusals (off the dead centre, where TF = 0).
+        probe.set(["crank.angle"], [1.0])
+        st, v = call_dd(probe, [torque], [acc], [1.0])
+        assert st == 0 and v[0] != 0.0
+    finally:
+        probe.close()
+    rod = Probe(fmu_path, "cs2", preset_values("kvo630"), tmp_path, "rod")
+    try:
+        st, _ = call_dd(rod, [rod.vr["crank.torque"]], [rod.vr["crank.angle"]], [1.0])
+        assert st == 3
+        assert any("not provided for an elastic connecting rod" in m for m in rod.messages)
+    finally:
+        rod.close()
+
+
+def test_drive_train_model_structure_matches_the_derivatives(fmu_path, tmp_path):
+    """FMI 3.0 DriveTrain (Model Exchange): each output and state derivative lists exactly the
+    knowns (load.torque and the states) whose partial is non-zero: the omitted ones are exactly 0
+    and the listed ones non-zero at random states."""
+    me = Probe(sibling(fmu_path, "DriveTrain-fmi3.fmu"), "me3", {}, tmp_path, "dms")
+    try:
+        deps = {o.variable.name: {d.name for d in o.dependencies} for o in me.md.outputs}
+        for d in me.md.derivatives:
+            deps[d.variable.name] = {x.name for x in d.dependencies}
+        knowns = ["load.torque", "crank.angle", "crank.speed"]
+        assert len(deps) == 9  # 7 outputs, 2 state derivatives
+        rng = random.Random(9)
+        for _ in range(5):
+            me.states([rng.uniform(-3.0, 3.0), rng.uniform(5.0, 16.0)])
+            me.set(["load.torque"], [rng.uniform(-500.0, 3000.0)])
+            for k in knowns:
+                for u, v in zip(deps, me.dd(list(deps), [k], [1.0])):
+                    assert (v != 0.0) == (k in deps[u]), (u, k, v, sorted(deps[u]))
+    finally:
+        me.close()
+
+
+def test_fmi3_argument_counts_and_mode_are_checked(fmu_path, tmp_path):
+    """fmi3GetDirectionalDerivative: nSeed ≠ nKnowns and nSensitivity ≠ nUnknowns are refused in
+    one line; so is a call in initialization mode (the machine is built at its end); a valid call
+    afterwards works."""
+    from fmpy import extract, read_model_description
+    from fmpy.fmi3 import FMU3Slave
+
+    path = sibling(fmu_path, "ReciprocatingDrive-fmi3.fmu")
+    md = read_model_description(path)
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    d = extract(path, unzipdir=str(tmp_path / "args"))
+    messages = []
+    s = FMU3Slave(
+        guid=md.guid, unzipDirectory=d, modelIdentifier="ReciprocatingDrive", instanceName="a"
+    )
+    s.instantiate(loggingOn=True, logMessage=lambda e, st, c, m: messages.append(m.decode()))
+    dll, c = s.dll, s.component
+    u = (ctypes.c_uint32 * 1)(vr["crank.torque"])
+    k = (ctypes.c_uint32 * 1)(vr["crank.acceleration"])
+    seed = (ctypes.c_double * 2)(1.0, 0.0)
+    out = (ctypes.c_double * 2)()
+
+    def call(nu, nk, ns, nsens):
+        n = ctypes.c_size_t
+        return dll.fmi3GetDirectionalDerivative(c, u, n(nu), k, n(nk), seed, n(ns), out, n(nsens))
+
+    try:
+        s.enterInitializationMode()
+        assert call(1, 1, 1, 1) == 3
+        assert any("only after the end of initialization" in m for m in messages), messages
+        s.exitInitializationMode()
+        s.setFloat64([vr["crank.angle"]], [1.0])
+        messages.clear()
+        assert call(1, 1, 2, 1) == 3
+        assert call(1, 1, 1, 2) == 3
+        lines = [m for m in messages if "fmi3GetDirectionalDerivative" in m]
+        assert len(lines) == 2 and all("must equal" in m and "\n" not in m for m in lines), lines
+        assert call(1, 1, 1, 1) == 0 and out[0] != 0.0
+    finally:
+        s.terminate()
+        s.freeInstance()
+
+
+def test_layout_without_closed_form_reactions(fmu_path, tmp_path):
+    """Two supports fixed in the frame (A and C) with the guide B on the link: the reactions come
+    from a linear solve at each stroke position, so the partials with respect to crank.speed,
+    crank.acceleration and link.external_force (which do not move the link) are exact and match
+    the central difference, while one with respect to crank.angle is refused in one line."""
+    values = {"support_A.kind": 1, "support_A.attached": 1, "support_A.z": 0.9}
+    probe = Probe(fmu_path, "cs2", values, tmp_path, "lin")
+    try:
+        outputs = pump_outputs(probe.md)
+        points = random_points(random.Random(21), 6.0, 2.0e4, 6)
+        steps = [2e-4, 2e-4 * 6.0, 2e-4 * 37.0, 2e-4 * 2.0e4]
+        worst, skipped = check_against_differences(probe, outputs, points, steps, (1, 2, 3))
+        assert worst <= TOL and skipped <= len(points) * 3 // 4
+        probe.clear()
+        probe.set(INPUTS, points[0])
+        st, _ = call_dd(probe, [probe.vr["crank.torque"]], [probe.vr["crank.angle"]], [1.0])
+        assert st == 3
+        lines = [m for m in probe.messages if "fmi2GetDirectionalDerivative" in m]
+        assert len(lines) == 1 and "no exact rate with respect to crank.angle" in lines[0], lines
+    finally:
+        probe.close()
