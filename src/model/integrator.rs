@@ -75,7 +75,10 @@
 // `!(x <= y)` tests are deliberate: they also catch NaN.
 #![allow(clippy::excessive_precision, clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod lawson;
+
 use crate::model::error::{num, ModelError};
+use lawson::{ExpCache, Linear};
 use serde::{Deserialize, Serialize};
 
 /// Right-hand side of the second-order cage equation, `ϑ̈ = accel(t, ϑ, ϑ̇)`.
@@ -83,6 +86,24 @@ pub trait SecondOrderRhs {
     /// Returns ϑ̈ [rad/s²] at (t, ϑ, ϑ̇). `Err` rejects the stage (e.g. the rod buckles at a trial
     /// state, docs/model.md §6 "Validity"): the integrator shrinks the step and retries.
     fn accel(&mut self, t: f64, theta: f64, theta_dot: f64) -> Result<f64, ModelError>;
+
+    /// The linear part of ϑ̈ at the state of the last successful [`SecondOrderRhs::accel`]:
+    /// (Ω², 2a) of ϑ̈ ≈ −Ω²·ϑ − 2a·ϑ̇ + forcing, for the integrator forms that treat the
+    /// oscillator exactly ([`Form::Lawson`]); None (the default): not known, the plain pair runs.
+    fn linear_part(&self) -> Option<(f64, f64)> {
+        None
+    }
+}
+
+/// How a pair is applied (docs/performance.md "The elastic rod").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Form {
+    /// The pair on y' = f(t, y).
+    Plain,
+    /// The pair in Lawson's integrating-factor form with the oscillator frozen at each internal
+    /// step's start treated exactly (`lawson.rs`); the plain pair where the RHS gives no
+    /// underdamped linear part.
+    Lawson,
 }
 
 /// Error tolerances (docs/model.md §6): `rtol` relative, `atol_theta` [rad] and `atol_rate` [rad/s]
@@ -384,7 +405,7 @@ pub fn advance(
     {
         return r;
     }
-    advance_with(&VERNER_65, rhs, t0, y0, h, tol, state, stats)
+    advance_with(&VERNER_65, Form::Plain, rhs, t0, y0, h, tol, state, stats)
 }
 
 /// [`advance`] with the pair `pair` (inlined, so that each pair's coefficients are constants).
@@ -392,6 +413,7 @@ pub fn advance(
 #[inline(always)]
 pub fn advance_with<const S: usize>(
     pair: &Pair<S>,
+    form: Form,
     rhs: &mut impl SecondOrderRhs,
     t0: f64,
     y0: [f64; 2],
@@ -408,6 +430,15 @@ pub fn advance_with<const S: usize>(
     let mut k = [[0.0_f64; 2]; S];
     // The start point must be valid: no step size can repair it.
     k[0] = eval(rhs, t, y, &mut work)?;
+    // The oscillator frozen at the start of the internal step (queried after each accepted step,
+    // whose last evaluation is at the new point; kept across a rejection).
+    let frozen = |rhs: &mut _| match form {
+        Form::Plain => None,
+        Form::Lawson => SecondOrderRhs::linear_part(rhs).and_then(|(w2, d)| Linear::new(w2, d)),
+    };
+    let mut lin: Option<Linear> = frozen(rhs);
+    // Made on the first Lawson step only (the plain path sets up nothing).
+    let mut cache: Option<ExpCache<S>> = None;
 
     let mut h_try = state.h_next;
     if !(h_try.is_finite() && h_try > 0.0) {
@@ -455,7 +486,14 @@ pub fn advance_with<const S: usize>(
         // A failing stage (or, without FSAL, a failing evaluation at the new point) rejects the
         // step: one path for both, below.
         let attempt = 'attempt: {
-            let (y_new, est) = match step(pair, rhs, t, y, h, &mut k, &mut work) {
+            let stepped = match &lin {
+                Some(l) => {
+                    let cache = cache.get_or_insert_with(ExpCache::default);
+                    lawson::step(pair, l, cache, rhs, t, y, h, &mut k, &mut work)
+                }
+                None => step(pair, rhs, t, y, h, &mut k, &mut work),
+            };
+            let (y_new, est) = match stepped {
                 Ok(v) => v,
                 Err(e) => break 'attempt Err(e),
             };
@@ -516,6 +554,7 @@ pub fn advance_with<const S: usize>(
         t = if to_end { t_end } else { t + h };
         y = y_new;
         k[0] = f_new;
+        lin = frozen(rhs);
     }
     state.h_next = h_try;
     state.err_prev = err_prev;
@@ -1271,6 +1310,9 @@ pub(crate) mod tests {
             Dp5,
             Tsit5,
             Verner76,
+            LawsonVerner65,
+            LawsonTsit5,
+            LawsonDp5,
         }
 
         thread_local! {
@@ -1294,11 +1336,25 @@ pub(crate) mod tests {
             state: &mut IntegratorState,
             stats: &mut IntegratorStats,
         ) -> Option<Result<[f64; 2], ModelError>> {
+            use Form::{Lawson, Plain};
             match UNDER_TEST.with(|u| u.get())? {
                 Which::Verner65 => None,
-                Which::Dp5 => Some(advance_with(&DP5, rhs, t0, y0, h, tol, state, stats)),
-                Which::Tsit5 => Some(advance_with(&TSIT5, rhs, t0, y0, h, tol, state, stats)),
-                Which::Verner76 => Some(advance_with(&V76, rhs, t0, y0, h, tol, state, stats)),
+                Which::Dp5 => Some(advance_with(&DP5, Plain, rhs, t0, y0, h, tol, state, stats)),
+                Which::Tsit5 => {
+                    Some(advance_with(&TSIT5, Plain, rhs, t0, y0, h, tol, state, stats))
+                }
+                Which::Verner76 => {
+                    Some(advance_with(&V76, Plain, rhs, t0, y0, h, tol, state, stats))
+                }
+                Which::LawsonVerner65 => {
+                    Some(advance_with(&VERNER_65, Lawson, rhs, t0, y0, h, tol, state, stats))
+                }
+                Which::LawsonTsit5 => {
+                    Some(advance_with(&TSIT5, Lawson, rhs, t0, y0, h, tol, state, stats))
+                }
+                Which::LawsonDp5 => {
+                    Some(advance_with(&DP5, Lawson, rhs, t0, y0, h, tol, state, stats))
+                }
             }
         }
     }

@@ -43,6 +43,7 @@ impl Model {
             sin_cos0: self.model_angle(crank).sin_cos(),
             shift: 0.0,
             start: None,
+            k_theta: f64::NAN,
         };
         // The integrator follows φ = ϑ − c·Δ(τ) (`CageRhs::shift`).
         let (crank0, start) = rhs.link_at(0.0);
@@ -215,6 +216,9 @@ pub(super) struct CageRhs<'a> {
     pub(super) shift: f64,
     /// The crank and the link's loads at τ = 0, made for the shift and reused by the stages there.
     pub(super) start: Option<(CrankState, LinkLoads)>,
+    /// K_ϑ(P) of the last evaluated stage (NaN: none yet), the frozen oscillator of
+    /// [`SecondOrderRhs::linear_part`].
+    pub(super) k_theta: f64,
 }
 
 impl CageRhs<'_> {
@@ -280,6 +284,7 @@ impl CageRhs<'_> {
             ) {
                 self.friction_guess = sol.p - ll.p_base;
                 self.cell_hint = sol.cell;
+                self.k_theta = sol.k_theta;
                 let loads =
                     CageLoads { delta: pp.delta, delta_ddot: pp.delta_ddot, rod_force: sol.p };
                 return Ok(self.rod.acceleration_with(sol.k_theta, sol.k_delta, &loads, cage));
@@ -287,6 +292,7 @@ impl CageRhs<'_> {
         }
         let i = self.model.instant(crank, self.inputs, cage)?;
         let (bc, loads, _, _) = &i.rod;
+        self.k_theta = bc.k_theta;
         Ok(self.rod.acceleration(bc, loads, cage))
     }
 }
@@ -304,4 +310,15 @@ impl SecondOrderRhs for CageRhs<'_> {
         let delta_ddot = ll.piston.map_or(0.0, |pp| pp.delta_ddot);
         Ok(self.theta_ddot(&crank, &ll, &cage)? - self.shift * delta_ddot)
     }
+
+    /// (K_ϑ/J_m, B_d/J_m) at the last stage: the cage equation's linear part in ϑ, and so in
+    /// φ = ϑ − c·Δ (c·Δ is a function of time only), docs/model.md §6 "Cage equation".
+    #[inline]
+    fn linear_part(&self) -> Option<(f64, f64)> {
+        let j = self.rod.cage_inertia;
+        Some((self.k_theta / j, self.rod.damping / j))
+    }
 }
+
+#[cfg(test)]
+mod work_precision;
