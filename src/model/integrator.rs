@@ -51,6 +51,12 @@
 //! 6 times (they need a second step per call more often: error ∝ h⁵ instead of h⁶), and Verner
 //! 7(6) (10 evaluations a step, not FSAL) is cheaper only below about 3e-9 rad.
 //!
+//! Any pair can also run in Lawson's integrating-factor form with the oscillator frozen at each
+//! internal step's start treated exactly ([`Form::Lawson`], `lawson.rs`). On φ that is not
+//! cheaper at the design point: the rest it integrates, e^(−τL)·N, turns at the cage frequency
+//! (docs/performance.md "The elastic rod", work-precision diagram; study in
+//! `model::drive::cage_step::work_precision`).
+//!
 //! Cost with the bare kvo630 RHS (BeamColumn::new ≈ 35 ns + crank trigonometry), release build:
 //! ≈ 1.3 µs per 1 ms communication step (17 RHS evaluations, ≈ 76 ns each including the stage
 //! arithmetic); with a costlier RHS the call costs ≈ 17 × RHS per 1 ms.
