@@ -288,6 +288,10 @@ const ERR_FLOOR: f64 = 1e-4;
 const STAGE_FAIL_FACTOR: f64 = 0.25;
 /// Hard limit of internal steps per call (more means the tolerance cannot be met sensibly).
 const MAX_STEPS_PER_CALL: u64 = 1_000_000;
+/// Time scale [s] of the step-size floor (16 ulp of max(|t|, this)) and the shortest interval the
+/// initial step estimate looks at: a communication step far below it (1e-300 s) must neither
+/// fail nor leave a suggestion of its own size for the next call.
+const TIME_SCALE: f64 = 1e-3;
 
 #[inline]
 fn eval(
@@ -448,26 +452,45 @@ pub fn advance_with<const S: usize>(
 
     let mut h_try = state.h_next;
     if !(h_try.is_finite() && h_try > 0.0) {
-        h_try = initial_step(rhs, t, y, k[0], t_end - t, tol, pair.order, &mut work);
+        h_try = initial_step(rhs, t, y, k[0], h.max(TIME_SCALE), tol, pair.order, &mut work);
     }
     let mut err_prev = if state.err_prev > 0.0 { state.err_prev } else { ERR_FLOOR };
     let mut last_rejected = false;
     let mut last_failure: Option<ModelError> = None;
+    // Error norm of the last step rejected by the error test (for the message).
+    let mut last_err: Option<f64> = None;
     let alpha = pair.est_exponent - 0.75 * BETA;
     let mut n_steps: u64 = 0;
 
     'steps: while t < t_end {
         let remaining = t_end - t;
-        let h_min = 16.0 * f64::EPSILON * t.abs().max(t_end.abs()).max(1e-3);
+        // The remaining interval itself is always a step the integrator may try (a communication
+        // step below the floor, e.g. 1e-300 s, is one step to its end).
+        let h_min = (16.0 * f64::EPSILON * t.abs().max(t_end.abs()).max(TIME_SCALE)).min(remaining);
         if !(h_try >= h_min) || n_steps >= MAX_STEPS_PER_CALL {
-            let why = match &last_failure {
-                Some(e) => format!("; last rejected stage: {e}"),
-                None => String::new(),
+            let why = match (&last_failure, last_err) {
+                (Some(e), _) => format!("; last rejected stage: {e}"),
+                (None, Some(err)) => format!(
+                    "; the last rejected step's error estimate was {} times the tolerance",
+                    num(err)
+                ),
+                (None, None) => String::new(),
             };
             // Times are relative to the start of the communication step (the caller, which
             // knows the absolute time, names the interval).
             let reason = if n_steps >= MAX_STEPS_PER_CALL {
                 format!("the internal step limit of {MAX_STEPS_PER_CALL} steps per communication step is reached")
+            } else if last_failure.is_none()
+                && last_err.is_none()
+                && h_try >= 16.0 * f64::EPSILON * t.abs().max(TIME_SCALE)
+            {
+                // Nothing failed: the floor is set by the interval's end time alone.
+                format!(
+                    "communicationStepSize = {} s is too long: at its end time internal steps \
+                     of {} s cannot be resolved",
+                    num(h),
+                    num(h_try)
+                )
             } else {
                 format!("the step size fell to {} s", num(h_try))
             };
@@ -508,6 +531,7 @@ pub fn advance_with<const S: usize>(
             if !(err <= 1.0) {
                 // Rejected (NaN included).
                 work.rejected += 1;
+                last_err = Some(err);
                 let fac = if err.is_finite() {
                     (SAFETY * err.powf(-pair.est_exponent)).clamp(FAC_MIN, 1.0)
                 } else {
@@ -548,8 +572,13 @@ pub fn advance_with<const S: usize>(
             // a suggestion that once fell (a transient, a rejection) could never recover while
             // every step is an equal split of the communication step (with h_c = 1 ms and a
             // suggestion of 0.32 ms the kvo630 run stayed at 4 steps per call for good).
-            let predicted =
-                if err > 0.0 { h * SAFETY * err.powf(-pair.est_exponent) } else { f64::INFINITY };
+            // Only within the controller's own range of factors: a step far shorter than the
+            // suggestion (the rest of a 1e-300 s communication step) predicts nothing about it.
+            let predicted = if err > 0.0 && h * FAC_MAX >= h_try {
+                h * SAFETY * err.powf(-pair.est_exponent)
+            } else {
+                f64::INFINITY
+            };
             let supported = predicted.min(FAC_MAX * h);
             h_try = if supported > h_try { supported } else { h_try.min(predicted.max(h * fac)) };
         } else {
@@ -1124,6 +1153,52 @@ pub(crate) mod tests {
         let idx = (t / 1e-4).round() as usize;
         assert_eq!(idx, 4000);
         assert!(err_over_tol(&tol, y, reference[idx]) < 10.0);
+    }
+
+    #[test]
+    fn a_1e_300_s_step_succeeds_and_leaves_the_natural_step() {
+        // A communication step far below the step-size floor is one step to its end; it must
+        // not leave a suggestion of its own size (which the next, normal call could not grow
+        // from: "the step size fell to ..."). Fresh and warm states, at t = 0 as the FMU calls.
+        let kvo = Kvo::new();
+        let tol = kvo.tol(1e-8);
+        for warm in [false, true] {
+            let mut r = Kvo::new();
+            let (mut st, mut stats) = (IntegratorState::default(), IntegratorStats::default());
+            let mut y = kvo.initial();
+            if warm {
+                y = advance(&mut r, 0.0, y, 1e-3, &tol, &mut st, &mut stats).unwrap();
+            }
+            let (st0, y0) = (st, y);
+            let y1 = advance(&mut r, 0.0, y, 1e-300, &tol, &mut st, &mut stats).unwrap();
+            // y moves by 1e-300·ẏ at most (ϑ̇ ≈ 6.5 rad/s: below an ulp unless ϑ = 0).
+            assert!((y1[0] - y0[0]).abs() <= 1e-299 && y1[1] == y0[1], "warm {warm}: {y1:?}");
+            assert!(st.h_next > 1e-5, "warm {warm}: {st:?}");
+            if warm {
+                assert_eq!(st, st0);
+            }
+            // The next millisecond is the one without the tiny step (to 1e-3 of the tolerance).
+            let next = advance(&mut r, 0.0, y1, 1e-3, &tol, &mut st, &mut stats).unwrap();
+            let mut st_direct = st0;
+            let direct = advance(&mut r, 0.0, y0, 1e-3, &tol, &mut st_direct, &mut stats).unwrap();
+            assert!(err_over_tol(&tol, next, direct) < 1e-3, "warm {warm}: {next:?} {direct:?}");
+        }
+    }
+
+    #[test]
+    fn a_1e300_s_step_fails_naming_the_communication_step() {
+        let kvo = Kvo::new();
+        let tol = kvo.tol(1e-8);
+        let mut r = Kvo::new();
+        let (mut st, mut stats) = (IntegratorState::default(), IntegratorStats::default());
+        let y = advance(&mut r, 0.0, kvo.initial(), 1e-3, &tol, &mut st, &mut stats).unwrap();
+        let (st0, stats0) = (st, stats);
+        let e = advance(&mut r, 0.0, y, 1e300, &tol, &mut st, &mut stats).unwrap_err().to_string();
+        assert!(
+            e.contains("communicationStepSize = 1e+300 s is too long") && !e.contains('\n'),
+            "{e}"
+        );
+        assert_eq!((st, stats), (st0, stats0));
     }
 
     /// Cost report (run: cargo test --release -- --ignored --nocapture kvo630_cost_report).
