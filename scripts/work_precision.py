@@ -68,7 +68,7 @@ def draw(rows: list[dict], out: pathlib.Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.ticker import NullFormatter
+    from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
     rods = list(dict.fromkeys(r["rod"] for r in rows))
     steps = sorted({r["step_ms"] for r in rows})
@@ -109,7 +109,11 @@ def draw(rows: list[dict], out: pathlib.Path) -> None:
                 ax.set_ylabel("largest error (rad)", fontsize=8)
                 ax.grid(True, which="both", alpha=0.3)
                 ax.tick_params(labelsize=7)
-                # Decades only: the minor labels of a short log axis overlap.
+                # Labels at 1, 2, 3, 5, 7 of each decade (x) and 1, 2, 5 (y): a panel spans less
+                # than a decade at 0.1 ms, and all minor labels of a log axis overlap.
+                ax.xaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 3.0, 5.0, 7.0)))
+                ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
+                ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
                 ax.xaxis.set_minor_formatter(NullFormatter())
                 ax.yaxis.set_minor_formatter(NullFormatter())
     axes[0][0].legend(fontsize=7)

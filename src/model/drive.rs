@@ -842,7 +842,6 @@ mod tests {
                     sin_cos0: (crank.angle + params.crank_angle_offset).sin_cos(),
                     shift: 41.9,
                     start: None,
-                    k_theta: f64::NAN,
                 };
                 for i in 0..=400 {
                     let tau = i as f64 * 1e-4; // 0.04 s: 1.5 revolutions

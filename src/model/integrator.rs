@@ -93,9 +93,10 @@ pub trait SecondOrderRhs {
     /// state, docs/model.md §6 "Validity"): the integrator shrinks the step and retries.
     fn accel(&mut self, t: f64, theta: f64, theta_dot: f64) -> Result<f64, ModelError>;
 
-    /// The linear part of ϑ̈ at the state of the last successful [`SecondOrderRhs::accel`]:
-    /// (Ω², 2a) of ϑ̈ ≈ −Ω²·ϑ − 2a·ϑ̇ + forcing, for the integrator forms that treat the
-    /// oscillator exactly ([`Form::Lawson`]); None (the default): not known, the plain pair runs.
+    /// The frozen linear part of ϑ̈, (Ω², 2a) of ϑ̈ ≈ −Ω²·ϑ − 2a·ϑ̇ + forcing, for the integrator
+    /// forms that treat the oscillator exactly ([`Form::Lawson`]); queried at the start of the
+    /// call and after each accepted step (an RHS may freeze it once per call or follow its last
+    /// evaluation). None (the default): not known, the plain pair runs.
     fn linear_part(&self) -> Option<(f64, f64)> {
         None
     }
@@ -106,9 +107,9 @@ pub trait SecondOrderRhs {
 pub enum Form {
     /// The pair on y' = f(t, y).
     Plain,
-    /// The pair in Lawson's integrating-factor form with the oscillator frozen at each internal
-    /// step's start treated exactly (`lawson.rs`); the plain pair where the RHS gives no
-    /// underdamped linear part.
+    /// The pair in Lawson's integrating-factor form with the RHS's frozen oscillator
+    /// ([`SecondOrderRhs::linear_part`]) treated exactly (`lawson.rs`); the plain pair where the
+    /// RHS gives no underdamped linear part.
     Lawson,
 }
 
@@ -418,12 +419,32 @@ pub fn advance(
     advance_with(&VERNER_65, Form::Plain, rhs, t0, y0, h, tol, state, stats)
 }
 
-/// [`advance`] with the pair `pair` (inlined, so that each pair's coefficients are constants).
+/// [`advance`] with the pair `pair` (inlined, so that each pair's coefficients are constants)
+/// in the form `form`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub fn advance_with<const S: usize>(
     pair: &Pair<S>,
     form: Form,
+    rhs: &mut impl SecondOrderRhs,
+    t0: f64,
+    y0: [f64; 2],
+    h: f64,
+    tol: &Tolerance,
+    state: &mut IntegratorState,
+    stats: &mut IntegratorStats,
+) -> Result<[f64; 2], ModelError> {
+    // One instance per form: the plain one carries nothing of the Lawson form.
+    match form {
+        Form::Plain => advance_in::<S, false>(pair, rhs, t0, y0, h, tol, state, stats),
+        Form::Lawson => advance_in::<S, true>(pair, rhs, t0, y0, h, tol, state, stats),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn advance_in<const S: usize, const LAWSON: bool>(
+    pair: &Pair<S>,
     rhs: &mut impl SecondOrderRhs,
     t0: f64,
     y0: [f64; 2],
@@ -440,11 +461,13 @@ pub fn advance_with<const S: usize>(
     let mut k = [[0.0_f64; 2]; S];
     // The start point must be valid: no step size can repair it.
     k[0] = eval(rhs, t, y, &mut work)?;
-    // The oscillator frozen at the start of the internal step (queried after each accepted step,
-    // whose last evaluation is at the new point; kept across a rejection).
-    let frozen = |rhs: &mut _| match form {
-        Form::Plain => None,
-        Form::Lawson => SecondOrderRhs::linear_part(rhs).and_then(|(w2, d)| Linear::new(w2, d)),
+    // The frozen oscillator (queried again after each accepted step; kept across a rejection).
+    let frozen = |rhs: &mut _| {
+        if LAWSON {
+            SecondOrderRhs::linear_part(rhs).and_then(|(w2, d)| Linear::new(w2, d))
+        } else {
+            None
+        }
     };
     let mut lin: Option<Linear> = frozen(rhs);
     // Made on the first Lawson step only (the plain path sets up nothing).
@@ -457,8 +480,6 @@ pub fn advance_with<const S: usize>(
     let mut err_prev = if state.err_prev > 0.0 { state.err_prev } else { ERR_FLOOR };
     let mut last_rejected = false;
     let mut last_failure: Option<ModelError> = None;
-    // Error norm of the last step rejected by the error test (for the message).
-    let mut last_err: Option<f64> = None;
     let alpha = pair.est_exponent - 0.75 * BETA;
     let mut n_steps: u64 = 0;
 
@@ -468,22 +489,15 @@ pub fn advance_with<const S: usize>(
         // step below the floor, e.g. 1e-300 s, is one step to its end).
         let h_min = (16.0 * f64::EPSILON * t.abs().max(t_end.abs()).max(TIME_SCALE)).min(remaining);
         if !(h_try >= h_min) || n_steps >= MAX_STEPS_PER_CALL {
-            let why = match (&last_failure, last_err) {
-                (Some(e), _) => format!("; last rejected stage: {e}"),
-                (None, Some(err)) => format!(
-                    "; the last rejected step's error estimate was {} times the tolerance",
-                    num(err)
-                ),
-                (None, None) => String::new(),
+            let why = match &last_failure {
+                Some(e) => format!("; last rejected stage: {e}"),
+                None => String::new(),
             };
             // Times are relative to the start of the communication step (the caller, which
             // knows the absolute time, names the interval).
             let reason = if n_steps >= MAX_STEPS_PER_CALL {
                 format!("the internal step limit of {MAX_STEPS_PER_CALL} steps per communication step is reached")
-            } else if last_failure.is_none()
-                && last_err.is_none()
-                && h_try >= 16.0 * f64::EPSILON * t.abs().max(TIME_SCALE)
-            {
+            } else if n_steps == 0 && h_try >= 16.0 * f64::EPSILON * t.abs().max(TIME_SCALE) {
                 // Nothing failed: the floor is set by the interval's end time alone.
                 format!(
                     "communicationStepSize = {} s is too long: at its end time internal steps \
@@ -531,7 +545,6 @@ pub fn advance_with<const S: usize>(
             if !(err <= 1.0) {
                 // Rejected (NaN included).
                 work.rejected += 1;
-                last_err = Some(err);
                 let fac = if err.is_finite() {
                     (SAFETY * err.powf(-pair.est_exponent)).clamp(FAC_MIN, 1.0)
                 } else {

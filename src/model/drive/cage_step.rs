@@ -43,11 +43,12 @@ impl Model {
             sin_cos0: self.model_angle(crank).sin_cos(),
             shift: 0.0,
             start: None,
-            k_theta: f64::NAN,
         };
         // The integrator follows φ = ϑ − c·Δ(τ) (`CageRhs::shift`).
         let (crank0, start) = rhs.link_at(0.0);
-        rhs.shift = rhs.quasi_static_ratio(start.p_base);
+        // The cell of p_base is the first stage's hint (its P is p_base plus a small friction):
+        // the binary search is made once, here.
+        (rhs.shift, _, rhs.cell_hint) = rhs.quasi_static_ratio(start.p_base);
         let g0 = rhs.offset(&crank0, &start);
         rhs.start = Some((crank0, start));
         let mut integ = state.integrator;
@@ -216,9 +217,6 @@ pub(super) struct CageRhs<'a> {
     pub(super) shift: f64,
     /// The crank and the link's loads at τ = 0, made for the shift and reused by the stages there.
     pub(super) start: Option<(CrankState, LinkLoads)>,
-    /// K_ϑ(P) of the last evaluated stage (NaN: none yet), the frozen oscillator of
-    /// [`SecondOrderRhs::linear_part`].
-    pub(super) k_theta: f64,
 }
 
 impl CageRhs<'_> {
@@ -233,19 +231,20 @@ impl CageRhs<'_> {
         (crank, ll)
     }
 
-    /// K_Δ/K_ϑ at P = `p` (from the table where it covers `p`), the c of [`CageRhs::shift`];
-    /// 0 (ϑ itself is integrated) where the rod cannot take P (the stages then report it).
-    fn quasi_static_ratio(&self, p: f64) -> f64 {
+    /// K_Δ/K_ϑ at P = `p` (from the table where it covers `p`), the c of [`CageRhs::shift`],
+    /// K_ϑ, and the table's cell of `p` (0 off the table); (0, NaN, _) (ϑ itself is integrated)
+    /// where the rod cannot take P (the stages then report it).
+    fn quasi_static_ratio(&self, p: f64) -> (f64, f64, usize) {
         use table::{K_DELTA, K_THETA};
-        let k = match self.table.and_then(|t| t.find(p, 0).map(|cell| t.values(cell, p))) {
-            Some(v) => Some((v[K_THETA], v[K_DELTA])),
-            None => self.rod.beam_column(p).ok().map(|bc| (bc.k_theta, bc.k_delta)),
+        let (k, cell) = match self.table.and_then(|t| t.find(p, 0).map(|c| (t.values(c, p), c))) {
+            Some((v, cell)) => (Some((v[K_THETA], v[K_DELTA])), cell),
+            None => (self.rod.beam_column(p).ok().map(|bc| (bc.k_theta, bc.k_delta)), 0),
         };
         match k {
             Some((k_theta, k_delta)) if k_theta > 0.0 && (k_delta / k_theta).is_finite() => {
-                k_delta / k_theta
+                (k_delta / k_theta, k_theta, cell)
             }
-            _ => 0.0,
+            _ => (0.0, f64::NAN, cell),
         }
     }
 
@@ -284,7 +283,6 @@ impl CageRhs<'_> {
             ) {
                 self.friction_guess = sol.p - ll.p_base;
                 self.cell_hint = sol.cell;
-                self.k_theta = sol.k_theta;
                 let loads =
                     CageLoads { delta: pp.delta, delta_ddot: pp.delta_ddot, rod_force: sol.p };
                 return Ok(self.rod.acceleration_with(sol.k_theta, sol.k_delta, &loads, cage));
@@ -292,7 +290,6 @@ impl CageRhs<'_> {
         }
         let i = self.model.instant(crank, self.inputs, cage)?;
         let (bc, loads, _, _) = &i.rod;
-        self.k_theta = bc.k_theta;
         Ok(self.rod.acceleration(bc, loads, cage))
     }
 }
@@ -311,12 +308,15 @@ impl SecondOrderRhs for CageRhs<'_> {
         Ok(self.theta_ddot(&crank, &ll, &cage)? - self.shift * delta_ddot)
     }
 
-    /// (K_ϑ/J_m, B_d/J_m) at the last stage: the cage equation's linear part in ϑ, and so in
-    /// φ = ϑ − c·Δ (c·Δ is a function of time only), docs/model.md §6 "Cage equation".
-    #[inline]
+    /// (K_ϑ/J_m, B_d/J_m) at the step's start (P without friction, as for the shift): the cage
+    /// equation's linear part in ϑ, and so in φ = ϑ − c·Δ (c·Δ is a function of time only),
+    /// docs/model.md §6 "Cage equation". Computed when asked (the Lawson form only), so the
+    /// FMU's own path carries nothing for it.
     fn linear_part(&self) -> Option<(f64, f64)> {
+        let (_, start) = self.start?;
+        let k_theta = self.quasi_static_ratio(start.p_base).1;
         let j = self.rod.cage_inertia;
-        Some((self.k_theta / j, self.rod.damping / j))
+        k_theta.is_finite().then(|| (k_theta / j, self.rod.damping / j))
     }
 }
 

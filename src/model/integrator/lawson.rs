@@ -1,8 +1,8 @@
 //! The exact linear part: an embedded Runge–Kutta pair applied in Lawson's integrating-factor
 //! form to y' = L·y + N(t, y) (docs/performance.md "The elastic rod", work-precision study).
 //!
-//! L = [[0, 1], [−Ω², −2a]] is the cage oscillator frozen at the start of each internal step
-//! (Ω² = K_ϑ(P)/J_m with P of the step's start, 2a = B_d/J_m, [`SecondOrderRhs::linear_part`]);
+//! L = [[0, 1], [−Ω², −2a]] is the cage oscillator frozen at the start of the communication step
+//! (Ω² = K_ϑ(P)/J_m with P of that instant, 2a = B_d/J_m, [`SecondOrderRhs::linear_part`]);
 //! N = f − L·y is the rest: the forcing, the variation of K_ϑ(P) along the step and the
 //! friction's dependence on ϑ. In v = e^(−τL)·y the pair integrates
 //! v' = e^(−τL)·N(τ, e^(τL)·v), so the stages are
