@@ -51,8 +51,12 @@
 //! 6 times (they need a second step per call more often: error ∝ h⁵ instead of h⁶), and Verner
 //! 7(6) (10 evaluations a step, not FSAL) is cheaper only below about 3e-9 rad.
 //!
-//! Any pair can also run in Lawson's integrating-factor form with the oscillator frozen at each
-//! internal step's start treated exactly ([`Form::Lawson`], `lawson.rs`). On φ that is not
+//! For communication steps up to [`SINGLE_STEP_MAX`] (0.1 ms), where the communication step and
+//! not the error sets the internal step, [`advance`] uses Tsitouras 5(4) (7 evaluations per call
+//! against 9, errors far inside the tolerance; see the constant).
+//!
+//! Any pair can also run in Lawson's integrating-factor form with the RHS's frozen oscillator
+//! treated exactly ([`Form::Lawson`], `lawson.rs`). On φ that is not
 //! cheaper at the design point: the rest it integrates, e^(−τL)·N, turns at the cage frequency
 //! (docs/performance.md "The elastic rod", work-precision diagram; study in
 //! `model::drive::cage_step::work_precision`).
@@ -275,7 +279,50 @@ pub struct Pair<const S: usize> {
     pub est_exponent: f64,
 }
 
-/// The pair the FMU integrates with (see the module doc).
+/// Tsitouras 5(4) (Ch. Tsitouras, Comput. Math. Appl. 62 (2011) 770–775; digits as in
+/// diffrax's tableau).
+pub const TSIT5_B: [f64; 7] = [
+    0.09646076681806522951816731316512876333712,
+    0.01,
+    0.4798896504144995747752495322905965199130,
+    1.379008574103741893192274821856872770756,
+    -3.290069515436080679901047585711363850116,
+    2.324710524099773982415355918398765796109,
+    0.0,
+];
+pub const TSIT5_B_HAT: [f64; 7] = [
+    0.09468075576583945807478876255758922856118,
+    0.009183565540343253096776363936645313759814,
+    0.4877705284247615707855642599631228241517,
+    1.234297566930478985655109673884237654036,
+    -2.707712349983525454881109975059321670690,
+    1.866628418170587035753719399566211498666,
+    1.0 / 66.0,
+];
+#[rustfmt::skip]
+pub const TSIT5: Pair<7> = Pair {
+    c: [0.0, 0.161, 0.327, 0.9, 0.9800255409045096857298102862870245954942, 1.0, 1.0],
+    a: [
+        [0.0; 7],
+        [0.161, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [-0.008480655492356988544426874250230774675121, 0.3354806554923569885444268742502307746751, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [2.897153057105493432130432594192938764925, -6.359448489975074843148159912383825625953,
+         4.362295432869581411017727318190886861028, 0.0, 0.0, 0.0, 0.0],
+        [5.325864828439256604428877920840511317836, -11.74888356406282787774717033978577296189,
+         7.495539342889836208304604784564358155659, -0.09249506636175524925650207933207191611350, 0.0, 0.0, 0.0],
+        [5.861455442946420028659251486982647890394, -12.92096931784710929170611868178335939542,
+         8.159367898576158643180400794539253485182, -0.07158497328140099722453054252582973869127,
+         -0.02826905039406838290900305721271224146718, 0.0, 0.0],
+        TSIT5_B,
+    ],
+    b: TSIT5_B,
+    fsal: true,
+    e: error_weights(TSIT5_B, TSIT5_B_HAT),
+    order: 5.0,
+    est_exponent: 1.0 / 5.0,
+};
+
+/// The pair the FMU integrates with above SINGLE_STEP_MAX (see the module doc).
 pub const VERNER_65: Pair<STAGES> =
     Pair { c: C, a: A, b: B, fsal: true, e: E, order: 6.0, est_exponent: 1.0 / 6.0 };
 const SAFETY: f64 = 0.9;
@@ -324,6 +371,9 @@ fn scale(tol: &Tolerance, y0: [f64; 2], y1: [f64; 2]) -> [f64; 2] {
     ]
 }
 
+// Always inlined: called from each pair's instance, it was otherwise left out of line (a call
+// and its checks cost about 50 instructions more per step than inlined).
+#[inline(always)]
 fn validate(t0: f64, y0: [f64; 2], h: f64, tol: &Tolerance) -> Result<(), ModelError> {
     if !(t0.is_finite() && y0[0].is_finite() && y0[1].is_finite()) {
         return Err(ModelError::evaluation(format!(
@@ -416,8 +466,36 @@ pub fn advance(
     {
         return r;
     }
+    if h <= SINGLE_STEP_MAX {
+        return advance_single_step(rhs, t0, y0, h, tol, state, stats);
+    }
     advance_with(&VERNER_65, Form::Plain, rhs, t0, y0, h, tol, state, stats)
 }
+
+/// [`advance`] up to [`SINGLE_STEP_MAX`]: Tsitouras 5(4). Not inlined, so that the caller's
+/// Verner 6(5) path compiles as if this one did not exist (inlined too, it cost that path about
+/// 55 instructions per 1 ms step in kvo630's loop).
+#[inline(never)]
+fn advance_single_step(
+    rhs: &mut impl SecondOrderRhs,
+    t0: f64,
+    y0: [f64; 2],
+    h: f64,
+    tol: &Tolerance,
+    state: &mut IntegratorState,
+    stats: &mut IntegratorStats,
+) -> Result<[f64; 2], ModelError> {
+    advance_with(&TSIT5, Form::Plain, rhs, t0, y0, h, tol, state, stats)
+}
+
+/// Communication steps [s] up to which [`advance`] integrates with Tsitouras 5(4) instead of
+/// Verner 6(5). WHY: there the communication step, not the error, sets the internal step (one
+/// step per call for the kvo630 spring and the thin rod at every tolerance from 1e-6 to 1e-10),
+/// so the stages per step set the cost: 7 evaluations against 9, with errors of 1.0e-10 and
+/// 5.3e-10 rad against the reference where Verner 6(5) has 1.5e-10 and 1.9e-11, far inside
+/// every tolerance (docs/performance.md "The elastic rod", work-precision study at 0.1 ms).
+/// Above it (1 ms) Tsitouras misses the tolerance 2 to 6 times where Verner 6(5) meets it.
+pub const SINGLE_STEP_MAX: f64 = 1.000_001e-4;
 
 /// [`advance`] with the pair `pair` (inlined, so that each pair's coefficients are constants)
 /// in the form `form`.
@@ -1290,49 +1368,6 @@ pub(crate) mod tests {
             est_exponent: 1.0 / 5.0,
         };
 
-        /// Tsitouras 5(4) (Ch. Tsitouras, Comput. Math. Appl. 62 (2011) 770–775; digits as in
-        /// diffrax's tableau).
-        pub const TSIT5_B: [f64; 7] = [
-            0.09646076681806522951816731316512876333712,
-            0.01,
-            0.4798896504144995747752495322905965199130,
-            1.379008574103741893192274821856872770756,
-            -3.290069515436080679901047585711363850116,
-            2.324710524099773982415355918398765796109,
-            0.0,
-        ];
-        pub const TSIT5_B_HAT: [f64; 7] = [
-            0.09468075576583945807478876255758922856118,
-            0.009183565540343253096776363936645313759814,
-            0.4877705284247615707855642599631228241517,
-            1.234297566930478985655109673884237654036,
-            -2.707712349983525454881109975059321670690,
-            1.866628418170587035753719399566211498666,
-            1.0 / 66.0,
-        ];
-        #[rustfmt::skip]
-        pub const TSIT5: Pair<7> = Pair {
-            c: [0.0, 0.161, 0.327, 0.9, 0.9800255409045096857298102862870245954942, 1.0, 1.0],
-            a: [
-                [0.0; 7],
-                [0.161, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-                [-0.008480655492356988544426874250230774675121, 0.3354806554923569885444268742502307746751, 0.0, 0.0, 0.0, 0.0, 0.0],
-                [2.897153057105493432130432594192938764925, -6.359448489975074843148159912383825625953,
-                 4.362295432869581411017727318190886861028, 0.0, 0.0, 0.0, 0.0],
-                [5.325864828439256604428877920840511317836, -11.74888356406282787774717033978577296189,
-                 7.495539342889836208304604784564358155659, -0.09249506636175524925650207933207191611350, 0.0, 0.0, 0.0],
-                [5.861455442946420028659251486982647890394, -12.92096931784710929170611868178335939542,
-                 8.159367898576158643180400794539253485182, -0.07158497328140099722453054252582973869127,
-                 -0.02826905039406838290900305721271224146718, 0.0, 0.0],
-                TSIT5_B,
-            ],
-            b: TSIT5_B,
-            fsal: true,
-            e: error_weights(TSIT5_B, TSIT5_B_HAT),
-            order: 5.0,
-            est_exponent: 1.0 / 5.0,
-        };
-
         /// Verner's "most efficient" 7(6) pair, RKV76.IIa (10 stages, not FSAL: 10 evaluations
         /// a step; coefficients as published by J. H. Verner, as in jacobwilliams/rklib `rkv76e`).
         pub const V76_B: [f64; 10] = [
@@ -1432,7 +1467,9 @@ pub(crate) mod tests {
         ) -> Option<Result<[f64; 2], ModelError>> {
             use Form::{Lawson, Plain};
             match UNDER_TEST.with(|u| u.get())? {
-                Which::Verner65 => None,
+                Which::Verner65 => {
+                    Some(advance_with(&VERNER_65, Plain, rhs, t0, y0, h, tol, state, stats))
+                }
                 Which::Dp5 => Some(advance_with(&DP5, Plain, rhs, t0, y0, h, tol, state, stats)),
                 Which::Tsit5 => {
                     Some(advance_with(&TSIT5, Plain, rhs, t0, y0, h, tol, state, stats))

@@ -129,3 +129,22 @@ fn work_precision() {
         }
     }
 }
+
+#[test]
+fn communication_steps_of_0_1_ms_take_seven_evaluations_within_the_tolerance() {
+    // At 0.1 ms every call is one internal step (integrator::SINGLE_STEP_MAX): Tsitouras 5(4)'s
+    // 1 + 6 evaluations instead of Verner 6(5)'s 1 + 8, against the reference of the study
+    // (Verner 6(5) at 1e-13).
+    for kind in [2, 1] {
+        let m = Model::new(&kvo630(kind)).unwrap();
+        let Mechanism::ElasticRodSlider(_, rod) = &m.mechanism else { unreachable!() };
+        let (reference, _) = with_pair(Which::Verner65, || trajectory(&m, 1e-4, 1e-13));
+        for tol in [1e-8, 1e-9] {
+            let (run, stats) = trajectory(&m, 1e-4, tol);
+            let err = largest_error(&run, &reference, rod.omega0);
+            let per_step = stats.rhs_evals as f64 / 2000.0;
+            assert!(per_step <= 7.05, "rod.kind {kind} tol {tol:e}: {per_step} evaluations");
+            assert!(err <= tol, "rod.kind {kind} tol {tol:e}: error {err:e}");
+        }
+    }
+}
