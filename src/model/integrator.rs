@@ -52,8 +52,9 @@
 //! 7(6) (10 evaluations a step, not FSAL) is cheaper only below about 3e-9 rad.
 //!
 //! For communication steps up to [`SINGLE_STEP_MAX`] (0.1 ms), where the communication step and
-//! not the error sets the internal step, [`advance`] uses Tsitouras 5(4) (7 evaluations per call
-//! against 9, errors far inside the tolerance; see the constant).
+//! not the error sets the internal step, the cage's step uses Tsitouras 5(4) instead
+//! ([`advance_single_step`]: 7 evaluations per call against 9, errors far inside the tolerance;
+//! see the constant).
 //!
 //! Any pair can also run in Lawson's integrating-factor form with the RHS's frozen oscillator
 //! treated exactly ([`Form::Lawson`], `lawson.rs`). On φ that is not
@@ -466,17 +467,15 @@ pub fn advance(
     {
         return r;
     }
-    if h <= SINGLE_STEP_MAX {
-        return advance_single_step(rhs, t0, y0, h, tol, state, stats);
-    }
     advance_with(&VERNER_65, Form::Plain, rhs, t0, y0, h, tol, state, stats)
 }
 
-/// [`advance`] up to [`SINGLE_STEP_MAX`]: Tsitouras 5(4). Not inlined, so that the caller's
-/// Verner 6(5) path compiles as if this one did not exist (inlined too, it cost that path about
-/// 55 instructions per 1 ms step in kvo630's loop).
+/// [`advance`] with Tsitouras 5(4), for the cage's communication steps up to
+/// [`SINGLE_STEP_MAX`] (drive/cage_step.rs). Not inlined, so that the caller's Verner 6(5) path
+/// compiles as if this one did not exist (inlined too, it cost that path about 55 instructions
+/// per 1 ms step in kvo630's loop).
 #[inline(never)]
-fn advance_single_step(
+pub fn advance_single_step(
     rhs: &mut impl SecondOrderRhs,
     t0: f64,
     y0: [f64; 2],
@@ -485,11 +484,18 @@ fn advance_single_step(
     state: &mut IntegratorState,
     stats: &mut IntegratorStats,
 ) -> Result<[f64; 2], ModelError> {
+    #[cfg(test)]
+    if let Some(r) =
+        tests::compared::advance_with_pair_under_test(rhs, t0, y0, h, tol, state, stats)
+    {
+        return r;
+    }
     advance_with(&TSIT5, Form::Plain, rhs, t0, y0, h, tol, state, stats)
 }
 
-/// Communication steps [s] up to which [`advance`] integrates with Tsitouras 5(4) instead of
-/// Verner 6(5). WHY: there the communication step, not the error, sets the internal step (one
+/// Communication steps [s] up to which the elastic rod's step integrates with Tsitouras 5(4)
+/// ([`advance_single_step`]) instead of Verner 6(5) ([`advance`]; the drive train keeps Verner
+/// 6(5) at every step). WHY: there the communication step, not the error, sets the internal step (one
 /// step per call for the kvo630 spring and the thin rod at every tolerance from 1e-6 to 1e-10),
 /// so the stages per step set the cost: 7 evaluations against 9, with errors of 1.0e-10 and
 /// 5.3e-10 rad against the reference where Verner 6(5) has 1.5e-10 and 1.9e-11, far inside
@@ -563,10 +569,10 @@ fn advance_in<const S: usize, const LAWSON: bool>(
 
     'steps: while t < t_end {
         let remaining = t_end - t;
+        let h_min = 16.0 * f64::EPSILON * t.abs().max(t_end.abs()).max(TIME_SCALE);
         // The remaining interval itself is always a step the integrator may try (a communication
         // step below the floor, e.g. 1e-300 s, is one step to its end).
-        let h_min = (16.0 * f64::EPSILON * t.abs().max(t_end.abs()).max(TIME_SCALE)).min(remaining);
-        if !(h_try >= h_min) || n_steps >= MAX_STEPS_PER_CALL {
+        if !(h_try >= h_min || h_try >= remaining) || n_steps >= MAX_STEPS_PER_CALL {
             let why = match &last_failure {
                 Some(e) => format!("; last rejected stage: {e}"),
                 None => String::new(),

@@ -52,15 +52,14 @@ impl Model {
         let g0 = rhs.offset(&crank0, &start);
         rhs.start = Some((crank0, start));
         let mut integ = state.integrator;
-        let y = integrator::advance(
-            &mut rhs,
-            0.0,
-            [state.cage.theta - g0[0], state.cage.rate - g0[1]],
-            h,
-            &Tolerance::from_solver_tolerance(tol, rod.omega0),
-            &mut integ,
-            stats,
-        )?;
+        let y0 = [state.cage.theta - g0[0], state.cage.rate - g0[1]];
+        let tolerance = Tolerance::from_solver_tolerance(tol, rod.omega0);
+        // Up to SINGLE_STEP_MAX one internal step covers the step: the pair with fewer stages.
+        let y = if h <= integrator::SINGLE_STEP_MAX {
+            integrator::advance_single_step(&mut rhs, 0.0, y0, h, &tolerance, &mut integ, stats)?
+        } else {
+            integrator::advance(&mut rhs, 0.0, y0, h, &tolerance, &mut integ, stats)?
+        };
         let (crank1, end) = rhs.link_at(h);
         let g1 = rhs.offset(&crank1, &end);
         Ok(RodState {
