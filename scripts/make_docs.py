@@ -14,6 +14,7 @@ The FMU is target/fmu/ReciprocatingDrive.fmu (RD_FMU overrides it); scripts/buil
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import math
 import os
 import pathlib
@@ -41,6 +42,9 @@ PRESETS = ("default", "unb600a", "sk8-3.5-4000", "kvo630")
 RESULTS = tuple(f"results_{p}" for p in PRESETS)
 # Drawn by the closed loop's command (rdrive closed-loop, docs/closed-loop.md).
 CLOSED_LOOP = "closed_loop"
+# The cage integrator's work-precision diagram, drawn from the study's committed table
+# (scripts/work_precision.py measures it: cargo, minutes).
+WORK_PRECISION = "work_precision"
 
 
 # Sketches are drawn for a screen: 11 inches wide at 200 dpi, about 2 000 pixels after cropping.
@@ -453,6 +457,14 @@ TABLE_SECTIONS = [
 ]
 
 
+def work_precision_figure(path: pathlib.Path) -> None:
+    """docs/figures/work_precision.png from docs/figures/work_precision.csv."""
+    spec = importlib.util.spec_from_file_location("wp", ROOT / "scripts" / "work_precision.py")
+    wp = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(wp)
+    wp.draw(wp.read(wp.TABLE), path)
+
+
 def variable_table(fmu: pathlib.Path) -> str:
     """The variables of the model description by section, each with its description (the one
     variable table, src/fmus/*/variables.rs, writes both)."""
@@ -524,6 +536,7 @@ def main(argv=None) -> None:
     if not a.sketches_only:
         result_figures(out, runs or missions())
         closed_loop_figure(out)
+    work_precision_figure(out / f"{WORK_PRECISION}.png")
     print(f"wrote {out}")
 
 

@@ -51,6 +51,17 @@
 //! 6 times (they need a second step per call more often: error ∝ h⁵ instead of h⁶), and Verner
 //! 7(6) (10 evaluations a step, not FSAL) is cheaper only below about 3e-9 rad.
 //!
+//! For communication steps up to [`SINGLE_STEP_MAX`] (0.1 ms), where the communication step and
+//! not the error sets the internal step, the cage's step uses Tsitouras 5(4) instead
+//! ([`advance_single_step`]: 7 evaluations per call against 9, errors far inside the tolerance;
+//! see the constant).
+//!
+//! Any pair can also run in Lawson's integrating-factor form with the RHS's frozen oscillator
+//! treated exactly ([`Form::Lawson`], `lawson.rs`). On φ that is not
+//! cheaper at the design point: the rest it integrates, e^(−τL)·N, turns at the cage frequency
+//! (docs/performance.md "The elastic rod", work-precision diagram; study in
+//! `model::drive::cage_step::work_precision`).
+//!
 //! Cost with the bare kvo630 RHS (BeamColumn::new ≈ 35 ns + crank trigonometry), release build:
 //! ≈ 1.3 µs per 1 ms communication step (17 RHS evaluations, ≈ 76 ns each including the stage
 //! arithmetic); with a costlier RHS the call costs ≈ 17 × RHS per 1 ms.
@@ -75,7 +86,10 @@
 // `!(x <= y)` tests are deliberate: they also catch NaN.
 #![allow(clippy::excessive_precision, clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod lawson;
+
 use crate::model::error::{num, ModelError};
+use lawson::{ExpCache, Linear};
 use serde::{Deserialize, Serialize};
 
 /// Right-hand side of the second-order cage equation, `ϑ̈ = accel(t, ϑ, ϑ̇)`.
@@ -83,6 +97,25 @@ pub trait SecondOrderRhs {
     /// Returns ϑ̈ [rad/s²] at (t, ϑ, ϑ̇). `Err` rejects the stage (e.g. the rod buckles at a trial
     /// state, docs/model.md §6 "Validity"): the integrator shrinks the step and retries.
     fn accel(&mut self, t: f64, theta: f64, theta_dot: f64) -> Result<f64, ModelError>;
+
+    /// The frozen linear part of ϑ̈, (Ω², 2a) of ϑ̈ ≈ −Ω²·ϑ − 2a·ϑ̇ + forcing, for the integrator
+    /// forms that treat the oscillator exactly ([`Form::Lawson`]); queried at the start of the
+    /// call and after each accepted step (an RHS may freeze it once per call or follow its last
+    /// evaluation). None (the default): not known, the plain pair runs.
+    fn linear_part(&self) -> Option<(f64, f64)> {
+        None
+    }
+}
+
+/// How a pair is applied (docs/performance.md "The elastic rod").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Form {
+    /// The pair on y' = f(t, y).
+    Plain,
+    /// The pair in Lawson's integrating-factor form with the RHS's frozen oscillator
+    /// ([`SecondOrderRhs::linear_part`]) treated exactly (`lawson.rs`); the plain pair where the
+    /// RHS gives no underdamped linear part.
+    Lawson,
 }
 
 /// Error tolerances (docs/model.md §6): `rtol` relative, `atol_theta` [rad] and `atol_rate` [rad/s]
@@ -247,7 +280,50 @@ pub struct Pair<const S: usize> {
     pub est_exponent: f64,
 }
 
-/// The pair the FMU integrates with (see the module doc).
+/// Tsitouras 5(4) (Ch. Tsitouras, Comput. Math. Appl. 62 (2011) 770–775; digits as in
+/// diffrax's tableau).
+pub const TSIT5_B: [f64; 7] = [
+    0.09646076681806522951816731316512876333712,
+    0.01,
+    0.4798896504144995747752495322905965199130,
+    1.379008574103741893192274821856872770756,
+    -3.290069515436080679901047585711363850116,
+    2.324710524099773982415355918398765796109,
+    0.0,
+];
+pub const TSIT5_B_HAT: [f64; 7] = [
+    0.09468075576583945807478876255758922856118,
+    0.009183565540343253096776363936645313759814,
+    0.4877705284247615707855642599631228241517,
+    1.234297566930478985655109673884237654036,
+    -2.707712349983525454881109975059321670690,
+    1.866628418170587035753719399566211498666,
+    1.0 / 66.0,
+];
+#[rustfmt::skip]
+pub const TSIT5: Pair<7> = Pair {
+    c: [0.0, 0.161, 0.327, 0.9, 0.9800255409045096857298102862870245954942, 1.0, 1.0],
+    a: [
+        [0.0; 7],
+        [0.161, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [-0.008480655492356988544426874250230774675121, 0.3354806554923569885444268742502307746751, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [2.897153057105493432130432594192938764925, -6.359448489975074843148159912383825625953,
+         4.362295432869581411017727318190886861028, 0.0, 0.0, 0.0, 0.0],
+        [5.325864828439256604428877920840511317836, -11.74888356406282787774717033978577296189,
+         7.495539342889836208304604784564358155659, -0.09249506636175524925650207933207191611350, 0.0, 0.0, 0.0],
+        [5.861455442946420028659251486982647890394, -12.92096931784710929170611868178335939542,
+         8.159367898576158643180400794539253485182, -0.07158497328140099722453054252582973869127,
+         -0.02826905039406838290900305721271224146718, 0.0, 0.0],
+        TSIT5_B,
+    ],
+    b: TSIT5_B,
+    fsal: true,
+    e: error_weights(TSIT5_B, TSIT5_B_HAT),
+    order: 5.0,
+    est_exponent: 1.0 / 5.0,
+};
+
+/// The pair the FMU integrates with above SINGLE_STEP_MAX (see the module doc).
 pub const VERNER_65: Pair<STAGES> =
     Pair { c: C, a: A, b: B, fsal: true, e: E, order: 6.0, est_exponent: 1.0 / 6.0 };
 const SAFETY: f64 = 0.9;
@@ -261,6 +337,10 @@ const ERR_FLOOR: f64 = 1e-4;
 const STAGE_FAIL_FACTOR: f64 = 0.25;
 /// Hard limit of internal steps per call (more means the tolerance cannot be met sensibly).
 const MAX_STEPS_PER_CALL: u64 = 1_000_000;
+/// Time scale [s] of the step-size floor (16 ulp of max(|t|, this)) and the shortest interval the
+/// initial step estimate looks at: a communication step far below it (1e-300 s) must neither
+/// fail nor leave a suggestion of its own size for the next call.
+const TIME_SCALE: f64 = 1e-3;
 
 #[inline]
 fn eval(
@@ -292,6 +372,9 @@ fn scale(tol: &Tolerance, y0: [f64; 2], y1: [f64; 2]) -> [f64; 2] {
     ]
 }
 
+// Always inlined: called from each pair's instance, it was otherwise left out of line (a call
+// and its checks cost about 50 instructions more per step than inlined).
+#[inline(always)]
 fn validate(t0: f64, y0: [f64; 2], h: f64, tol: &Tolerance) -> Result<(), ModelError> {
     if !(t0.is_finite() && y0[0].is_finite() && y0[1].is_finite()) {
         return Err(ModelError::evaluation(format!(
@@ -384,13 +467,67 @@ pub fn advance(
     {
         return r;
     }
-    advance_with(&VERNER_65, rhs, t0, y0, h, tol, state, stats)
+    advance_with(&VERNER_65, Form::Plain, rhs, t0, y0, h, tol, state, stats)
 }
 
-/// [`advance`] with the pair `pair` (inlined, so that each pair's coefficients are constants).
+/// [`advance`] with Tsitouras 5(4), for the cage's communication steps up to
+/// [`SINGLE_STEP_MAX`] (drive/cage_step.rs). Not inlined, so that the caller's Verner 6(5) path
+/// compiles as if this one did not exist (inlined too, it cost that path about 55 instructions
+/// per 1 ms step in kvo630's loop).
+#[inline(never)]
+pub fn advance_single_step(
+    rhs: &mut impl SecondOrderRhs,
+    t0: f64,
+    y0: [f64; 2],
+    h: f64,
+    tol: &Tolerance,
+    state: &mut IntegratorState,
+    stats: &mut IntegratorStats,
+) -> Result<[f64; 2], ModelError> {
+    #[cfg(test)]
+    if let Some(r) =
+        tests::compared::advance_with_pair_under_test(rhs, t0, y0, h, tol, state, stats)
+    {
+        return r;
+    }
+    advance_with(&TSIT5, Form::Plain, rhs, t0, y0, h, tol, state, stats)
+}
+
+/// Communication steps [s] up to which the elastic rod's step integrates with Tsitouras 5(4)
+/// ([`advance_single_step`]) instead of Verner 6(5) ([`advance`]; the drive train keeps Verner
+/// 6(5) at every step). WHY: there the communication step, not the error, sets the internal step (one
+/// step per call for the kvo630 spring and the thin rod at every tolerance from 1e-6 to 1e-10),
+/// so the stages per step set the cost: 7 evaluations against 9, with errors of 1.0e-10 and
+/// 5.3e-10 rad against the reference where Verner 6(5) has 1.5e-10 and 1.9e-11, far inside
+/// every tolerance (docs/performance.md "The elastic rod", work-precision study at 0.1 ms).
+/// Above it (1 ms) Tsitouras misses the tolerance 2 to 6 times where Verner 6(5) meets it.
+pub const SINGLE_STEP_MAX: f64 = 1.000_001e-4;
+
+/// [`advance`] with the pair `pair` (inlined, so that each pair's coefficients are constants)
+/// in the form `form`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub fn advance_with<const S: usize>(
+    pair: &Pair<S>,
+    form: Form,
+    rhs: &mut impl SecondOrderRhs,
+    t0: f64,
+    y0: [f64; 2],
+    h: f64,
+    tol: &Tolerance,
+    state: &mut IntegratorState,
+    stats: &mut IntegratorStats,
+) -> Result<[f64; 2], ModelError> {
+    // One instance per form: the plain one carries nothing of the Lawson form.
+    match form {
+        Form::Plain => advance_in::<S, false>(pair, rhs, t0, y0, h, tol, state, stats),
+        Form::Lawson => advance_in::<S, true>(pair, rhs, t0, y0, h, tol, state, stats),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn advance_in<const S: usize, const LAWSON: bool>(
     pair: &Pair<S>,
     rhs: &mut impl SecondOrderRhs,
     t0: f64,
@@ -408,10 +545,21 @@ pub fn advance_with<const S: usize>(
     let mut k = [[0.0_f64; 2]; S];
     // The start point must be valid: no step size can repair it.
     k[0] = eval(rhs, t, y, &mut work)?;
+    // The frozen oscillator (queried again after each accepted step; kept across a rejection).
+    let frozen = |rhs: &mut _| {
+        if LAWSON {
+            SecondOrderRhs::linear_part(rhs).and_then(|(w2, d)| Linear::new(w2, d))
+        } else {
+            None
+        }
+    };
+    let mut lin: Option<Linear> = frozen(rhs);
+    // Made on the first Lawson step only (the plain path sets up nothing).
+    let mut cache: Option<ExpCache<S>> = None;
 
     let mut h_try = state.h_next;
     if !(h_try.is_finite() && h_try > 0.0) {
-        h_try = initial_step(rhs, t, y, k[0], t_end - t, tol, pair.order, &mut work);
+        h_try = initial_step(rhs, t, y, k[0], h.max(TIME_SCALE), tol, pair.order, &mut work);
     }
     let mut err_prev = if state.err_prev > 0.0 { state.err_prev } else { ERR_FLOOR };
     let mut last_rejected = false;
@@ -421,8 +569,10 @@ pub fn advance_with<const S: usize>(
 
     'steps: while t < t_end {
         let remaining = t_end - t;
-        let h_min = 16.0 * f64::EPSILON * t.abs().max(t_end.abs()).max(1e-3);
-        if !(h_try >= h_min) || n_steps >= MAX_STEPS_PER_CALL {
+        let h_min = 16.0 * f64::EPSILON * t.abs().max(t_end.abs()).max(TIME_SCALE);
+        // The remaining interval itself is always a step the integrator may try (a communication
+        // step below the floor, e.g. 1e-300 s, is one step to its end).
+        if !(h_try >= h_min || h_try >= remaining) || n_steps >= MAX_STEPS_PER_CALL {
             let why = match &last_failure {
                 Some(e) => format!("; last rejected stage: {e}"),
                 None => String::new(),
@@ -431,6 +581,14 @@ pub fn advance_with<const S: usize>(
             // knows the absolute time, names the interval).
             let reason = if n_steps >= MAX_STEPS_PER_CALL {
                 format!("the internal step limit of {MAX_STEPS_PER_CALL} steps per communication step is reached")
+            } else if n_steps == 0 && h_try >= 16.0 * f64::EPSILON * t.abs().max(TIME_SCALE) {
+                // Nothing failed: the floor is set by the interval's end time alone.
+                format!(
+                    "communicationStepSize = {} s is too long: at its end time internal steps \
+                     of {} s cannot be resolved",
+                    num(h),
+                    num(h_try)
+                )
             } else {
                 format!("the step size fell to {} s", num(h_try))
             };
@@ -455,7 +613,14 @@ pub fn advance_with<const S: usize>(
         // A failing stage (or, without FSAL, a failing evaluation at the new point) rejects the
         // step: one path for both, below.
         let attempt = 'attempt: {
-            let (y_new, est) = match step(pair, rhs, t, y, h, &mut k, &mut work) {
+            let stepped = match &lin {
+                Some(l) => {
+                    let cache = cache.get_or_insert_with(ExpCache::default);
+                    lawson::step(pair, l, cache, rhs, t, y, h, &mut k, &mut work)
+                }
+                None => step(pair, rhs, t, y, h, &mut k, &mut work),
+            };
+            let (y_new, est) = match stepped {
                 Ok(v) => v,
                 Err(e) => break 'attempt Err(e),
             };
@@ -504,8 +669,13 @@ pub fn advance_with<const S: usize>(
             // a suggestion that once fell (a transient, a rejection) could never recover while
             // every step is an equal split of the communication step (with h_c = 1 ms and a
             // suggestion of 0.32 ms the kvo630 run stayed at 4 steps per call for good).
-            let predicted =
-                if err > 0.0 { h * SAFETY * err.powf(-pair.est_exponent) } else { f64::INFINITY };
+            // Only within the controller's own range of factors: a step far shorter than the
+            // suggestion (the rest of a 1e-300 s communication step) predicts nothing about it.
+            let predicted = if err > 0.0 && h * FAC_MAX >= h_try {
+                h * SAFETY * err.powf(-pair.est_exponent)
+            } else {
+                f64::INFINITY
+            };
             let supported = predicted.min(FAC_MAX * h);
             h_try = if supported > h_try { supported } else { h_try.min(predicted.max(h * fac)) };
         } else {
@@ -516,6 +686,7 @@ pub fn advance_with<const S: usize>(
         t = if to_end { t_end } else { t + h };
         y = y_new;
         k[0] = f_new;
+        lin = frozen(rhs);
     }
     state.h_next = h_try;
     state.err_prev = err_prev;
@@ -1081,6 +1252,52 @@ pub(crate) mod tests {
         assert!(err_over_tol(&tol, y, reference[idx]) < 10.0);
     }
 
+    #[test]
+    fn a_1e_300_s_step_succeeds_and_leaves_the_natural_step() {
+        // A communication step far below the step-size floor is one step to its end; it must
+        // not leave a suggestion of its own size (which the next, normal call could not grow
+        // from: "the step size fell to ..."). Fresh and warm states, at t = 0 as the FMU calls.
+        let kvo = Kvo::new();
+        let tol = kvo.tol(1e-8);
+        for warm in [false, true] {
+            let mut r = Kvo::new();
+            let (mut st, mut stats) = (IntegratorState::default(), IntegratorStats::default());
+            let mut y = kvo.initial();
+            if warm {
+                y = advance(&mut r, 0.0, y, 1e-3, &tol, &mut st, &mut stats).unwrap();
+            }
+            let (st0, y0) = (st, y);
+            let y1 = advance(&mut r, 0.0, y, 1e-300, &tol, &mut st, &mut stats).unwrap();
+            // y moves by 1e-300·ẏ at most (ϑ̇ ≈ 6.5 rad/s: below an ulp unless ϑ = 0).
+            assert!((y1[0] - y0[0]).abs() <= 1e-299 && y1[1] == y0[1], "warm {warm}: {y1:?}");
+            assert!(st.h_next > 1e-5, "warm {warm}: {st:?}");
+            if warm {
+                assert_eq!(st, st0);
+            }
+            // The next millisecond is the one without the tiny step (to 1e-3 of the tolerance).
+            let next = advance(&mut r, 0.0, y1, 1e-3, &tol, &mut st, &mut stats).unwrap();
+            let mut st_direct = st0;
+            let direct = advance(&mut r, 0.0, y0, 1e-3, &tol, &mut st_direct, &mut stats).unwrap();
+            assert!(err_over_tol(&tol, next, direct) < 1e-3, "warm {warm}: {next:?} {direct:?}");
+        }
+    }
+
+    #[test]
+    fn a_1e300_s_step_fails_naming_the_communication_step() {
+        let kvo = Kvo::new();
+        let tol = kvo.tol(1e-8);
+        let mut r = Kvo::new();
+        let (mut st, mut stats) = (IntegratorState::default(), IntegratorStats::default());
+        let y = advance(&mut r, 0.0, kvo.initial(), 1e-3, &tol, &mut st, &mut stats).unwrap();
+        let (st0, stats0) = (st, stats);
+        let e = advance(&mut r, 0.0, y, 1e300, &tol, &mut st, &mut stats).unwrap_err().to_string();
+        assert!(
+            e.contains("communicationStepSize = 1e+300 s is too long") && !e.contains('\n'),
+            "{e}"
+        );
+        assert_eq!((st, stats), (st0, stats0));
+    }
+
     /// Cost report (run: cargo test --release -- --ignored --nocapture kvo630_cost_report).
     #[test]
     #[ignore]
@@ -1157,49 +1374,6 @@ pub(crate) mod tests {
             est_exponent: 1.0 / 5.0,
         };
 
-        /// Tsitouras 5(4) (Ch. Tsitouras, Comput. Math. Appl. 62 (2011) 770–775; digits as in
-        /// diffrax's tableau).
-        pub const TSIT5_B: [f64; 7] = [
-            0.09646076681806522951816731316512876333712,
-            0.01,
-            0.4798896504144995747752495322905965199130,
-            1.379008574103741893192274821856872770756,
-            -3.290069515436080679901047585711363850116,
-            2.324710524099773982415355918398765796109,
-            0.0,
-        ];
-        pub const TSIT5_B_HAT: [f64; 7] = [
-            0.09468075576583945807478876255758922856118,
-            0.009183565540343253096776363936645313759814,
-            0.4877705284247615707855642599631228241517,
-            1.234297566930478985655109673884237654036,
-            -2.707712349983525454881109975059321670690,
-            1.866628418170587035753719399566211498666,
-            1.0 / 66.0,
-        ];
-        #[rustfmt::skip]
-        pub const TSIT5: Pair<7> = Pair {
-            c: [0.0, 0.161, 0.327, 0.9, 0.9800255409045096857298102862870245954942, 1.0, 1.0],
-            a: [
-                [0.0; 7],
-                [0.161, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-                [-0.008480655492356988544426874250230774675121, 0.3354806554923569885444268742502307746751, 0.0, 0.0, 0.0, 0.0, 0.0],
-                [2.897153057105493432130432594192938764925, -6.359448489975074843148159912383825625953,
-                 4.362295432869581411017727318190886861028, 0.0, 0.0, 0.0, 0.0],
-                [5.325864828439256604428877920840511317836, -11.74888356406282787774717033978577296189,
-                 7.495539342889836208304604784564358155659, -0.09249506636175524925650207933207191611350, 0.0, 0.0, 0.0],
-                [5.861455442946420028659251486982647890394, -12.92096931784710929170611868178335939542,
-                 8.159367898576158643180400794539253485182, -0.07158497328140099722453054252582973869127,
-                 -0.02826905039406838290900305721271224146718, 0.0, 0.0],
-                TSIT5_B,
-            ],
-            b: TSIT5_B,
-            fsal: true,
-            e: error_weights(TSIT5_B, TSIT5_B_HAT),
-            order: 5.0,
-            est_exponent: 1.0 / 5.0,
-        };
-
         /// Verner's "most efficient" 7(6) pair, RKV76.IIa (10 stages, not FSAL: 10 evaluations
         /// a step; coefficients as published by J. H. Verner, as in jacobwilliams/rklib `rkv76e`).
         pub const V76_B: [f64; 10] = [
@@ -1271,6 +1445,9 @@ pub(crate) mod tests {
             Dp5,
             Tsit5,
             Verner76,
+            LawsonVerner65,
+            LawsonTsit5,
+            LawsonDp5,
         }
 
         thread_local! {
@@ -1294,11 +1471,27 @@ pub(crate) mod tests {
             state: &mut IntegratorState,
             stats: &mut IntegratorStats,
         ) -> Option<Result<[f64; 2], ModelError>> {
+            use Form::{Lawson, Plain};
             match UNDER_TEST.with(|u| u.get())? {
-                Which::Verner65 => None,
-                Which::Dp5 => Some(advance_with(&DP5, rhs, t0, y0, h, tol, state, stats)),
-                Which::Tsit5 => Some(advance_with(&TSIT5, rhs, t0, y0, h, tol, state, stats)),
-                Which::Verner76 => Some(advance_with(&V76, rhs, t0, y0, h, tol, state, stats)),
+                Which::Verner65 => {
+                    Some(advance_with(&VERNER_65, Plain, rhs, t0, y0, h, tol, state, stats))
+                }
+                Which::Dp5 => Some(advance_with(&DP5, Plain, rhs, t0, y0, h, tol, state, stats)),
+                Which::Tsit5 => {
+                    Some(advance_with(&TSIT5, Plain, rhs, t0, y0, h, tol, state, stats))
+                }
+                Which::Verner76 => {
+                    Some(advance_with(&V76, Plain, rhs, t0, y0, h, tol, state, stats))
+                }
+                Which::LawsonVerner65 => {
+                    Some(advance_with(&VERNER_65, Lawson, rhs, t0, y0, h, tol, state, stats))
+                }
+                Which::LawsonTsit5 => {
+                    Some(advance_with(&TSIT5, Lawson, rhs, t0, y0, h, tol, state, stats))
+                }
+                Which::LawsonDp5 => {
+                    Some(advance_with(&DP5, Lawson, rhs, t0, y0, h, tol, state, stats))
+                }
             }
         }
     }

@@ -46,19 +46,20 @@ impl Model {
         };
         // The integrator follows φ = ϑ − c·Δ(τ) (`CageRhs::shift`).
         let (crank0, start) = rhs.link_at(0.0);
-        rhs.shift = rhs.quasi_static_ratio(start.p_base);
+        // The cell of p_base is the first stage's hint (its P is p_base plus a small friction):
+        // the binary search is made once, here.
+        (rhs.shift, _, rhs.cell_hint) = rhs.quasi_static_ratio(start.p_base);
         let g0 = rhs.offset(&crank0, &start);
         rhs.start = Some((crank0, start));
         let mut integ = state.integrator;
-        let y = integrator::advance(
-            &mut rhs,
-            0.0,
-            [state.cage.theta - g0[0], state.cage.rate - g0[1]],
-            h,
-            &Tolerance::from_solver_tolerance(tol, rod.omega0),
-            &mut integ,
-            stats,
-        )?;
+        let y0 = [state.cage.theta - g0[0], state.cage.rate - g0[1]];
+        let tolerance = Tolerance::from_solver_tolerance(tol, rod.omega0);
+        // Up to SINGLE_STEP_MAX one internal step covers the step: the pair with fewer stages.
+        let y = if h <= integrator::SINGLE_STEP_MAX {
+            integrator::advance_single_step(&mut rhs, 0.0, y0, h, &tolerance, &mut integ, stats)?
+        } else {
+            integrator::advance(&mut rhs, 0.0, y0, h, &tolerance, &mut integ, stats)?
+        };
         let (crank1, end) = rhs.link_at(h);
         let g1 = rhs.offset(&crank1, &end);
         Ok(RodState {
@@ -229,19 +230,20 @@ impl CageRhs<'_> {
         (crank, ll)
     }
 
-    /// K_Δ/K_ϑ at P = `p` (from the table where it covers `p`), the c of [`CageRhs::shift`];
-    /// 0 (ϑ itself is integrated) where the rod cannot take P (the stages then report it).
-    fn quasi_static_ratio(&self, p: f64) -> f64 {
+    /// K_Δ/K_ϑ at P = `p` (from the table where it covers `p`), the c of [`CageRhs::shift`],
+    /// K_ϑ, and the table's cell of `p` (0 off the table); (0, NaN, _) (ϑ itself is integrated)
+    /// where the rod cannot take P (the stages then report it).
+    fn quasi_static_ratio(&self, p: f64) -> (f64, f64, usize) {
         use table::{K_DELTA, K_THETA};
-        let k = match self.table.and_then(|t| t.find(p, 0).map(|cell| t.values(cell, p))) {
-            Some(v) => Some((v[K_THETA], v[K_DELTA])),
-            None => self.rod.beam_column(p).ok().map(|bc| (bc.k_theta, bc.k_delta)),
+        let (k, cell) = match self.table.and_then(|t| t.find(p, 0).map(|c| (t.values(c, p), c))) {
+            Some((v, cell)) => (Some((v[K_THETA], v[K_DELTA])), cell),
+            None => (self.rod.beam_column(p).ok().map(|bc| (bc.k_theta, bc.k_delta)), 0),
         };
         match k {
             Some((k_theta, k_delta)) if k_theta > 0.0 && (k_delta / k_theta).is_finite() => {
-                k_delta / k_theta
+                (k_delta / k_theta, k_theta, cell)
             }
-            _ => 0.0,
+            _ => (0.0, f64::NAN, cell),
         }
     }
 
@@ -304,4 +306,18 @@ impl SecondOrderRhs for CageRhs<'_> {
         let delta_ddot = ll.piston.map_or(0.0, |pp| pp.delta_ddot);
         Ok(self.theta_ddot(&crank, &ll, &cage)? - self.shift * delta_ddot)
     }
+
+    /// (K_ϑ/J_m, B_d/J_m) at the step's start (P without friction, as for the shift): the cage
+    /// equation's linear part in ϑ, and so in φ = ϑ − c·Δ (c·Δ is a function of time only),
+    /// docs/model.md §6 "Cage equation". Computed when asked (the Lawson form only), so the
+    /// FMU's own path carries nothing for it.
+    fn linear_part(&self) -> Option<(f64, f64)> {
+        let (_, start) = self.start?;
+        let k_theta = self.quasi_static_ratio(start.p_base).1;
+        let j = self.rod.cage_inertia;
+        k_theta.is_finite().then(|| (k_theta / j, self.rod.damping / j))
+    }
 }
+
+#[cfg(test)]
+mod work_precision;
