@@ -126,9 +126,10 @@ impl Guide {
         } else {
             self.system.clamp_influence_rate().ok_or_else(|| {
                 ModelError::evaluation(format!(
-                    "directional derivative wrt crank.angle: the support reactions at s = {} m \
-                     come from a solve at each position (a support moves along the link), for \
-                     which no exact rate is provided; the other inputs' derivatives are",
+                    "directional derivative: not provided with respect to crank.angle for an \
+                     elastic rod whose support reactions at s = {} m come from a solve at each \
+                     position (a support fixed in the frame); seed only crank.speed, \
+                     crank.acceleration or link.external_force",
                     num(s.re)
                 ))
             })?
