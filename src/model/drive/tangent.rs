@@ -37,6 +37,9 @@ impl Model {
         rod: &RodState,
         seed: &Seed,
     ) -> Result<(Outputs, Outputs), ModelError> {
+        if let Mechanism::ElasticRodSlider(law, elastic) = &self.mechanism {
+            return self.elastic_tangent(law, elastic, crank, inputs, rod, seed);
+        }
         let value = self.evaluate(crank, inputs, rod)?;
         let dual = Dual64::new;
         let theta = dual(self.model_angle(crank), seed.angle);
@@ -45,23 +48,29 @@ impl Model {
         let (k, side_slope) = match &self.mechanism {
             Mechanism::CrankSlider(m) => m.kinematics_and_tan_beta_of(theta),
             Mechanism::BeamUnit(m) => (m.kinematics_of(theta), Dual64::from(0.0)),
-            Mechanism::ElasticRodSlider(law, elastic) => {
-                return self.elastic_tangent(
-                    law,
-                    elastic,
-                    inputs,
-                    rod,
-                    seed,
-                    value,
-                    (theta, w, eps),
-                )
-            }
+            // Dispatched at the top.
+            Mechanism::ElasticRodSlider(..) => unreachable!(),
         };
         let velocity = k.velocity(w);
         let acceleration = k.acceleration(w, eps);
+        let p = &self.params;
         // The same loads as `Model::loads_at` (§4, §7), in dual numbers.
-        let (inertia_force, balancer_force, p_base) =
-            self.dual_loads(theta, k.s, velocity, acceleration, inputs, seed);
+        let inertia_force = acceleration * -p.mass;
+        let f_ext = dual(inputs.external_force, seed.external_force)
+            + loads::process_force_profile_of(
+                p.load_profile,
+                p.load_mean,
+                p.load_amplitude,
+                p.load_phase,
+                theta,
+                velocity,
+                p.velocity_scale,
+            );
+        let balancer_force = match &self.balancer {
+            Some(b) => (k.s - b.neutral_position) * -b.stiffness,
+            None => Dual64::from(0.0),
+        };
+        let p_base = f_ext + inertia_force + balancer_force;
         let guide = match &self.guide {
             Some(g) => g.solve_rigid_tangent(k.s, velocity, p_base, side_slope, &value.guide)?,
             None => GuideOutputs { rod_force: p_base.eps, ..GuideOutputs::default() },
@@ -98,18 +107,20 @@ impl Model {
     /// [`Model::tangent`] of an elastic rod (§6), the cage state (ϑ, ϑ̇) held: the piston law
     /// and the loads in dual numbers, the rod force by implicit differentiation of the clamp
     /// solve (`Guide::solve_clamp_tangent`), the clamp loads and the stress by the dual beam
-    /// column (`elastic_rod/tangent.rs`). `(theta, w, eps)`: the dual crank inputs.
-    #[allow(clippy::too_many_arguments)]
+    /// column (`elastic_rod/tangent.rs`).
     fn elastic_tangent(
         &self,
         law: &PistonLaw,
         elastic: &ElasticRod,
+        crank: &CrankState,
         inputs: &Inputs,
         rod: &RodState,
         seed: &Seed,
-        value: Outputs,
-        (theta, w, eps): (Dual64, Dual64, Dual64),
     ) -> Result<(Outputs, Outputs), ModelError> {
+        let value = self.evaluate(crank, inputs, rod)?;
+        let theta = Dual64::new(self.model_angle(crank), seed.angle);
+        let w = Dual64::new(crank.speed, seed.speed);
+        let eps = Dual64::new(crank.acceleration, seed.acceleration);
         // The piston law of §6: s = r(1 − cosθ), TF = r·sinθ, TF' = r·cosθ, Δ = r·sinθ − e.
         let (sin, cos) = theta.sin_cos();
         let k = Kinematics {
