@@ -199,7 +199,7 @@ impl FmuModel for ReciprocatingDrive {
     }
 
     /// Exact directional derivatives of the outputs with respect to the inputs at the current
-    /// state (docs/fmi-interface.md "Directional derivatives"), rigid rods.
+    /// state (docs/fmi-interface.md "Directional derivatives"), rigid and elastic rods.
     const DIRECTIONAL_DERIVATIVES: bool = true;
 
     fn tangent(

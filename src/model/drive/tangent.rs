@@ -5,12 +5,15 @@
 //! the rod force, implicit through the guide friction, is differentiated implicitly
 //! (`guide/tangent.rs`).
 
-use num_dual::Dual64;
+use num_dual::{Dual64, DualNum};
 
 use super::{groups, Inputs, Mechanism, Model, Outputs, RodState};
 use crate::model::crank::CrankState;
+use crate::model::elastic_rod::cage::{ElasticRod, PistonLaw};
+use crate::model::elastic_rod::tangent as rod_tangent;
 use crate::model::error::ModelError;
 use crate::model::guide::GuideOutputs;
+use crate::model::kinematics::Kinematics;
 use crate::model::loads;
 
 /// A direction in the space of the inputs: the changes of crank.angle, crank.speed,
@@ -25,8 +28,8 @@ pub struct Seed {
 
 impl Model {
     /// The outputs at (crank, inputs, rod) and their directional derivatives along `seed`
-    /// (the tangent, in the same fields; `ready` marks every group of both). The state of an
-    /// elastic rod is held; its outputs' derivatives are not provided (an evaluation error).
+    /// (the tangent, in the same fields; `ready` marks every group of both). The cage state of
+    /// an elastic rod is held (co-simulation's meaning).
     pub fn tangent(
         &self,
         crank: &CrankState,
@@ -34,6 +37,9 @@ impl Model {
         rod: &RodState,
         seed: &Seed,
     ) -> Result<(Outputs, Outputs), ModelError> {
+        if let Mechanism::ElasticRodSlider(law, elastic) = &self.mechanism {
+            return self.elastic_tangent(law, elastic, crank, inputs, rod, seed);
+        }
         let value = self.evaluate(crank, inputs, rod)?;
         let dual = Dual64::new;
         let theta = dual(self.model_angle(crank), seed.angle);
@@ -42,12 +48,8 @@ impl Model {
         let (k, side_slope) = match &self.mechanism {
             Mechanism::CrankSlider(m) => m.kinematics_and_tan_beta_of(theta),
             Mechanism::BeamUnit(m) => (m.kinematics_of(theta), Dual64::from(0.0)),
-            Mechanism::ElasticRodSlider(..) => {
-                return Err(ModelError::evaluation(
-                    "directional derivative: not provided for an elastic connecting rod \
-                     (rod.kind = 1 or 2); it is provided for rigid rods (rod.kind = 0)",
-                ))
-            }
+            // Dispatched at the top.
+            Mechanism::ElasticRodSlider(..) => unreachable!(),
         };
         let velocity = k.velocity(w);
         let acceleration = k.acceleration(w, eps);
@@ -98,6 +100,111 @@ impl Model {
             rod_axial_deflection: 0.0,
         };
         Ok((value, tangent))
+    }
+}
+
+impl Model {
+    /// [`Model::tangent`] of an elastic rod (§6), the cage state (ϑ, ϑ̇) held: the piston law
+    /// and the loads in dual numbers, the rod force by implicit differentiation of the clamp
+    /// solve (`Guide::solve_clamp_tangent`), the clamp loads and the stress by the dual beam
+    /// column (`elastic_rod/tangent.rs`).
+    fn elastic_tangent(
+        &self,
+        law: &PistonLaw,
+        elastic: &ElasticRod,
+        crank: &CrankState,
+        inputs: &Inputs,
+        rod: &RodState,
+        seed: &Seed,
+    ) -> Result<(Outputs, Outputs), ModelError> {
+        let value = self.evaluate(crank, inputs, rod)?;
+        let theta = Dual64::new(self.model_angle(crank), seed.angle);
+        let w = Dual64::new(crank.speed, seed.speed);
+        let eps = Dual64::new(crank.acceleration, seed.acceleration);
+        // The piston law of §6: s = r(1 − cosθ), TF = r·sinθ, TF' = r·cosθ, Δ = r·sinθ − e.
+        let (sin, cos) = theta.sin_cos();
+        let k = Kinematics {
+            s: (-cos + 1.0) * law.r,
+            tf: sin * law.r,
+            tfp: cos * law.r,
+            rod_angle: Dual64::from(0.0),
+            rod_angle_rate: Dual64::from(0.0),
+        };
+        let delta = sin * law.r - law.e;
+        let delta_rate = cos * law.r;
+        let velocity = k.velocity(w);
+        let acceleration = k.acceleration(w, eps);
+        let (inertia_force, balancer_force, p_base) =
+            self.dual_loads(theta, k.s, velocity, acceleration, inputs, seed);
+        let cage_theta = rod.cage.theta;
+        let bc = elastic.beam_column(value.rod_force)?;
+        let stiff = &elastic.stiffness;
+        let guide = match &self.guide {
+            Some(g) => g.solve_clamp_tangent(k.s, velocity, p_base, &value.guide, |p, along| {
+                let d = if along { delta } else { Dual64::from(delta.re) };
+                rod_tangent::clamp_loads(stiff, &bc, p, d, cage_theta)
+            })?,
+            None => GuideOutputs { rod_force: p_base.eps, ..GuideOutputs::default() },
+        };
+        let p = Dual64::new(value.rod_force, guide.rod_force);
+        let (_, transverse) = rod_tangent::clamp_loads(stiff, &bc, p, delta, cage_theta);
+        // §4: T = −P·TF + V·dΔ/dθ (as `evaluate_elastic`).
+        let crank_torque = transverse * delta_rate - p * k.tf;
+        let stress = rod_tangent::stress_max(&elastic.spec, stiff, &bc, p, delta, cage_theta);
+        let tangent = Outputs {
+            ready: groups::ALL,
+            p_base: p_base.eps,
+            side_slope: 0.0,
+            model_angle: seed.angle,
+            model_speed: seed.speed,
+            position: k.s.eps,
+            velocity: velocity.eps,
+            acceleration: acceleration.eps,
+            torque_factor: k.tf.eps,
+            inertia_force: inertia_force.eps,
+            rod_force: guide.rod_force,
+            crank_torque: crank_torque.eps,
+            // The cage state is held.
+            rod_angle: 0.0,
+            rod_angular_velocity: 0.0,
+            balancer_force: balancer_force.eps,
+            balancer_residual: (inertia_force + balancer_force).eps,
+            balancer_stiffness_used: 0.0,
+            guide,
+            rod_stress_max: stress.eps,
+            // P·l_f/A3, linear in P.
+            rod_axial_deflection: elastic.axial_deflection(guide.rod_force),
+        };
+        Ok((value, tangent))
+    }
+
+    /// The loads of `Model::loads_at` (§4, §7) in dual numbers: (Φ, F_bal, p_base).
+    fn dual_loads(
+        &self,
+        theta: Dual64,
+        s: Dual64,
+        velocity: Dual64,
+        acceleration: Dual64,
+        inputs: &Inputs,
+        seed: &Seed,
+    ) -> (Dual64, Dual64, Dual64) {
+        let p = &self.params;
+        let inertia_force = acceleration * -p.mass;
+        let f_ext = Dual64::new(inputs.external_force, seed.external_force)
+            + loads::process_force_profile_of(
+                p.load_profile,
+                p.load_mean,
+                p.load_amplitude,
+                p.load_phase,
+                theta,
+                velocity,
+                p.velocity_scale,
+            );
+        let balancer_force = match &self.balancer {
+            Some(b) => (s - b.neutral_position) * -b.stiffness,
+            None => Dual64::from(0.0),
+        };
+        (inertia_force, balancer_force, f_ext + inertia_force + balancer_force)
     }
 }
 

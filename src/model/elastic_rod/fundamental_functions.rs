@@ -20,7 +20,7 @@
 pub const SERIES_LIMIT: f64 = 4.0;
 
 /// 1/(2n+2)!, n = 0..11: coefficients of `V3/z² = Σ uⁿ/(2n+2)!` (correctly rounded).
-const INV_FACT_EVEN: [f64; 12] = [
+pub(super) const INV_FACT_EVEN: [f64; 12] = [
     0.5,
     0.041666666666666664,
     0.001388888888888889,
@@ -36,7 +36,7 @@ const INV_FACT_EVEN: [f64; 12] = [
 ];
 
 /// 1/(2n+3)!, n = 0..11: coefficients of `V4/z³ = Σ uⁿ/(2n+3)!` (correctly rounded).
-const INV_FACT_ODD: [f64; 12] = [
+pub(super) const INV_FACT_ODD: [f64; 12] = [
     0.16666666666666666,
     0.008333333333333333,
     0.0001984126984126984,

@@ -25,6 +25,7 @@ pub mod fundamental_functions;
 pub mod stiffness;
 pub mod stress;
 pub mod table;
+pub mod tangent;
 
 pub use beam_column::BeamColumn;
 pub use fundamental_functions::{fundamental_functions, FundamentalFunctions};

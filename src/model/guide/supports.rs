@@ -665,6 +665,14 @@ impl SupportSystem {
         Ok(None)
     }
 
+    /// d(base)/ds of [`SupportSystem::clamp_influence`] [N/m, N·m/m] when nothing moves along
+    /// the link (base affine in s, per M0 and per V constant); `None` otherwise, where the
+    /// reactions come from a solve at each position (the directional derivative of an elastic
+    /// rod with respect to crank.angle is then not provided).
+    pub fn clamp_influence_rate(&self) -> Option<[ForceMoment; 3]> {
+        self.precomputed.as_ref().map(|(_, rate)| *rate)
+    }
+
     /// The clamp load cases of [`SupportSystem::influence`] only (base, per M0, per V): what the
     /// elastic rod's friction needs at every stage of the integrator, without copying the rest.
     #[inline]

@@ -102,3 +102,83 @@ impl Guide {
         Ok(tangent)
     }
 }
+
+impl Guide {
+    /// The tangent of every output of the elastic rod's clamp solve ([`Guide::solve_clamp_from`],
+    /// docs/model.md §4, §5.4) along the direction carried by the dual parts of `s`, `v` and
+    /// `p_base`, whose real parts gave `value`. `clamp_loads(P, along_delta)` gives the rod's
+    /// clamp loads (M0, V) at the dual P, with the dual part of Δ when `along_delta` (else Δ
+    /// held). The fixed point `P = p_base + F_fr(M0(P, Δ), V(P, Δ))` differentiated implicitly:
+    /// `dP·(1 + tanh·Σ g_x'(slope_x)) = dp_base − d(tanh)·Σ g_x − tanh·Σ g_x'(A_x)`, with
+    /// `slope_x` the change of the reactions of support x per newton of P (through M0, V) and
+    /// `A_x` their change at fixed P (through s and Δ); one-sided at a kink of the friction law.
+    pub fn solve_clamp_tangent(
+        &self,
+        s: Dual64,
+        v: Dual64,
+        p_base: Dual64,
+        value: &GuideOutputs,
+        clamp_loads: impl Fn(Dual64, bool) -> (Dual64, Dual64),
+    ) -> Result<GuideOutputs, ModelError> {
+        let cf = self.clamp_friction(s.re, v.re, p_base.re)?;
+        let dbase = if s.eps == 0.0 {
+            [ForceMoment::default(); 3]
+        } else {
+            self.system.clamp_influence_rate().ok_or_else(|| {
+                ModelError::evaluation(format!(
+                    "directional derivative: not provided with respect to crank.angle for an \
+                     elastic rod whose support reactions at s = {} m come from a solve at each \
+                     position (a support fixed in the frame); seed only crank.speed, \
+                     crank.acceleration or link.external_force",
+                    num(s.re)
+                ))
+            })?
+        };
+        let p = value.rod_force;
+        // The loads along Δ at fixed P, and per newton of P at fixed Δ.
+        let (m0_fixed, v_fixed) = clamp_loads(Dual64::from(p), true);
+        let (m0_per_p, v_per_p) = clamp_loads(Dual64::new(p, 1.0), false);
+        let infl = &cf.infl;
+        let sign = cf.sign;
+        let dsign = (1.0 - sign * sign) * v.eps / self.velocity_scale;
+        let mut at_p = [ForceMoment::default(); 3];
+        let mut fixed_p = [ForceMoment::default(); 3];
+        let mut slope = [ForceMoment::default(); 3];
+        let (mut g_sum, mut a_sum, mut k_sum) = (0.0, 0.0, 0.0);
+        for x in 0..3 {
+            at_p[x] = infl.base[x]
+                .plus_scaled(m0_fixed.re, infl.per_m0[x])
+                .plus_scaled(v_fixed.re, infl.per_v[x]);
+            fixed_p[x] = ForceMoment { r: dbase[x].r * s.eps, m: dbase[x].m * s.eps }
+                .plus_scaled(m0_fixed.eps, infl.per_m0[x])
+                .plus_scaled(v_fixed.eps, infl.per_v[x]);
+            slope[x] = ForceMoment::default()
+                .plus_scaled(m0_per_p.eps, infl.per_m0[x])
+                .plus_scaled(v_per_p.eps, infl.per_v[x]);
+            g_sum += self.laws[x].magnitude(at_p[x]);
+            a_sum += rate(&self.laws[x], at_p[x], fixed_p[x]);
+            k_sum += rate(&self.laws[x], at_p[x], slope[x]);
+        }
+        // The solve converged by contraction (|tanh|·K < 1), which keeps the factor from 0.
+        let dp = (p_base.eps - dsign * g_sum - sign * a_sum) / (1.0 + sign * k_sum);
+        let mut fr = [0.0; 3];
+        let mut dfm = [ForceMoment::default(); 3];
+        for x in 0..3 {
+            dfm[x] = fixed_p[x].plus_scaled(dp, slope[x]);
+            fr[x] = -dsign * self.laws[x].magnitude(at_p[x])
+                - sign * rate(&self.laws[x], at_p[x], dfm[x]);
+        }
+        let (n1, n2) = friction::edge_forces(self.kinds[1], self.lengths[1], dfm[1]);
+        Ok(GuideOutputs {
+            rod_force: dp,
+            friction_b: fr[1],
+            reaction_b: dfm[1].r,
+            moment_b: dfm[1].m,
+            edge_force_1: n1,
+            edge_force_2: n2,
+            reaction_a: dfm[0].r,
+            reaction_c: dfm[2].r,
+            friction_total: fr[0] + fr[1] + fr[2],
+        })
+    }
+}
