@@ -1,0 +1,323 @@
+"""FMI 2.0 Model Exchange in the same .fmu as co-simulation (docs/fmi-interface.md "Model
+Exchange (FMI 2.0)"): one model description with both elements, one binary.
+
+* fmpy's validator (API and `fmpy validate`) reports nothing for either FMU;
+* the DriveTrain's two states integrated by fmpy's CVODE (rtol 1e-10) agree with the co-simulation
+  FMU (its own integrator at 1e-8) to 1e-6 of the synchronous speed, the bound of
+  test_drive_train.py; fmpy's explicit Euler converges to it at first order (the error halves
+  with the step), which no tolerance could fake;
+* every rigid preset as Model Exchange (no states: outputs functions of the crank inputs) gives
+  the co-simulation FMU's outputs at every recorded point to rounding (1e-9 of each output's
+  scale), with CVODE and with Euler;
+* the FMI 2.0 Model Exchange state machine: the calls in their modes, the derivatives readable
+  as `der(...)` variables, no event indicators; every illegal sequence, a Model Exchange call on
+  a co-simulation instance and a co-simulation call on a Model Exchange instance return fmi2Error
+  with one line naming the function.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from reciprocating_drive import preset_values
+
+MODELS = ["ReciprocatingDrive", "DriveTrain"]
+LOGGER6 = ctypes.CFUNCTYPE(
+    None,
+    ctypes.c_void_p,
+    ctypes.c_char_p,
+    ctypes.c_int,
+    ctypes.c_char_p,
+    ctypes.c_char_p,
+    ctypes.c_char_p,
+)
+RIGID_PRESETS = ["default", "sk8-3.5-4000", "unb600a"]
+DT_START = {"crank.speed_start": 0.0, "load.torque": 600.0}
+W0 = 2 * np.pi * 1500 / 60 / 23.0  # synchronous crank speed of the default drive train [rad/s]
+
+
+def fmu(fmu_path, model):
+    return str(pathlib.Path(fmu_path).parent / f"{model}.fmu")
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_both_interfaces_in_one_fmu_and_fmpy_validate_reports_nothing(fmu_path, model):
+    from fmpy import read_model_description
+    from fmpy.validation import validate_fmu
+
+    md = read_model_description(fmu(fmu_path, model))
+    assert md.modelExchange is not None and md.coSimulation is not None
+    assert md.modelExchange.modelIdentifier == md.coSimulation.modelIdentifier == model
+    assert md.numberOfEventIndicators == 0
+    problems = validate_fmu(fmu(fmu_path, model))
+    assert problems == [], "\n".join(problems)
+    p = subprocess.run(
+        [sys.executable, "-c", "import sys; from fmpy.cli import main; sys.exit(main())"]
+        + ["validate", fmu(fmu_path, model)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert "problem" not in (p.stdout + p.stderr).lower().replace("no problems", "")
+
+
+def _drive_train(fmu_path, fmi_type, stop, output_interval=1e-3, **kw):
+    from fmpy import simulate_fmu
+
+    return simulate_fmu(
+        fmu(fmu_path, "DriveTrain"),
+        fmi_type=fmi_type,
+        stop_time=stop,
+        output_interval=output_interval,
+        start_values=DT_START,
+        output=["crank.angle", "crank.speed", "crank.acceleration", "motor.torque"],
+        **kw,
+    )
+
+
+def test_drive_train_cvode_matches_co_simulation(fmu_path):
+    """Run-up under 600 N·m over 3 s: CVODE at rtol 1e-10 against the co-simulation FMU at its
+    default 1e-8; the bound is the co-simulation's own (1e-6 of ω_0, test_drive_train.py)."""
+    stop = 3.0
+    me = _drive_train(fmu_path, "ModelExchange", stop, solver="CVode", relative_tolerance=1e-10)
+    cs = _drive_train(fmu_path, "CoSimulation", stop)
+    assert len(me) == len(cs) > 2900
+    assert np.allclose(me["time"], cs["time"], rtol=0, atol=1e-12)
+    dw = np.max(np.abs(me["crank.speed"] - cs["crank.speed"]))
+    assert dw <= 1e-6 * W0, f"crank speed: ME - CS = {dw:.3g} rad/s"
+    da = np.max(np.abs(me["crank.angle"] - cs["crank.angle"]))
+    assert da <= 1e-6, f"crank angle: ME - CS = {da:.3g} rad"
+    # Not a trivial run: the motor runs up to near its synchronous speed.
+    assert 0.8 * W0 < me["crank.speed"][-1] < W0
+
+
+def test_drive_train_euler_converges_to_co_simulation_at_first_order(fmu_path):
+    """Explicit Euler is first order: its error against the co-simulation (1e-8, far below)
+    halves when the step halves (ratio 2 ± 10 %), and at 5e-5 s it is below 1e-3·ω_0. (fmpy's
+    Euler steps from one output point to the next: the output interval is its step.)"""
+    stop = 1.0
+    cs = _drive_train(fmu_path, "CoSimulation", stop)
+    err = []
+    for h in (1e-4, 5e-5):
+        me = _drive_train(
+            fmu_path, "ModelExchange", stop, output_interval=h, step_size=h, solver="Euler"
+        )
+        every = round(1e-3 / h)
+        me = me[::every]
+        assert len(me) == len(cs) and np.allclose(me["time"], cs["time"], rtol=0, atol=1e-9)
+        err.append(float(np.max(np.abs(me["crank.speed"] - cs["crank.speed"]))))
+    ratio = err[0] / err[1]
+    assert 1.8 < ratio < 2.2, f"Euler errors {err}: ratio {ratio:.3g}, expected 2 (first order)"
+    assert err[1] < 1e-3 * W0
+
+
+def crank_input(stop, h, omega):
+    """crank.angle = ω·t and crank.speed = ω at every communication point (fmpy's input)."""
+    t = np.arange(0.0, stop + h / 2, h)
+    sig = np.zeros(len(t), dtype=[("time", float), ("crank.angle", float), ("crank.speed", float)])
+    sig["time"], sig["crank.angle"], sig["crank.speed"] = t, omega * t, omega
+    return sig
+
+
+@pytest.mark.parametrize("solver", ["CVode", "Euler"])
+@pytest.mark.parametrize("machine", RIGID_PRESETS)
+def test_rigid_preset_model_exchange_matches_co_simulation(fmu_path, machine, solver):
+    """No continuous state: every output is a function of the crank inputs (fed as ω·t, which
+    fmpy interpolates linearly in Model Exchange: exact for a linear signal), evaluated when read;
+    at the recorded points it equals the co-simulation FMU's to rounding (1e-9 of each output's
+    scale)."""
+    from fmpy import read_model_description, simulate_fmu
+
+    path = fmu(fmu_path, "ReciprocatingDrive")
+    md = read_model_description(path)
+    outputs = [v.name for v in md.modelVariables if v.causality == "output"]
+    start = {k: v for k, v in preset_values(machine).items() if k != "crank.angle"}
+    omega = float(
+        start.pop(
+            "crank.speed", next(v.start for v in md.modelVariables if v.name == "crank.speed")
+        )
+    )
+    stop, h = 0.5, 1e-3
+    kw = dict(
+        stop_time=stop,
+        output_interval=h,
+        start_values=start,
+        input=crank_input(stop, h, omega),
+        output=outputs,
+    )
+    me = simulate_fmu(path, fmi_type="ModelExchange", solver=solver, step_size=h, **kw)
+    cs = simulate_fmu(path, fmi_type="CoSimulation", **kw)
+    assert len(me) == len(cs) > stop / h / 2
+    assert np.allclose(me["time"], cs["time"], rtol=0, atol=1e-12)
+    for name in outputs:
+        scale = max(np.max(np.abs(cs[name])), 1e-300)
+        d = np.max(np.abs(me[name] - cs[name])) / scale
+        assert d <= 1e-9, f"{name}: Model Exchange and co-simulation differ by {d:.3g} of its scale"
+    assert np.ptp(me["suspension.position"]) > 0
+
+
+# ------------------------------------------------------------------------------ the calls
+
+
+class Logged:
+    """An FMI 2.0 instance through fmpy's low-level API with its messages collected."""
+
+    def __init__(self, fmu_path, model, tmp_path, model_exchange=True):
+        from fmpy import extract, read_model_description
+        from fmpy.fmi2 import (
+            FMU2Model,
+            FMU2Slave,
+            fmi2CallbackAllocateMemoryTYPE,
+            fmi2CallbackFreeMemoryTYPE,
+            fmi2CallbackFunctions,
+            fmi2CallbackLoggerTYPE,
+        )
+
+        path = fmu(fmu_path, model)
+        md = read_model_description(path)
+        self.vr = {v.name: v.valueReference for v in md.modelVariables}
+        self.md = md
+        d = extract(path, unzipdir=str(tmp_path / ("me" if model_exchange else "cs")))
+        cls = FMU2Model if model_exchange else FMU2Slave
+        self.m = cls(guid=md.guid, unzipDirectory=d, modelIdentifier=model, instanceName="i")
+        self.messages: list[str] = []
+
+        # The logger takes the FMU's one variadic argument (it logs through "%s"), as in
+        # test_lowlevel.py, not through fmpy's process-wide proxy.
+        def log(env, name, status, category, fmt, message):
+            assert fmt == b"%s"
+            self.messages.append(message.decode())
+
+        self._fn = LOGGER6(log)  # keep a reference: ctypes does not
+        cb = fmi2CallbackFunctions()
+        cb.logger = fmi2CallbackLoggerTYPE(ctypes.cast(self._fn, ctypes.c_void_p).value)
+        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(ctypes.CDLL(None).calloc)
+        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(ctypes.CDLL(None).free)
+        self._cb = cb
+        self.m.instantiate(callbacks=cb)
+
+    def raw(self, name, *args):
+        """Calls the exported function directly (fmpy raises on an error status)."""
+        self.messages.clear()
+        return getattr(self.m.dll, name)(ctypes.c_void_p(self.m.component), *args)
+
+    def refused(self, name, *args, says):
+        st = self.raw(name, *args)
+        assert st == 3, f"{name} returned {st}, expected fmi2Error"
+        assert len(self.messages) == 1, self.messages
+        assert self.messages[0].startswith(f"{name}: ") and says in self.messages[0], self.messages
+        assert "\n" not in self.messages[0]
+
+
+def kloss_acceleration(w, load):
+    """(i·T_m(ω) − T_L)/J with Kloss's curve and the default parameters (docs/closed-loop.md),
+    written here from the formulas, not from the FMU."""
+    i, ws, tb, sb = 23.0, 2 * np.pi * 1500 / 60, 200.0, 0.15
+    J = 50.0 + i**2 * 0.5
+    s = 1 - i * w / ws
+    return (i * 2 * tb * s * sb / (s * s + sb * sb) - load) / J
+
+
+def test_state_machine_calls_and_refusals(fmu_path, tmp_path):
+    dbl2 = ctypes.c_double * 2
+    x, dx = dbl2(), dbl2()
+    flag, term = ctypes.c_int(), ctypes.c_int()
+    me = Logged(fmu_path, "DriveTrain", tmp_path)
+    vr, m = me.vr, me.m
+    # Before initialization: no Model Exchange call.
+    me.refused("fmi2SetTime", ctypes.c_double(0.0), says="illegal call sequence")
+    me.refused("fmi2GetDerivatives", dx, ctypes.c_size_t(2), says="illegal call sequence")
+    m.setupExperiment(startTime=0.0)
+    m.enterInitializationMode()
+    me.refused("fmi2EnterContinuousTimeMode", says="illegal call sequence")
+    m.setReal([vr["load.torque"]], [300.0])
+    # Initial unknowns are readable in initialization mode (libcosim reads every variable there).
+    w_start = next(v.start for v in me.md.modelVariables if v.name == "crank.speed_start")
+    d0 = m.getReal([vr["der(crank.angle)"], vr["der(crank.speed)"]])
+    assert d0[0] == float(w_start)
+    assert abs(d0[1] - kloss_acceleration(float(w_start), 300.0)) <= 1e-13 * abs(d0[1])
+    m.exitInitializationMode()
+    # Event mode: no continuous states set, no integrator step, no second event mode.
+    me.refused("fmi2SetContinuousStates", dx, ctypes.c_size_t(2), says="not allowed in event mode")
+    me.refused(
+        "fmi2CompletedIntegratorStep",
+        0,
+        ctypes.byref(flag),
+        ctypes.byref(term),
+        says="not allowed in event mode",
+    )
+    me.refused("fmi2EnterEventMode", says="not allowed in event mode")
+    assert m.newDiscreteStates() == (False, False, False, False, False, 0.0)
+    m.enterContinuousTimeMode()
+    me.refused("fmi2NewDiscreteStates", None, says="only in event mode")
+    me.refused("fmi2EnterContinuousTimeMode", says="only in event mode")
+    # Continuous-time mode: states in and out, derivatives from the formulas.
+    assert me.raw("fmi2GetContinuousStates", x, ctypes.c_size_t(2)) == 0
+    assert list(x) == [0.0, float(w_start)]
+    assert me.raw("fmi2GetNominalsOfContinuousStates", x, ctypes.c_size_t(2)) == 0
+    assert list(x) == [1.0, 1.0]
+    m.setTime(0.25)
+    m.setContinuousStates(dbl2(1.5, 5.0), 2)
+    assert me.raw("fmi2GetContinuousStates", x, ctypes.c_size_t(2)) == 0
+    assert list(x) == [1.5, 5.0]
+    assert me.raw("fmi2GetDerivatives", dx, ctypes.c_size_t(2)) == 0
+    assert dx[0] == 5.0
+    assert abs(dx[1] - kloss_acceleration(5.0, 300.0)) <= 1e-13 * abs(dx[1])
+    got = m.getReal([vr["der(crank.angle)"], vr["der(crank.speed)"], vr["crank.speed"]])
+    assert got == [dx[0], dx[1], 5.0]
+    assert vr["der(crank.angle)"] == 18 and vr["der(crank.speed)"] == 19  # as in FMI 3.0
+    assert me.raw("fmi2GetEventIndicators", x, ctypes.c_size_t(0)) == 0
+    me.refused("fmi2GetEventIndicators", x, ctypes.c_size_t(1), says="no event indicators")
+    me.refused("fmi2GetDerivatives", dx, ctypes.c_size_t(3), says="2 continuous states")
+    me.refused(
+        "fmi2SetContinuousStates",
+        dbl2(float("nan"), 0.0),
+        ctypes.c_size_t(2),
+        says="crank.angle = NaN",
+    )
+    me.refused("fmi2SetTime", ctypes.c_double(float("inf")), says="time = inf")
+    assert me.raw("fmi2CompletedIntegratorStep", 1, ctypes.byref(flag), ctypes.byref(term)) == 0
+    assert flag.value == 0 and term.value == 0
+    # Co-simulation calls on a Model Exchange instance.
+    me.refused("fmi2DoStep", ctypes.c_double(0.25), ctypes.c_double(1e-3), 1, says="Model Exchange")
+    m.enterEventMode()
+    m.terminate()
+    me.refused("fmi2SetTime", ctypes.c_double(1.0), says="illegal call sequence")
+    m.freeInstance()
+
+    # Model Exchange calls on a co-simulation instance.
+    cs = Logged(fmu_path, "DriveTrain", tmp_path, model_exchange=False)
+    cs.m.setupExperiment(startTime=0.0)
+    cs.m.enterInitializationMode()
+    cs.m.exitInitializationMode()
+    for name, args in [
+        ("fmi2SetTime", (ctypes.c_double(0.0),)),
+        ("fmi2EnterEventMode", ()),
+        ("fmi2GetDerivatives", (dx, ctypes.c_size_t(2))),
+        ("fmi2SetContinuousStates", (dx, ctypes.c_size_t(2))),
+    ]:
+        cs.refused(name, *args, says="not an instance for Model Exchange")
+    cs.m.doStep(0.0, 1e-3)
+    cs.m.terminate()
+    cs.m.freeInstance()
+
+
+def test_rigid_pump_steps_only_in_co_simulation(fmu_path, tmp_path):
+    """The pump's rigid mechanism as Model Exchange: no states; fmi2DoStep (whose fast path
+    otherwise skips every check) is refused on its instance."""
+    me = Logged(fmu_path, "ReciprocatingDrive", tmp_path)
+    me.m.setupExperiment(startTime=0.0)
+    me.m.enterInitializationMode()
+    me.m.exitInitializationMode()
+    me.m.newDiscreteStates()
+    me.m.enterContinuousTimeMode()
+    assert me.raw("fmi2GetDerivatives", None, ctypes.c_size_t(0)) == 0
+    me.refused("fmi2DoStep", ctypes.c_double(0.0), ctypes.c_double(1e-3), 1, says="Model Exchange")
+    me.m.terminate()
+    me.m.freeInstance()
