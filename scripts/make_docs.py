@@ -435,6 +435,10 @@ TABLE_SECTIONS = [
     ),
     ("Outputs", lambda v: v.causality == "output"),
     (
+        "Model Exchange: the continuous states and their derivatives",
+        lambda v: v.causality == "local",
+    ),
+    (
         "Parameters: mechanism, geometry, mass, process load",
         lambda v: (
             v.name.split(".")[0] in ("mechanism", "rotation", "crank", "geometry", "mass", "load")

@@ -2,9 +2,10 @@
 Model Exchange FMUs (target/fmu/<id>-fmi3.fmu) in ONE ordinary differential equation, integrated
 by scipy (DOP853), instead of two co-simulation FMUs with a one-step delay between them.
 
-The ODE's state is the drive train's (θ, ω). At every evaluation the algebraic loop between the
-pump's crank torque and the drive's crank acceleration is solved exactly (docs/closed-loop.md
-"The algebraic loop"): the pump's torque is affine in the crank acceleration ε,
+The ODE's state is the drive train's (θ, ω) and the pump's two cage states (ϑ, ϑ̇ of an elastic
+rod, docs/model.md §6; a rigid mechanism keeps them at 0 with derivative 0). At every evaluation
+the algebraic loop between the pump's crank torque and the drive's crank acceleration is solved
+exactly (docs/closed-loop.md "The algebraic loop"): the pump's torque is affine in the crank acceleration ε,
 T(ε) = T₀ + k·ε (k = m·TF², the reciprocating mass seen at the crank), and the drive's
 acceleration is affine in the load torque, ε(T) = a + b·T (b = −1/J). Each line is read from its
 FMU with two evaluations (exact up to rounding: the functions are affine, no step size to choose),
@@ -95,19 +96,23 @@ def run_model_exchange(
         p = _Me(fmu_dir / "ReciprocatingDrive-fmi3.fmu", pump or {}, d, "pump")
         q = _Me(fmu_dir / "DriveTrain-fmi3.fmu", drive or {}, d, "drivetrain")
         try:
-            if p.nx != 0 or q.nx != 2:
-                raise ValueError("expected a rigid pump (no states) and the drive train's θ, ω")
+            if p.nx != 2 or q.nx != 2:
+                raise ValueError("expected the pump's two cage states and the drive train's θ, ω")
             x = (ctypes.c_double * 2)()
             dx = (ctypes.c_double * 2)()
             q.fmu.getContinuousStates(x, 2)
             y0 = [x[0], x[1]]
+            p.fmu.getContinuousStates(x, 2)
+            y0 += [x[0], x[1]]
             crank = ["crank.angle", "crank.speed", "crank.acceleration"]
 
             def solve(t, y):
                 """Sets (θ, ω) and the loop's exact ε and T into both FMUs; returns ε."""
                 for m in (p, q):
                     m.fmu.setTime(t)
-                x[0], x[1] = y
+                x[0], x[1] = y[2], y[3]
+                p.fmu.setContinuousStates(x, 2)
+                x[0], x[1] = y[0], y[1]
                 q.fmu.setContinuousStates(x, 2)
                 # The drive's line ε(T) = a + b·T.
                 q.set(["load.torque"], [0.0])
@@ -141,7 +146,9 @@ def run_model_exchange(
 
             def rhs(t, y):
                 eps = solve(t, y)
-                return [y[1], eps]
+                # The cage's rates at the solved ε (the last value the loop set in the pump).
+                p.fmu.getContinuousStateDerivatives(dx, 2)
+                return [y[1], eps, dx[0], dx[1]]
 
             sol = solve_ivp(
                 rhs,

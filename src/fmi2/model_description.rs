@@ -8,6 +8,7 @@ use crate::fmi2::display_units;
 use crate::fmi2::logging::CATEGORIES;
 use crate::fmi2::model::FmuModel;
 use crate::fmi2::variables::{Binding, Causality, VarType, Variability};
+use crate::fmi3::model_description::own_state;
 
 const GUID_PLACEHOLDER: &str = "@GUID@";
 
@@ -162,6 +163,7 @@ fn body<M: FmuModel>() -> String {
         }
     }
     derivative_initial_unknowns::<M>(w);
+    own_state_initial_unknowns::<M>(w);
     let _ = writeln!(w, "    </InitialUnknowns>");
     let _ = writeln!(w, "  </ModelStructure>");
     let _ = writeln!(w, "</fmiModelDescription>");
@@ -185,10 +187,13 @@ fn model_exchange_element<M: FmuModel>(w: &mut String) {
     );
 }
 
-/// The 1-based index in ModelVariables of the table's variable that is the k-th state, and of
-/// its derivative (after the table's variables).
+/// The 1-based index in ModelVariables of the variable that is the k-th state (the table's, or
+/// its own after the derivatives), and of its derivative (after the table's variables).
 fn state_index<M: FmuModel>(k: usize) -> usize {
-    crate::fmi3::model_description::state_vr::<M>(k) + 1
+    match own_state::<M>(k) {
+        Some(_) => M::table().variables.len() + M::CONTINUOUS_STATES.len() + 1 + k,
+        None => crate::fmi3::model_description::state_vr::<M>(k) + 1,
+    }
 }
 
 fn derivative_index<M: FmuModel>(k: usize) -> usize {
@@ -212,6 +217,29 @@ fn derivative_variables<M: FmuModel>(w: &mut String) {
             state_index::<M>(k)
         );
         let _ = writeln!(w, "    </ScalarVariable>");
+    }
+    // The states that are no table variable (FmuModel::STATE_VARIABLES), after the derivatives.
+    for k in 0..M::CONTINUOUS_STATES.len() {
+        if let Some((unit, description)) = own_state::<M>(k) {
+            let _ = writeln!(w, "    <!-- {} -->", state_index::<M>(k));
+            let _ = writeln!(
+                w,
+                r#"    <ScalarVariable name="{}" valueReference="{}" causality="local" variability="continuous" description="{}">"#,
+                esc(M::CONTINUOUS_STATES[k].0),
+                crate::fmi3::model_description::state_vr::<M>(k),
+                esc(description)
+            );
+            let _ = writeln!(w, r#"      <Real unit="{}"/>"#, esc(unit));
+            let _ = writeln!(w, "    </ScalarVariable>");
+        }
+    }
+}
+
+fn own_state_initial_unknowns<M: FmuModel>(w: &mut String) {
+    for k in 0..M::CONTINUOUS_STATES.len() {
+        if own_state::<M>(k).is_some() {
+            let _ = writeln!(w, r#"      <Unknown index="{}"/>"#, state_index::<M>(k));
+        }
     }
 }
 

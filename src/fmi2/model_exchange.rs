@@ -19,6 +19,7 @@ use crate::fmi2::abi::{call, null_argument, slice};
 use crate::fmi2::instance::{Failure, Instance, Mode};
 use crate::fmi2::model::FmuModel;
 use crate::fmi2::variables::VarType;
+use crate::fmi3::model_description::own_state;
 
 /// The value reference of the derivative of the k-th continuous state: the same in the FMI 2.0
 /// and the FMI 3.0 model description (after the table's variables and FMI 3.0's `time`), so a
@@ -131,9 +132,9 @@ unsafe fn out_slice<'a>(
     }
 }
 
-/// fmi2GetReal of a list that names a state derivative (`der(...)`, not in the table): each
-/// value read on its own, the derivatives from the model. None: the list names none (the
-/// ordinary fmi2GetReal answers).
+/// fmi2GetReal of a list that names a state derivative (`der(...)`) or a state's own variable
+/// ([`FmuModel::STATE_VARIABLES`]), which are not in the table: each value read on its own,
+/// those from the model. None: the list names none (the ordinary fmi2GetReal answers).
 pub unsafe fn get_real_with_derivatives<M: FmuModel>(
     c: fmi2Component,
     vr: *const fmi2ValueReference,
@@ -147,7 +148,11 @@ pub unsafe fn get_real_with_derivatives<M: FmuModel>(
     let vrs = slice(vr, nvr)?;
     let first = derivative_vr::<M>(0);
     let is_der = |r: u32| r >= first && r < first + n as u32;
-    if !vrs.iter().any(|&r| is_der(r)) {
+    let own = |r: u32| {
+        let k = r.wrapping_sub(first + n as u32) as usize;
+        (k < n && own_state::<M>(k).is_some()).then_some(k)
+    };
+    if !vrs.iter().any(|&r| is_der(r) || own(r).is_some()) {
         return None;
     }
     let f = "fmi2GetReal";
@@ -167,6 +172,16 @@ pub unsafe fn get_real_with_derivatives<M: FmuModel>(
                     dx = Some(d);
                 }
                 dx.as_ref().map_or(f64::NAN, |d| d[(r - first) as usize])
+            } else if let Some(j) = own(r) {
+                let (_, _, state) = inst.me_parts_initial()?.ok_or_else(|| {
+                    Failure::error(format!(
+                        "{f}: {} is not available before fmi2EnterInitializationMode",
+                        M::CONTINUOUS_STATES[j].0
+                    ))
+                })?;
+                let mut x = vec![0.0; n];
+                M::continuous_states(state, &mut x);
+                x[j]
             } else {
                 let mut x = f64::NAN;
                 inst.get(f, VarType::Real, &[r], |_, v| x = v)?;

@@ -79,7 +79,9 @@ def test_same_variables_as_fmi2(fmu_path, model):
     assert (time.name, time.causality, time.unit) == ("time", "independent", "s")
     ders = [v for v in md3.modelVariables if v.valueReference > time.valueReference]
     assert [v.name for v in ders] == (
-        ["der(crank.angle)", "der(crank.speed)"] if model == "DriveTrain" else []
+        ["der(crank.angle)", "der(crank.speed)"]
+        if model == "DriveTrain"
+        else ["der(rod.cage_angle)", "der(rod.cage_rate)", "rod.cage_angle", "rod.cage_rate"]
     )
     # The FMI 2.0 file (Model Exchange beside co-simulation) has the same derivatives, last.
     assert time.valueReference == len(md2.modelVariables) - len(ders)
@@ -225,7 +227,7 @@ def test_fmu_state_get_set_serialize_repeat_a_run(fmu_path, tmp_path):
     third = run(t1, 50)
     s.freeFMUState(restored)
     # The independent variable reads the FMU's time.
-    assert s.getFloat64([len(md.modelVariables) - 1])[0] == t1 + 49 * h + h
+    assert s.getFloat64([vr["time"]])[0] == t1 + 49 * h + h
     s.terminate()
     s.freeInstance()
     assert np.ptp(first[:, 0]) > 0
@@ -600,8 +602,8 @@ def test_drive_train_model_exchange_cvode_matches_co_simulation(fmu_path):
 
 def test_model_exchange_calls_and_refusals(fmu_path, tmp_path):
     """The Model Exchange calls directly: states in and out, derivatives from the formulas, the
-    derivative variables readable, no event indicators; fmi3DoStep refused on an ME instance and
-    Model Exchange refused by the pump FMU (no continuous states in FMI 3.0), each with a message."""
+    derivative variables readable, no event indicators; fmi3DoStep refused on an ME instance with a
+    message; the pump's elastic rod accepted with its two cage states."""
     from fmpy import extract, read_model_description
     from fmpy.fmi3 import FMU3Model
 
@@ -649,8 +651,8 @@ def test_model_exchange_calls_and_refusals(fmu_path, tmp_path):
     m.terminate()
     m.freeInstance()
 
-    # The pump offers Model Exchange for its rigid mechanisms only: an elastic rod (kvo630) is
-    # refused at fmi3ExitInitializationMode, which leaves the instance in initialization mode.
+    # The pump offers Model Exchange for every machine, an elastic rod (kvo630) with its two cage
+    # states (test_model_exchange.py integrates them).
     p = fmu3(fmu_path, "ReciprocatingDrive")
     d = extract(str(p), unzipdir=str(tmp_path / "pump"))
     mdp = read_model_description(str(p))
@@ -658,8 +660,7 @@ def test_model_exchange_calls_and_refusals(fmu_path, tmp_path):
     pm = FMU3Model(
         guid=mdp.guid, unzipDirectory=d, modelIdentifier="ReciprocatingDrive", instanceName="p"
     )
-    messages.clear()
-    pm.instantiate(logMessage=lambda e, st, c, msg: messages.append(msg.decode()))
+    pm.instantiate()
     pm.enterInitializationMode()
     for k, v in preset_values("kvo630").items():
         var = vrp[k]
@@ -669,23 +670,9 @@ def test_model_exchange_calls_and_refusals(fmu_path, tmp_path):
             pm.setInt32([var.valueReference], [int(v)])
         else:
             pm.setBoolean([var.valueReference], [bool(v)])
-    st = pm.dll.fmi3ExitInitializationMode(pm.component)
-    assert st == 3
-    assert any(
-        "fmi3ExitInitializationMode: this machine has continuous states (an elastic rod)" in msg
-        for msg in messages
-    ), messages
-    # Still in initialization mode: the values can be corrected (a parameter can still be set).
-    assert (
-        pm.dll.fmi3SetFloat64(
-            pm.component,
-            (ctypes.c_uint32 * 1)(vrp["crank.speed"].valueReference),
-            ctypes.c_size_t(1),
-            (ctypes.c_double * 1)(1.0),
-            ctypes.c_size_t(1),
-        )
-        == 0
-    )
+    pm.exitInitializationMode()
+    assert pm.getNumberOfContinuousStates() == 2
+    pm.terminate()
     pm.freeInstance()
 
 
