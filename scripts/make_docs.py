@@ -397,6 +397,7 @@ def closed_loop_figure(out: pathlib.Path) -> None:
     # The script packs the system next to its figure when the FMUs are not the repository's
     # target/fmu; the docs show only the figure.
     (out / "ClosedLoop.ssp").unlink(missing_ok=True)
+    (out / "ClosedLoopME.ssp").unlink(missing_ok=True)
 
 
 # Sections of the variable table, in order: (title, which variables). A variable goes to the
