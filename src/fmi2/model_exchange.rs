@@ -36,8 +36,11 @@ enum Allowed {
     /// Continuous-time mode only (fmi2EnterEventMode, fmi2SetContinuousStates,
     /// fmi2CompletedIntegratorStep).
     ContinuousTime,
-    /// Either (fmi2SetTime and the getters).
+    /// Either (fmi2SetTime).
     Both,
+    /// Either, and initialization mode (the getters of states, derivatives, nominals and event
+    /// indicators: FMI 2.0 allows them there, on the initial values set so far).
+    Getter,
 }
 
 /// The message of a call a co-simulation instance does not take.
@@ -73,7 +76,8 @@ unsafe fn me<M: FmuModel>(
         if !inst.model_exchange {
             return Err(not_me_instance(function));
         }
-        if inst.mode() != Mode::StepComplete {
+        let initializing = inst.mode() == Mode::InitializationMode && allowed == Allowed::Getter;
+        if inst.mode() != Mode::StepComplete && !initializing {
             return Err(Failure::illegal(function, inst.mode()));
         }
         let ct = inst.me_continuous_time;
@@ -278,11 +282,12 @@ pub unsafe fn fmi2GetDerivatives<M: FmuModel>(
     nx: usize,
 ) -> fmi2Status {
     let f = "fmi2GetDerivatives";
-    me::<M>(c, f, Allowed::Both, |inst| {
+    me::<M>(c, f, Allowed::Getter, |inst| {
         state_count::<M>(f, nx)?;
         let dx = out_slice(f, "derivatives", derivatives, nx)?;
+        let mode = inst.mode();
         let (built, values, state) =
-            inst.me_parts().ok_or_else(|| Failure::illegal(f, inst.mode()))?;
+            inst.me_parts_initial()?.ok_or_else(|| Failure::illegal(f, mode))?;
         M::derivatives(built, values, state, dx)?;
         Ok(())
     })
@@ -295,7 +300,7 @@ pub unsafe fn fmi2GetEventIndicators<M: FmuModel>(
     _indicators: *mut fmi2Real,
     ni: usize,
 ) -> fmi2Status {
-    me::<M>(c, "fmi2GetEventIndicators", Allowed::Both, |_| {
+    me::<M>(c, "fmi2GetEventIndicators", Allowed::Getter, |_| {
         if ni != 0 {
             return Err(Failure::error(format!(
                 "fmi2GetEventIndicators: ni = {ni}; this FMU has no event indicators \
@@ -312,10 +317,11 @@ pub unsafe fn fmi2GetContinuousStates<M: FmuModel>(
     nx: usize,
 ) -> fmi2Status {
     let f = "fmi2GetContinuousStates";
-    me::<M>(c, f, Allowed::Both, |inst| {
+    me::<M>(c, f, Allowed::Getter, |inst| {
         state_count::<M>(f, nx)?;
         let out = out_slice(f, "x", x, nx)?;
-        let (_, _, state) = inst.me_parts().ok_or_else(|| Failure::illegal(f, inst.mode()))?;
+        let mode = inst.mode();
+        let (_, _, state) = inst.me_parts_initial()?.ok_or_else(|| Failure::illegal(f, mode))?;
         M::continuous_states(state, out);
         Ok(())
     })
@@ -327,7 +333,7 @@ pub unsafe fn fmi2GetNominalsOfContinuousStates<M: FmuModel>(
     nx: usize,
 ) -> fmi2Status {
     let f = "fmi2GetNominalsOfContinuousStates";
-    me::<M>(c, f, Allowed::Both, |_| {
+    me::<M>(c, f, Allowed::Getter, |_| {
         state_count::<M>(f, nx)?;
         out_slice(f, "x_nominal", nominals, nx)?.fill(1.0);
         Ok(())

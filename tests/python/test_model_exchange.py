@@ -243,6 +243,10 @@ def test_state_machine_calls_and_refusals(fmu_path, tmp_path):
     d0 = m.getReal([vr["der(crank.angle)"], vr["der(crank.speed)"]])
     assert d0[0] == float(w_start)
     assert abs(d0[1] - kloss_acceleration(float(w_start), 300.0)) <= 1e-13 * abs(d0[1])
+    assert me.raw("fmi2GetDerivatives", dx, ctypes.c_size_t(2)) == 0 and list(dx) == d0
+    assert me.raw("fmi2GetContinuousStates", x, ctypes.c_size_t(2)) == 0
+    assert list(x) == [0.0, float(w_start)]
+    me.refused("fmi2SetTime", ctypes.c_double(0.0), says="illegal call sequence")
     m.exitInitializationMode()
     # Event mode: no continuous states set, no integrator step, no second event mode.
     me.refused("fmi2SetContinuousStates", dx, ctypes.c_size_t(2), says="not allowed in event mode")
