@@ -15,7 +15,8 @@ fmi_sim_enabled() {
 # is reported in one line and does not stop the caller (the test reports it as the skip reason,
 # from target/tools/fmi-sim-install.log).
 ensure_fmi_sim() {
-    if [ -x "$FMI_SIM" ] && "$FMI_SIM" --version 2>/dev/null | grep -q " $FMI_SIM_VERSION\$"; then
+    # (fmi-sim 0.7.0 prints its version on standard error.)
+    if [ -x "$FMI_SIM" ] && "$FMI_SIM" --version 2>&1 | grep -q "fmi-sim $FMI_SIM_VERSION\$"; then
         return 0
     fi
     mkdir -p "$FMI_SIM_ROOT"
