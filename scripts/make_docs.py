@@ -401,6 +401,7 @@ def closed_loop_figure(out: pathlib.Path) -> None:
     # The script packs the system next to its figure when the FMUs are not the repository's
     # target/fmu; the docs show only the figure.
     (out / "ClosedLoop.ssp").unlink(missing_ok=True)
+    (out / "ClosedLoopME.ssp").unlink(missing_ok=True)
 
 
 # Sections of the variable table, in order: (title, which variables). A variable goes to the
@@ -438,6 +439,10 @@ TABLE_SECTIONS = [
         ),
     ),
     ("Outputs", lambda v: v.causality == "output"),
+    (
+        "Model Exchange: the continuous states and their derivatives",
+        lambda v: v.causality == "local",
+    ),
     (
         "Parameters: mechanism, geometry, mass, process load",
         lambda v: (

@@ -31,6 +31,11 @@ if aarch64_enabled; then
     ensure_qemu_aarch64  # tests/python/test_fmi3.py runs the aarch64-linux binary under qemu-user
 fi
 
+source scripts/lib/fmi_sim.sh
+if fmi_sim_enabled; then
+    ensure_fmi_sim  # tests/python/test_fmi_sim.py runs rust-fmi's fmi-sim (a second FMI 3.0 importer)
+fi
+
 echo "== scripts/build-wheel.sh (the installable package, tests/python/test_wheel.py)"
 bash scripts/build-wheel.sh --no-build
 # The wheel's tests install it into a venv of Debian's python3, which another user can run.

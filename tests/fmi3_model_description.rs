@@ -46,15 +46,21 @@ fn fmi3_declares_the_same_variables_as_fmi2() {
         let two = reciprocating_drive::fmi2::model_description::generate::<M>();
         let three = reciprocating_drive::fmi3::model_description::generate::<M>();
         let (a, mut b) = (names_and_refs(&two), names_and_refs(&three));
-        assert_eq!(a.len(), M::table().variables.len());
+        let n = M::table().variables.len();
+        let own = M::STATE_VARIABLES.len();
+        assert_eq!(a.len(), n + M::CONTINUOUS_STATES.len() + own);
         // FMI 3.0's independent variable, after the table's value references.
-        let n = M::table().variables.len().to_string();
-        assert_eq!(b.remove(0), ("time".to_string(), n));
-        // Then the derivatives of the continuous states (Model Exchange), if any.
-        let ders: Vec<String> = b.split_off(a.len()).into_iter().map(|(name, _)| name).collect();
+        assert_eq!(b.remove(0), ("time".to_string(), n.to_string()));
+        // Then, in both files, the derivatives of the continuous states (Model Exchange), if
+        // any, with the same value references.
+        let ders: Vec<String> = a[n..a.len() - own].iter().map(|(name, _)| name.clone()).collect();
         let expected: Vec<String> =
             M::CONTINUOUS_STATES.iter().map(|(s, _)| format!("der({s})")).collect();
         assert_eq!(ders, expected);
+        // Then the states that are no table variable (the pump's cage), after the derivatives.
+        let states: Vec<String> = a[a.len() - own..].iter().map(|(name, _)| name.clone()).collect();
+        let expected: Vec<String> = M::STATE_VARIABLES.iter().map(|s| s.0.to_string()).collect();
+        assert_eq!(states, expected);
         assert_eq!(a, b);
         assert!(three.contains("fmiVersion=\"3.0\""));
         // The instantiation token differs from the 2.0 GUID (another interface).

@@ -211,7 +211,7 @@ fn instantiate_checks_its_arguments() {
     assert!(log.last().contains("GUID"), "{}", log.last());
     let log = Inst::try_with(&api, "", None, false, guid).err().expect("NULL");
     assert!(log.last().contains("instanceName"));
-    // Model exchange is not offered.
+    // An fmuType other than co-simulation (1) and Model Exchange (0) is refused.
     let name = std::ffi::CString::new("me").unwrap();
     let g = std::ffi::CString::new(guid).unwrap();
     let cb = fmi_sys::fmi2::fmi2CallbackFunctions {
@@ -221,6 +221,10 @@ fn instantiate_checks_its_arguments() {
         stepFinished: None,
         componentEnvironment: std::ptr::null_mut(),
     };
+    let c =
+        unsafe { (api.fmi2Instantiate)(name.as_ptr(), 7, g.as_ptr(), std::ptr::null(), &cb, 0, 0) };
+    assert!(c.is_null());
+    // Model Exchange is offered beside co-simulation (docs/fmi-interface.md).
     let c = unsafe {
         (api.fmi2Instantiate)(
             name.as_ptr(),
@@ -232,7 +236,8 @@ fn instantiate_checks_its_arguments() {
             0,
         )
     };
-    assert!(c.is_null());
+    assert!(!c.is_null());
+    unsafe { (api.fmi2FreeInstance)(c) };
     // NULL callbacks struct: NULL, no crash.
     let c = unsafe {
         (api.fmi2Instantiate)(

@@ -2,9 +2,10 @@
 Model Exchange FMUs (target/fmu/<id>-fmi3.fmu) in ONE ordinary differential equation, integrated
 by scipy (DOP853), instead of two co-simulation FMUs with a one-step delay between them.
 
-The ODE's state is the drive train's (θ, ω). At every evaluation the algebraic loop between the
-pump's crank torque and the drive's crank acceleration is solved exactly (docs/closed-loop.md
-"The algebraic loop"): the pump's torque is affine in the crank acceleration ε,
+The ODE's state is the drive train's (θ, ω) and the pump's two cage states (ϑ, ϑ̇ of an elastic
+rod, docs/model.md §6; a rigid mechanism keeps them at 0 with derivative 0). At every evaluation
+the algebraic loop between the pump's crank torque and the drive's crank acceleration is solved
+exactly (docs/closed-loop.md "The algebraic loop"): the pump's torque is affine in the crank acceleration ε,
 T(ε) = T₀ + k·ε (k = m·TF², the reciprocating mass seen at the crank), and the drive's
 acceleration is affine in the load torque, ε(T) = a + b·T (b = −1/J). Each line is read from its
 FMU with one evaluation and one exact directional derivative (fmi3GetDirectionalDerivative,
@@ -26,46 +27,59 @@ from .system import FMU_DIR
 
 
 class _Me:
-    """One FMI 3.0 Model Exchange instance through fmpy, with its parameters set and
-    initialized, in continuous-time mode."""
+    """One Model Exchange instance (FMI 3.0, or FMI 2.0 as in the Model Exchange SSP) through
+    fmpy, with its parameters set and initialized, in continuous-time mode."""
 
     def __init__(self, path: pathlib.Path, values: dict, workdir: str, name: str):
         from fmpy import extract, read_model_description
+        from fmpy.fmi2 import FMU2Model
         from fmpy.fmi3 import FMU3Model
 
         self.md = read_model_description(str(path))
         if self.md.modelExchange is None:
-            raise ValueError(f"{path}: no Model Exchange (an FMI 3.0 FMU of this project needed)")
+            raise ValueError(f"{path}: no Model Exchange (an FMU of this project needed)")
         self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
         types = {v.name: v.type for v in self.md.modelVariables}
         d = extract(str(path), unzipdir=str(pathlib.Path(workdir) / name))
-        self.fmu = FMU3Model(
+        fmi2 = self.md.fmiVersion == "2.0"
+        self.fmu = (FMU2Model if fmi2 else FMU3Model)(
             guid=self.md.guid,
             unzipDirectory=d,
             modelIdentifier=self.md.modelExchange.modelIdentifier,
             instanceName=name,
         )
-        self.fmu.instantiate()
-        self.fmu.enterInitializationMode()
+        f = self.fmu
+        # The two standards' names of the same calls.
+        self._set = f.setReal if fmi2 else f.setFloat64
+        self._get = f.getReal if fmi2 else f.getFloat64
+        self.get_derivatives = f.getDerivatives if fmi2 else f.getContinuousStateDerivatives
+        set_int = f.setInteger if fmi2 else f.setInt32
+        f.instantiate()
+        if fmi2:
+            f.setupExperiment(startTime=0.0)
+        f.enterInitializationMode()
         for k, v in values.items():
             if k not in self.vr:
                 raise KeyError(f"{path.name}: no variable {k!r}")
-            if types[k] == "Float64":
-                self.fmu.setFloat64([self.vr[k]], [float(v)])
-            elif types[k] == "Int32":
-                self.fmu.setInt32([self.vr[k]], [int(v)])
+            if types[k] in ("Float64", "Real"):
+                self._set([self.vr[k]], [float(v)])
+            elif types[k] in ("Int32", "Integer"):
+                set_int([self.vr[k]], [int(v)])
             else:
-                self.fmu.setBoolean([self.vr[k]], [bool(v)])
-        self.fmu.exitInitializationMode()
-        self.fmu.updateDiscreteStates()
-        self.fmu.enterContinuousTimeMode()
-        self.nx = self.fmu.getNumberOfContinuousStates()
+                f.setBoolean([self.vr[k]], [bool(v)])
+        f.exitInitializationMode()
+        if fmi2:
+            f.newDiscreteStates()
+        else:
+            f.updateDiscreteStates()
+        f.enterContinuousTimeMode()
+        self.nx = self.md.numberOfContinuousStates
 
     def set(self, names, values):
-        self.fmu.setFloat64([self.vr[n] for n in names], [float(v) for v in values])
+        self._set([self.vr[n] for n in names], [float(v) for v in values])
 
     def get(self, names):
-        return self.fmu.getFloat64([self.vr[n] for n in names])
+        return self._get([self.vr[n] for n in names])
 
     def close(self):
         with contextlib.suppress(Exception):
@@ -80,10 +94,12 @@ def run_model_exchange(
     fmu_dir: pathlib.Path = FMU_DIR,
     rtol: float = 1e-10,
     atol: float = 1e-10,
+    fmus: tuple[pathlib.Path, pathlib.Path] | None = None,
 ) -> dict:
     """Integrates the closed loop over [0, t_eval[-1]] and returns time and the recorded series
     (the keys of `system.RECORD`: drivetrain.crank.speed, ..., pump.crank.torque) at `t_eval`.
     `pump` and `drive` are the two FMUs' parameter values (names as in their model descriptions).
+    `fmus`: the pump's and the drive train's FMU (default: the FMI 3.0 ones in `fmu_dir`).
     Raises RuntimeError with scipy's message when the integration fails."""
     import ctypes
 
@@ -92,15 +108,21 @@ def run_model_exchange(
     t_eval = np.asarray(t_eval, dtype=float)
     fmu_dir = pathlib.Path(fmu_dir)
     with tempfile.TemporaryDirectory() as d:
-        p = _Me(fmu_dir / "ReciprocatingDrive-fmi3.fmu", pump or {}, d, "pump")
-        q = _Me(fmu_dir / "DriveTrain-fmi3.fmu", drive or {}, d, "drivetrain")
+        pump_fmu, drive_fmu = fmus or (
+            fmu_dir / "ReciprocatingDrive-fmi3.fmu",
+            fmu_dir / "DriveTrain-fmi3.fmu",
+        )
+        p = _Me(pathlib.Path(pump_fmu), pump or {}, d, "pump")
+        q = _Me(pathlib.Path(drive_fmu), drive or {}, d, "drivetrain")
         try:
-            if p.nx != 0 or q.nx != 2:
-                raise ValueError("expected a rigid pump (no states) and the drive train's θ, ω")
+            if p.nx != 2 or q.nx != 2:
+                raise ValueError("expected the pump's two cage states and the drive train's θ, ω")
             x = (ctypes.c_double * 2)()
             dx = (ctypes.c_double * 2)()
             q.fmu.getContinuousStates(x, 2)
             y0 = [x[0], x[1]]
+            p.fmu.getContinuousStates(x, 2)
+            y0 += [x[0], x[1]]
             crank = ["crank.angle", "crank.speed", "crank.acceleration"]
 
             der_speed, load = q.vr["der(crank.speed)"], q.vr["load.torque"]
@@ -111,11 +133,13 @@ def run_model_exchange(
                 """Sets (θ, ω) and the loop's exact ε and T into both FMUs; returns ε."""
                 for m in (p, q):
                     m.fmu.setTime(t)
-                x[0], x[1] = y
+                x[0], x[1] = y[2], y[3]
+                p.fmu.setContinuousStates(x, 2)
+                x[0], x[1] = y[0], y[1]
                 q.fmu.setContinuousStates(x, 2)
                 # The drive's line ε(T) = a + b·T: its value at T = 0 and its exact slope.
                 q.set(["load.torque"], [0.0])
-                q.fmu.getContinuousStateDerivatives(dx, 2)
+                q.get_derivatives(dx, 2)
                 a = dx[1]
                 b = q.fmu.getDirectionalDerivative([der_speed], [load], [1.0])[0]
                 # Newton from the last solution: T(ε) and k = ∂T/∂ε exact on the affine piece
@@ -140,7 +164,9 @@ def run_model_exchange(
 
             def rhs(t, y):
                 eps = solve(t, y)
-                return [y[1], eps]
+                # The cage's rates at the solved ε (the last value the loop set in the pump).
+                p.get_derivatives(dx, 2)
+                return [y[1], eps, dx[0], dx[1]]
 
             sol = solve_ivp(
                 rhs,
@@ -165,3 +191,59 @@ def run_model_exchange(
         finally:
             p.close()
             q.close()
+
+
+#: The connections the loop solved here has (system.py's docstring), as the SSD writes them:
+#: (startElement, startConnector, endElement, endConnector).
+CONNECTIONS = {
+    ("pump", "crank.torque", "drivetrain", "load.torque"),
+    ("drivetrain", "crank.angle", "pump", "crank.angle"),
+    ("drivetrain", "crank.speed", "pump", "crank.speed"),
+    ("drivetrain", "crank.acceleration", "pump", "crank.acceleration"),
+}
+
+
+def run_model_exchange_ssp(ssp: pathlib.Path, t_eval, rtol: float = 1e-10, atol: float = 1e-10):
+    """`run_model_exchange` of the system in the Model Exchange SSP (target/fmu/ClosedLoopME.ssp):
+    its two FMUs (FMI 2.0, both interfaces) with its parameter sets. Raises ValueError naming the
+    file when the SSP is not this loop (other components or connections)."""
+    import xml.etree.ElementTree as ET
+    import zipfile
+
+    from .presets import read_ssv
+
+    ns = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription"}
+    with tempfile.TemporaryDirectory() as d:
+        with zipfile.ZipFile(ssp) as z:
+            z.extractall(d)
+        root = ET.parse(pathlib.Path(d) / "SystemStructure.ssd").getroot()
+        comps = {}
+        for c in root.iterfind(".//ssd:Component", ns):
+            binding = c.find(".//ssd:ParameterBinding", ns)
+            values = (
+                read_ssv(pathlib.Path(d) / binding.get("source")) if binding is not None else {}
+            )
+            comps[c.get("name")] = (pathlib.Path(d) / c.get("source"), values)
+        conns = {
+            (
+                c.get("startElement"),
+                c.get("startConnector"),
+                c.get("endElement"),
+                c.get("endConnector"),
+            )
+            for c in root.iterfind(".//ssd:Connection", ns)
+        }
+        if set(comps) != {"pump", "drivetrain"} or conns != CONNECTIONS:
+            raise ValueError(
+                f"{ssp}: not the closed loop of docs/closed-loop.md (components {sorted(comps)}, "
+                f"{len(conns)} connections); allowed: pump and drivetrain connected as in "
+                "ssp/ClosedLoop/SystemStructureME.ssd"
+            )
+        return run_model_exchange(
+            t_eval,
+            comps["pump"][1],
+            comps["drivetrain"][1],
+            rtol=rtol,
+            atol=atol,
+            fmus=(comps["pump"][0], comps["drivetrain"][0]),
+        )

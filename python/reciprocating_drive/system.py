@@ -27,6 +27,9 @@ import numpy as np
 from . import artifacts
 
 SSD = artifacts.ssp_system() / "SystemStructure.ssd"
+#: The Model Exchange variant (same components and connections, OMSimulator's variable-step
+#: solver), packed as SystemStructure.ssd of ClosedLoopME.ssp.
+SSD_ME = artifacts.ssp_system() / "SystemStructureME.ssd"
 FMU_DIR = artifacts.fmu_dir()
 
 
@@ -74,15 +77,17 @@ def build_ssp(
     pump: dict | None = None,
     drive: dict | None = None,
     fmu_dir: pathlib.Path = FMU_DIR,
+    model_exchange: bool = False,
 ) -> pathlib.Path:
     """Writes the system as `out` (.ssp, a zip): SystemStructure.ssd, resources/ with both FMUs
     and the two components' parameter sets (pump.ssv, drivetrain.ssv; the repository's
-    ssp/ClosedLoop/*.ssv unless `pump`/`drive` values are given)."""
+    ssp/ClosedLoop/*.ssv unless `pump`/`drive` values are given). `model_exchange`: the Model
+    Exchange variant (SystemStructureME.ssd; the FMI 2.0 FMUs carry both interfaces)."""
     out = pathlib.Path(out)
     with tempfile.TemporaryDirectory() as d:
         d = pathlib.Path(d)
         (d / "resources").mkdir()
-        shutil.copy(SSD, d / "SystemStructure.ssd")
+        shutil.copy(SSD_ME if model_exchange else SSD, d / "SystemStructure.ssd")
         for fmu in ("ReciprocatingDrive.fmu", "DriveTrain.fmu"):
             src = pathlib.Path(fmu_dir) / fmu
             if not src.is_file():

@@ -21,6 +21,7 @@ use crate::fmi2::instance::{copy_name, snapshot_magic, Failure, Instance, Severi
 use crate::fmi2::logging::{Category, Logger};
 use crate::fmi2::model::FmuModel;
 use crate::fmi2::model_description::guid;
+use crate::fmi2::model_exchange;
 use crate::fmi2::resources::resource_dir;
 use crate::fmi2::variables::VarType;
 
@@ -55,7 +56,7 @@ fn status_of(s: Severity) -> fmi2Status {
 }
 
 /// Runs `f` on the instance behind `c`: NULL check, panic barrier, status and logging.
-unsafe fn call<M: FmuModel>(
+pub(crate) unsafe fn call<M: FmuModel>(
     c: fmi2Component,
     function: &str,
     f: impl FnOnce(&mut Instance<M>) -> Result<(), Failure>,
@@ -104,7 +105,7 @@ unsafe fn panicked<M: FmuModel>(inst: *mut Instance<M>, function: &str) -> fmi2S
     fmi2Status_fmi2Fatal
 }
 
-fn null_argument(function: &str, what: &str) -> Failure {
+pub(crate) fn null_argument(function: &str, what: &str) -> Failure {
     Failure::error(format!("{function}: {what} is NULL"))
 }
 
@@ -168,9 +169,17 @@ pub unsafe fn fmi2Instantiate<M: FmuModel>(
         if name.is_empty() {
             return refuse("instanceName is NULL or empty".into());
         }
-        if fmuType != fmi2Type_fmi2CoSimulation {
+        // Model Exchange beside co-simulation (docs/fmi-interface.md "Model Exchange (FMI 2.0)").
+        let model_exchange = fmuType == fmi2Type_fmi2ModelExchange && M::MODEL_EXCHANGE;
+        if fmuType != fmi2Type_fmi2CoSimulation && !model_exchange {
             return refuse(format!(
-                "fmuType {fmuType} is not supported: this FMU is co-simulation only"
+                "fmuType {fmuType} is not supported: allowed: {} ({})",
+                fmi2Type_fmi2CoSimulation,
+                if M::MODEL_EXCHANGE {
+                    "fmi2CoSimulation) or 0 (fmi2ModelExchange"
+                } else {
+                    "fmi2CoSimulation; this FMU has no Model Exchange"
+                }
             ));
         }
         match opt_str(fmuGUID) {
@@ -185,7 +194,8 @@ pub unsafe fn fmi2Instantiate<M: FmuModel>(
         }
         let location = opt_str(fmuResourceLocation);
         let dir = resource_dir(location);
-        let inst = Box::new(Instance::<M>::new(logger, dir));
+        let mut inst = Box::new(Instance::<M>::new(logger, dir));
+        inst.model_exchange = model_exchange;
         inst.log(
             fmi2Status_fmi2OK,
             Category::Events,
@@ -237,7 +247,12 @@ pub unsafe fn fmi2EnterInitializationMode<M: FmuModel>(c: fmi2Component) -> fmi2
 
 #[inline]
 pub unsafe fn fmi2ExitInitializationMode<M: FmuModel>(c: fmi2Component) -> fmi2Status {
-    call::<M>(c, "fmi2ExitInitializationMode", |inst| inst.exit_initialization_mode())
+    call::<M>(c, "fmi2ExitInitializationMode", |inst| {
+        if inst.model_exchange {
+            return model_exchange::exit_initialization_mode(inst);
+        }
+        inst.exit_initialization_mode()
+    })
 }
 
 #[inline]
@@ -309,6 +324,10 @@ pub unsafe fn fmi2GetReal<M: FmuModel>(
             Ok(false) => {}
             Err(_) => return panicked(inst, "fmi2GetReal"),
         }
+    }
+    // Model Exchange: the state derivatives are not in the table.
+    if let Some(status) = model_exchange::get_real_with_derivatives::<M>(c, vr, nvr, value) {
+        return status;
     }
     get_values::<M, _>(c, "fmi2GetReal", VarType::Real, vr, nvr, value, |v| v)
 }
@@ -658,7 +677,10 @@ pub unsafe fn fmi2DoStep<M: FmuModel>(
 /// fmi2DoStep's general path, out of line so that the fast path sets up no stack frame for it.
 #[inline(never)]
 unsafe fn do_step<M: FmuModel>(c: fmi2Component, current: fmi2Real, h: fmi2Real) -> fmi2Status {
-    call::<M>(c, "fmi2DoStep", |inst| inst.do_step(current, h))
+    call::<M>(c, "fmi2DoStep", |inst| {
+        model_exchange::refuse_model_exchange(inst, "fmi2DoStep")?;
+        inst.do_step(current, h)
+    })
 }
 
 #[inline]
@@ -686,6 +708,7 @@ pub unsafe fn fmi2GetRealStatus<M: FmuModel>(
     value: *mut fmi2Real,
 ) -> fmi2Status {
     call::<M>(c, "fmi2GetRealStatus", |inst| {
+        model_exchange::refuse_model_exchange(inst, "fmi2GetRealStatus")?;
         if s != fmi2StatusKind_fmi2LastSuccessfulTime {
             return Err(Failure::discard(format!(
                 "fmi2GetRealStatus: status kind {s} is not available"
@@ -1085,5 +1108,7 @@ macro_rules! export_fmu {
             const _: fmi2GetBooleanStatusTYPE = Some(fmi2GetBooleanStatus);
             const _: fmi2GetStringStatusTYPE = Some(fmi2GetStringStatus);
         };
+        // FMI 2.0 Model Exchange in the same shared object (src/fmi2/model_exchange.rs).
+        $crate::export_fmu2_model_exchange!($model);
     };
 }

@@ -200,7 +200,13 @@ pub struct Instance<M: FmuModel> {
     /// Instantiated for Model Exchange (FMI 3.0, `crate::fmi3`): the ME functions are allowed,
     /// fmi3DoStep is not.
     pub model_exchange: bool,
+    /// FMI 2.0 Model Exchange (`crate::fmi2::model_exchange`): after initialization, in
+    /// continuous-time mode (true) or event mode (false).
+    pub me_continuous_time: bool,
 }
+
+/// Model Exchange: the built model, the values and the state ([`Instance::me_parts_initial`]).
+pub type MeParts<'a, M> = (&'a <M as FmuModel>::Built, &'a [f64], &'a <M as FmuModel>::State);
 
 impl<M: FmuModel> Instance<M> {
     pub fn new(logger: Logger, resource_dir: Option<PathBuf>) -> Instance<M> {
@@ -217,6 +223,7 @@ impl<M: FmuModel> Instance<M> {
             plan: ReadPlan::empty(),
             inputs: InputPlan::empty(),
             model_exchange: false,
+            me_continuous_time: false,
         }
     }
 
@@ -232,6 +239,21 @@ impl<M: FmuModel> Instance<M> {
     /// initialized.
     pub fn me_parts(&self) -> Option<(&M::Built, &[f64], &M::State)> {
         Some((self.model.as_ref()?, &self.core.values, &self.core.state))
+    }
+
+    /// Model Exchange: [`Instance::me_parts`], and in initialization mode the machine and initial
+    /// state the values set so far give (the provisional model fmi2GetReal of an output builds
+    /// there), so that the states and their derivatives, initial unknowns, are readable there.
+    pub fn me_parts_initial(&mut self) -> Result<Option<MeParts<'_, M>>, Failure> {
+        if self.model.is_none() && self.core.mode == Mode::InitializationMode {
+            self.refresh_outputs()?;
+        }
+        let Self { core, model, provisional, .. } = self;
+        Ok(match (model.as_ref(), provisional.as_ref()) {
+            (Some(m), _) => Some((m, &core.values[..], &core.state)),
+            (None, Some((m, s))) => Some((m, &core.values[..], s)),
+            (None, None) => None,
+        })
     }
 
     /// Model Exchange: the importer's solver sets the time or the continuous states; the outputs
@@ -711,6 +733,7 @@ impl<M: FmuModel> Instance<M> {
     #[inline]
     pub fn quick_step(&mut self, current: f64, h: f64) -> bool {
         self.core.mode == Mode::StepComplete
+            && !self.model_exchange
             && !self.logger.wants(Category::Calls)
             && self.step_arguments_ok(current, h)
             && self.carry(current, h)

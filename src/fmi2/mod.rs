@@ -12,6 +12,7 @@ pub mod instance;
 pub mod logging;
 pub mod model;
 pub mod model_description;
+pub mod model_exchange;
 mod plans;
 pub mod resources;
 pub mod variables;

@@ -193,6 +193,15 @@ pub trait FmuModel: Sized + 'static {
     /// offer Model Exchange. The number of states must not depend on the parameters.
     const CONTINUOUS_STATES: &'static [(&'static str, &'static str)] = &[];
 
+    /// Model Exchange: the continuous states of `CONTINUOUS_STATES` that are no variable of the
+    /// table, each as (name, unit, description). The generators declare each as a local
+    /// continuous variable of its own, after the derivatives (value reference: FMI 3.0's
+    /// `time`'s + 1 + the number of states + its index in `CONTINUOUS_STATES`), read through
+    /// [`FmuModel::continuous_states`]. WHY: a state whose value is not what a table output
+    /// reports in every machine (the elastic rod's cage angle is `rod.angle` only for an elastic
+    /// rod) must be a variable of its own.
+    const STATE_VARIABLES: &'static [(&'static str, &'static str, &'static str)] = &[];
+
     /// Model Exchange (FMI 3.0) is declared: by default when the model has continuous states; a
     /// model without any (outputs functions of the inputs) may declare it too.
     const MODEL_EXCHANGE: bool = !Self::CONTINUOUS_STATES.is_empty();

@@ -8,6 +8,7 @@ use crate::fmi2::display_units;
 use crate::fmi2::logging::CATEGORIES;
 use crate::fmi2::model::FmuModel;
 use crate::fmi2::variables::{Binding, Causality, VarType, Variability};
+use crate::fmi3::model_description::own_state;
 
 const GUID_PLACEHOLDER: &str = "@GUID@";
 
@@ -47,6 +48,7 @@ fn body<M: FmuModel>() -> String {
         env!("CARGO_PKG_VERSION"),
         env!("CARGO_PKG_VERSION")
     );
+    model_exchange_element::<M>(w);
     let _ = writeln!(
         w,
         r#"  <CoSimulation modelIdentifier="{}" needsExecutionTool="false" canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" maxOutputDerivativeOrder="0" canRunAsynchronuously="false" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="true" canSerializeFMUstate="true" providesDirectionalDerivative="{}"/>"#,
@@ -133,6 +135,7 @@ fn body<M: FmuModel>() -> String {
         let _ = writeln!(w, "      <{}{attrs}/>", ty_name(v.ty));
         let _ = writeln!(w, "    </ScalarVariable>");
     }
+    derivative_variables::<M>(w);
     let _ = writeln!(w, "  </ModelVariables>");
     let _ = writeln!(w, "  <ModelStructure>");
     let _ = writeln!(w, "    <Outputs>");
@@ -151,6 +154,7 @@ fn body<M: FmuModel>() -> String {
         }
     }
     let _ = writeln!(w, "    </Outputs>");
+    derivatives_structure::<M>(w);
     // Outputs and calculated parameters are computed at initialization from all knowns (inputs
     // and parameters): no `dependencies` attribute means exactly that.
     let _ = writeln!(w, "    <InitialUnknowns>");
@@ -159,10 +163,103 @@ fn body<M: FmuModel>() -> String {
             let _ = writeln!(w, r#"      <Unknown index="{}"/>"#, vr + 1);
         }
     }
+    derivative_initial_unknowns::<M>(w);
+    own_state_initial_unknowns::<M>(w);
     let _ = writeln!(w, "    </InitialUnknowns>");
     let _ = writeln!(w, "  </ModelStructure>");
     let _ = writeln!(w, "</fmiModelDescription>");
     x
+}
+
+// ------------------------------------------------------------------------------ Model Exchange
+// (docs/fmi-interface.md "Model Exchange (FMI 2.0)"): the <ModelExchange> element beside
+// <CoSimulation> (same modelIdentifier, one binary), a `der(...)` variable per continuous state
+// after the table's (value references as in the FMI 3.0 file), and their <Derivatives>.
+
+fn model_exchange_element<M: FmuModel>(w: &mut String) {
+    if !M::MODEL_EXCHANGE {
+        return;
+    }
+    // completedIntegratorStepNotNeeded: the FMU has no events a step could trigger.
+    let _ = writeln!(
+        w,
+        r#"  <ModelExchange modelIdentifier="{}" needsExecutionTool="false" completedIntegratorStepNotNeeded="true" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="true" canSerializeFMUstate="true" providesDirectionalDerivative="false"/>"#,
+        M::info().model_identifier
+    );
+}
+
+/// The 1-based index in ModelVariables of the variable that is the k-th state (the table's, or
+/// its own after the derivatives), and of its derivative (after the table's variables).
+fn state_index<M: FmuModel>(k: usize) -> usize {
+    match own_state::<M>(k) {
+        Some(_) => M::table().variables.len() + M::CONTINUOUS_STATES.len() + 1 + k,
+        None => crate::fmi3::model_description::state_vr::<M>(k) + 1,
+    }
+}
+
+fn derivative_index<M: FmuModel>(k: usize) -> usize {
+    M::table().variables.len() + 1 + k
+}
+
+fn derivative_variables<M: FmuModel>(w: &mut String) {
+    for (k, (state, unit)) in M::CONTINUOUS_STATES.iter().enumerate() {
+        let _ = writeln!(w, "    <!-- {} -->", derivative_index::<M>(k));
+        let _ = writeln!(
+            w,
+            r#"    <ScalarVariable name="der({})" valueReference="{}" causality="local" variability="continuous" description="Derivative of {} (Model Exchange)">"#,
+            esc(state),
+            crate::fmi2::model_exchange::derivative_vr::<M>(k),
+            esc(state)
+        );
+        let _ = writeln!(
+            w,
+            r#"      <Real unit="{}" derivative="{}"/>"#,
+            esc(unit),
+            state_index::<M>(k)
+        );
+        let _ = writeln!(w, "    </ScalarVariable>");
+    }
+    // The states that are no table variable (FmuModel::STATE_VARIABLES), after the derivatives.
+    for k in 0..M::CONTINUOUS_STATES.len() {
+        if let Some((unit, description)) = own_state::<M>(k) {
+            let _ = writeln!(w, "    <!-- {} -->", state_index::<M>(k));
+            let _ = writeln!(
+                w,
+                r#"    <ScalarVariable name="{}" valueReference="{}" causality="local" variability="continuous" description="{}">"#,
+                esc(M::CONTINUOUS_STATES[k].0),
+                crate::fmi3::model_description::state_vr::<M>(k),
+                esc(description)
+            );
+            let _ = writeln!(w, r#"      <Real unit="{}"/>"#, esc(unit));
+            let _ = writeln!(w, "    </ScalarVariable>");
+        }
+    }
+}
+
+fn own_state_initial_unknowns<M: FmuModel>(w: &mut String) {
+    for k in 0..M::CONTINUOUS_STATES.len() {
+        if own_state::<M>(k).is_some() {
+            let _ = writeln!(w, r#"      <Unknown index="{}"/>"#, state_index::<M>(k));
+        }
+    }
+}
+
+/// No `dependencies` attribute: each derivative may depend on every state and input.
+fn derivatives_structure<M: FmuModel>(w: &mut String) {
+    if M::CONTINUOUS_STATES.is_empty() {
+        return;
+    }
+    let _ = writeln!(w, "    <Derivatives>");
+    for k in 0..M::CONTINUOUS_STATES.len() {
+        let _ = writeln!(w, r#"      <Unknown index="{}"/>"#, derivative_index::<M>(k));
+    }
+    let _ = writeln!(w, "    </Derivatives>");
+}
+
+fn derivative_initial_unknowns<M: FmuModel>(w: &mut String) {
+    for k in 0..M::CONTINUOUS_STATES.len() {
+        let _ = writeln!(w, r#"      <Unknown index="{}"/>"#, derivative_index::<M>(k));
+    }
 }
 
 /// GUID derived from the interface itself: any change to the table changes it, so an importer

@@ -497,21 +497,33 @@ pub unsafe fn fmi3GetFloat64<M: FmuModel>(
 }
 
 /// `time`, or the derivative of a continuous state (after initialization).
-fn extra_value<M: FmuModel>(inst: &Instance<M>, vr: u32) -> Result<f64, Failure> {
+fn extra_value<M: FmuModel>(inst: &mut Instance<M>, vr: u32) -> Result<f64, Failure> {
     let f = "fmi3GetFloat64";
     let n = M::CONTINUOUS_STATES.len();
     if vr == time_vr::<M>() {
         return Ok(inst.time());
     }
     let k = (vr - time_vr::<M>() - 1) as usize;
+    // A state's own variable (FmuModel::STATE_VARIABLES), after the derivatives.
+    if k >= n && k < 2 * n && crate::fmi3::model_description::own_state::<M>(k - n).is_some() {
+        let (_, _, state) = inst.me_parts_initial()?.ok_or_else(|| {
+            Failure::error(format!(
+                "{f}: {} is not available before fmi3EnterInitializationMode",
+                M::CONTINUOUS_STATES[k - n].0
+            ))
+        })?;
+        let mut x = vec![0.0; n];
+        M::continuous_states(state, &mut x);
+        return Ok(x[k - n]);
+    }
     if k >= n {
         return Err(Failure::error(format!(
             "{f}: value reference {vr} is not a variable of this FMU"
         )));
     }
-    let (built, values, state) = inst.me_parts().ok_or_else(|| {
+    let (built, values, state) = inst.me_parts_initial()?.ok_or_else(|| {
         Failure::error(format!(
-            "{f}: der({}) is not available before fmi3ExitInitializationMode",
+            "{f}: der({}) is not available before fmi3EnterInitializationMode",
             M::CONTINUOUS_STATES[k].0
         ))
     })?;

@@ -159,6 +159,7 @@ fn body<M: FmuModel>() -> String {
             state_vr::<M>(k)
         );
     }
+    own_state_variables::<M>(w);
     let _ = writeln!(w, "  </ModelVariables>");
     let _ = writeln!(w, "  <ModelStructure>");
     for (vr, v) in table.variables.iter().enumerate() {
@@ -198,6 +199,9 @@ fn body<M: FmuModel>() -> String {
     }
     for k in 0..M::CONTINUOUS_STATES.len() {
         let _ = writeln!(w, r#"    <InitialUnknown valueReference="{}"/>"#, derivative_vr::<M>(k));
+    }
+    for k in (0..M::CONTINUOUS_STATES.len()).filter(|&k| own_state::<M>(k).is_some()) {
+        let _ = writeln!(w, r#"    <InitialUnknown valueReference="{}"/>"#, state_vr::<M>(k));
     }
     let _ = writeln!(w, "  </ModelStructure>");
     let _ = writeln!(w, "</fmiModelDescription>");
@@ -248,10 +252,41 @@ pub fn derivative_vr<M: FmuModel>(k: usize) -> u32 {
     time_vr::<M>() + 1 + k as u32
 }
 
-/// The value reference of the table's variable that is the k-th continuous state.
+/// The value reference of the variable that is the k-th continuous state: the table's variable
+/// of that name, or the state's own variable ([`FmuModel::STATE_VARIABLES`]) after the
+/// derivatives.
 pub fn state_vr<M: FmuModel>(k: usize) -> usize {
     let name = M::CONTINUOUS_STATES[k].0;
-    M::table().variables.iter().position(|v| v.name == name).unwrap_or(usize::MAX)
+    M::table()
+        .variables
+        .iter()
+        .position(|v| v.name == name)
+        .unwrap_or_else(|| derivative_vr::<M>(M::CONTINUOUS_STATES.len() + k) as usize)
+}
+
+/// The k-th continuous state's own variable (unit, description), if it is no table variable.
+pub fn own_state<M: FmuModel>(k: usize) -> Option<(&'static str, &'static str)> {
+    let name = M::CONTINUOUS_STATES[k].0;
+    if M::table().variables.iter().any(|v| v.name == name) {
+        return None;
+    }
+    M::STATE_VARIABLES.iter().find(|s| s.0 == name).map(|s| (s.1, s.2))
+}
+
+/// Model Exchange: the states that are no table variable, as local continuous variables.
+fn own_state_variables<M: FmuModel>(w: &mut String) {
+    for k in 0..M::CONTINUOUS_STATES.len() {
+        if let Some((unit, description)) = own_state::<M>(k) {
+            let _ = writeln!(
+                w,
+                r#"    <Float64 name="{}" valueReference="{}" causality="local" variability="continuous" description="{}" unit="{}"/>"#,
+                esc(M::CONTINUOUS_STATES[k].0),
+                state_vr::<M>(k),
+                esc(description),
+                esc(unit)
+            );
+        }
+    }
 }
 
 /// The instantiationToken, derived from the 3.0 interface itself (as the 2.0 GUID is from the

@@ -21,6 +21,7 @@ use crate::model::kinematics::{max_abs_torque_factor, Kinematics};
 use crate::model::loads;
 use cage_step::solve_on_table;
 
+mod cage_rate;
 mod cage_step;
 mod tangent;
 pub use tangent::Seed;

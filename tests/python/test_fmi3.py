@@ -77,12 +77,15 @@ def test_same_variables_as_fmi2(fmu_path, model):
     # then the state derivatives (Model Exchange).
     time = md3.modelVariables[0]
     assert (time.name, time.causality, time.unit) == ("time", "independent", "s")
-    assert time.valueReference == len(md2.modelVariables)
     ders = [v for v in md3.modelVariables if v.valueReference > time.valueReference]
     assert [v.name for v in ders] == (
-        ["der(crank.angle)", "der(crank.speed)"] if model == "DriveTrain" else []
+        ["der(crank.angle)", "der(crank.speed)"]
+        if model == "DriveTrain"
+        else ["der(rod.cage_angle)", "der(rod.cage_rate)", "rod.cage_angle", "rod.cage_rate"]
     )
-    assert len(md2.modelVariables) + 1 + len(ders) == len(md3.modelVariables)
+    # The FMI 2.0 file (Model Exchange beside co-simulation) has the same derivatives, last.
+    assert time.valueReference == len(md2.modelVariables) - len(ders)
+    assert len(md2.modelVariables) + 1 == len(md3.modelVariables)
     types = {"Real": "Float64", "Integer": "Int32", "Boolean": "Boolean"}
     for a, b in zip(md2.modelVariables, md3.modelVariables[1:]):
         assert (a.name, a.valueReference, a.causality, a.description) == (
@@ -112,8 +115,8 @@ def test_same_variables_as_fmi2(fmu_path, model):
     }
     assert deps2 == deps3
     init2 = sorted(u.variable.name for u in md2.initialUnknowns)
-    # FMI 3.0 also lists the state derivatives (Model Exchange) as initial unknowns.
-    init3 = sorted(u.variable.name for u in md3.initialUnknowns if u.variable not in ders)
+    # Both list the state derivatives (Model Exchange) as initial unknowns.
+    init3 = sorted(u.variable.name for u in md3.initialUnknowns)
     assert init2 == init3
 
 
@@ -229,7 +232,7 @@ def test_fmu_state_get_set_serialize_repeat_a_run(fmu_path, tmp_path):
     third = run(t1, 50)
     s.freeFMUState(restored)
     # The independent variable reads the FMU's time.
-    assert s.getFloat64([len(md.modelVariables) - 1])[0] == t1 + 49 * h + h
+    assert s.getFloat64([vr["time"]])[0] == t1 + 49 * h + h
     s.terminate()
     s.freeInstance()
     assert np.ptp(first[:, 0]) > 0
@@ -604,8 +607,8 @@ def test_drive_train_model_exchange_cvode_matches_co_simulation(fmu_path):
 
 def test_model_exchange_calls_and_refusals(fmu_path, tmp_path):
     """The Model Exchange calls directly: states in and out, derivatives from the formulas, the
-    derivative variables readable, no event indicators; fmi3DoStep refused on an ME instance and
-    Model Exchange refused by the pump FMU (no continuous states in FMI 3.0), each with a message."""
+    derivative variables readable, no event indicators; fmi3DoStep refused on an ME instance with a
+    message; the pump's elastic rod accepted with its two cage states."""
     from fmpy import extract, read_model_description
     from fmpy.fmi3 import FMU3Model
 
@@ -653,8 +656,8 @@ def test_model_exchange_calls_and_refusals(fmu_path, tmp_path):
     m.terminate()
     m.freeInstance()
 
-    # The pump offers Model Exchange for its rigid mechanisms only: an elastic rod (kvo630) is
-    # refused at fmi3ExitInitializationMode, which leaves the instance in initialization mode.
+    # The pump offers Model Exchange for every machine, an elastic rod (kvo630) with its two cage
+    # states (test_model_exchange.py integrates them).
     p = fmu3(fmu_path, "ReciprocatingDrive")
     d = extract(str(p), unzipdir=str(tmp_path / "pump"))
     mdp = read_model_description(str(p))
@@ -662,8 +665,7 @@ def test_model_exchange_calls_and_refusals(fmu_path, tmp_path):
     pm = FMU3Model(
         guid=mdp.guid, unzipDirectory=d, modelIdentifier="ReciprocatingDrive", instanceName="p"
     )
-    messages.clear()
-    pm.instantiate(logMessage=lambda e, st, c, msg: messages.append(msg.decode()))
+    pm.instantiate()
     pm.enterInitializationMode()
     for k, v in preset_values("kvo630").items():
         var = vrp[k]
@@ -673,23 +675,9 @@ def test_model_exchange_calls_and_refusals(fmu_path, tmp_path):
             pm.setInt32([var.valueReference], [int(v)])
         else:
             pm.setBoolean([var.valueReference], [bool(v)])
-    st = pm.dll.fmi3ExitInitializationMode(pm.component)
-    assert st == 3
-    assert any(
-        "fmi3ExitInitializationMode: this machine has continuous states (an elastic rod)" in msg
-        for msg in messages
-    ), messages
-    # Still in initialization mode: the values can be corrected (a parameter can still be set).
-    assert (
-        pm.dll.fmi3SetFloat64(
-            pm.component,
-            (ctypes.c_uint32 * 1)(vrp["crank.speed"].valueReference),
-            ctypes.c_size_t(1),
-            (ctypes.c_double * 1)(1.0),
-            ctypes.c_size_t(1),
-        )
-        == 0
-    )
+    pm.exitInitializationMode()
+    assert pm.getNumberOfContinuousStates() == 2
+    pm.terminate()
     pm.freeInstance()
 
 

@@ -446,10 +446,12 @@ def test_instantiate_refuses_wrong_guid_and_type_with_a_message(model_descriptio
             b"x", fmi2CoSimulation, b"{not-the-guid}", loc, ctypes.byref(log.callbacks), 0, 0
         )
         assert not c and "GUID" in log.text()
+        # An fmuType that is neither Model Exchange (0) nor co-simulation (1).
         c = fmu.fmi2Instantiate(
-            b"x", 0, model_description.guid.encode(), loc, ctypes.byref(log.callbacks), 0, 0
+            b"x", 7, model_description.guid.encode(), loc, ctypes.byref(log.callbacks), 0, 0
         )
         assert not c and log.messages(fmi2Error)
+        assert "fmuType 7 is not supported" in log.text()
         c = fmu.fmi2Instantiate(
             b"",
             fmi2CoSimulation,

@@ -35,7 +35,7 @@ def test_units_list_holds_every_unit(model_description):
 
 def test_section_10_names_every_variable(model_description):
     sec = section("10.")
-    names = set(re.findall(r"`([\w.*]+)`", sec))
+    names = set(re.findall(r"`([\w.*()]+)`", sec))
     patterns = [
         re.compile(
             "^" + re.escape(n).replace(r"\*", r"\w+").replace("support_X", "support_[ABC]") + "$"

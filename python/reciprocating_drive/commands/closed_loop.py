@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """The pump and its drive train in a closed loop (docs/closed-loop.md): builds
-target/fmu/ClosedLoop.ssp from ssp/ClosedLoop/ and both FMUs, simulates it in libcosim (default)
+target/fmu/ClosedLoop.ssp (and its Model Exchange variant ClosedLoopME.ssp) from ssp/ClosedLoop/
+and both FMUs, simulates it in libcosim (default)
 or fmpy, prints the per-revolution speed fluctuation δ = (ω_max − ω_min)/ω_mean and writes
 results/closed_loop.png (crank speed, motor torque and power, δ per revolution).
 
@@ -176,6 +177,15 @@ def _main(argv, prog: str = PROG) -> int:
         pump=pump if a.set else None,
         drive=drive if a.set else None,
         fmu_dir=a.fmu_dir,
+    )
+    # The Model Exchange variant of the same system beside it (docs/closed-loop.md "Model
+    # Exchange system"), for importers that integrate both FMUs in one ODE.
+    build_ssp(
+        ssp_path.with_name("ClosedLoopME.ssp"),
+        pump=pump if a.set else None,
+        drive=drive if a.set else None,
+        fmu_dir=a.fmu_dir,
+        model_exchange=True,
     )
     t0 = time.perf_counter()
     failure = None

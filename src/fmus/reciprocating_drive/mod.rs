@@ -184,18 +184,54 @@ impl FmuModel for ReciprocatingDrive {
         true
     }
 
-    /// Model Exchange (FMI 3.0) for the rigid mechanisms: no continuous state, every output a
-    /// function of the crank inputs, evaluated when read (docs/fmi-interface.md "Model
-    /// Exchange"). The elastic rod's states depend on the parameters, which Model Exchange's
-    /// fixed number of states cannot express: it stays co-simulation.
-    const MODEL_EXCHANGE: bool = true;
+    /// Model Exchange (FMI 2.0 and 3.0, docs/fmi-interface.md "Model Exchange (FMI 2.0)"): the
+    /// two states of the elastic rod's cage (docs/model.md §6), ϑ and ϑ̇, in every machine, so
+    /// that their number does not depend on the parameters; a rigid mechanism has no cage and
+    /// keeps them at 0 with derivative 0, its outputs functions of the crank inputs evaluated
+    /// when read. They are variables of their own: `rod.angle` is ϑ only for an elastic rod.
+    const CONTINUOUS_STATES: &'static [(&'static str, &'static str)] =
+        &[("rod.cage_angle", "rad/s"), ("rod.cage_rate", "rad/s2")];
 
-    fn model_exchange_refusal(model: &Model) -> Option<String> {
-        model.has_state().then(|| {
-            "this machine has continuous states (an elastic rod), which Model Exchange does not \
-             offer: run it as co-simulation"
-                .to_string()
-        })
+    const STATE_VARIABLES: &'static [(&'static str, &'static str, &'static str)] = &[
+        (
+            "rod.cage_angle",
+            "rad",
+            "Model Exchange state: rotation theta of the elastic rod's lower cage (equals \
+             rod.angle for an elastic rod; 0 for a rigid mechanism, which has no cage)",
+        ),
+        (
+            "rod.cage_rate",
+            "rad/s",
+            "Model Exchange state: rate of rod.cage_angle (equals rod.angular_velocity for an \
+             elastic rod; 0 for a rigid mechanism)",
+        ),
+    ];
+
+    fn continuous_states(state: &State, x: &mut [f64]) {
+        x[0] = state.rod.cage.theta;
+        x[1] = state.rod.cage.rate;
+    }
+
+    fn set_continuous_states(state: &mut State, x: &[f64]) {
+        state.rod.cage.theta = x[0];
+        state.rod.cage.rate = x[1];
+    }
+
+    /// ϑ̇ and ϑ̈ (`Model::cage_acceleration`); 0 and 0 for a rigid mechanism.
+    fn derivatives(
+        model: &Model,
+        values: &[f64],
+        state: &State,
+        dx: &mut [f64],
+    ) -> Result<(), ModelError> {
+        if !model.has_state() {
+            dx[0] = 0.0;
+            dx[1] = 0.0;
+            return Ok(());
+        }
+        dx[0] = state.rod.cage.rate;
+        dx[1] = model.cage_acceleration(&state.crank, &inputs(values), &state.rod.cage)?;
+        Ok(())
     }
 
     /// Exact directional derivatives of the outputs with respect to the inputs at the current

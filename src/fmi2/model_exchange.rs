@@ -1,0 +1,440 @@
+//! FMI 2.0 Model Exchange, in the same shared object as co-simulation (one `.fmu`, one model
+//! description with both elements): the ten Model Exchange functions, generic over the model, and
+//! the FMI 2.0 Model Exchange state machine on top of the instance core that co-simulation and
+//! FMI 3.0 use (docs/fmi-interface.md "Model Exchange (FMI 2.0)").
+//!
+//! After fmi2ExitInitializationMode the core is in its initialized mode; which of Model
+//! Exchange's two modes the instance is in, event mode or continuous-time mode, is
+//! [`Instance::me_continuous_time`]. The FMUs have no event indicators and no time events, so the
+//! two modes differ only in which calls they allow (FMI 2.0 §3.2.3 state machine). A Model
+//! Exchange function on a co-simulation instance, and a co-simulation function on a Model
+//! Exchange instance, return fmi2Error with one line naming the function.
+
+#![allow(non_snake_case)]
+#![allow(clippy::missing_safety_doc)]
+
+use fmi_sys::fmi2::*;
+
+use crate::fmi2::abi::{call, null_argument, slice};
+use crate::fmi2::instance::{Failure, Instance, Mode};
+use crate::fmi2::model::FmuModel;
+use crate::fmi2::variables::VarType;
+use crate::fmi3::model_description::own_state;
+
+/// The value reference of the derivative of the k-th continuous state: the same in the FMI 2.0
+/// and the FMI 3.0 model description (after the table's variables and FMI 3.0's `time`), so a
+/// master addresses both standards with the same numbers.
+pub fn derivative_vr<M: FmuModel>(k: usize) -> u32 {
+    crate::fmi3::model_description::derivative_vr::<M>(k)
+}
+
+/// Where a Model Exchange function may be called, after initialization.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Allowed {
+    /// Event mode only (fmi2NewDiscreteStates, fmi2EnterContinuousTimeMode).
+    Event,
+    /// Continuous-time mode only (fmi2EnterEventMode, fmi2SetContinuousStates,
+    /// fmi2CompletedIntegratorStep).
+    ContinuousTime,
+    /// Either (fmi2SetTime).
+    Both,
+    /// Either, and initialization mode (the getters of states, derivatives, nominals and event
+    /// indicators: FMI 2.0 allows them there, on the initial values set so far).
+    Getter,
+}
+
+/// The message of a call a co-simulation instance does not take.
+pub fn not_me_instance(function: &str) -> Failure {
+    Failure::error(format!(
+        "{function}: not an instance for Model Exchange (fmi2Instantiate with fmuType \
+         fmi2ModelExchange makes one)"
+    ))
+}
+
+/// Co-simulation functions refuse a Model Exchange instance: its importer's solver moves time.
+pub fn refuse_model_exchange<M: FmuModel>(
+    inst: &Instance<M>,
+    function: &str,
+) -> Result<(), Failure> {
+    if inst.model_exchange {
+        return Err(Failure::error(format!(
+            "{function}: an instance for Model Exchange does not step ({function} is \
+             co-simulation's; use fmi2SetTime and fmi2SetContinuousStates)"
+        )));
+    }
+    Ok(())
+}
+
+/// Runs a Model Exchange function after checking the instance and its mode.
+unsafe fn me<M: FmuModel>(
+    c: fmi2Component,
+    function: &str,
+    allowed: Allowed,
+    f: impl FnOnce(&mut Instance<M>) -> Result<(), Failure>,
+) -> fmi2Status {
+    call::<M>(c, function, |inst| {
+        if !inst.model_exchange {
+            return Err(not_me_instance(function));
+        }
+        let initializing = inst.mode() == Mode::InitializationMode && allowed == Allowed::Getter;
+        if inst.mode() != Mode::StepComplete && !initializing {
+            return Err(Failure::illegal(function, inst.mode()));
+        }
+        let ct = inst.me_continuous_time;
+        match (allowed, ct) {
+            (Allowed::Event, true) => Err(Failure::error(format!(
+                "{function}: illegal call sequence: not allowed in continuous-time mode, only \
+                 in event mode (fmi2EnterEventMode enters it)"
+            ))),
+            (Allowed::ContinuousTime, false) => Err(Failure::error(format!(
+                "{function}: illegal call sequence: not allowed in event mode, only in \
+                 continuous-time mode (fmi2EnterContinuousTimeMode enters it)"
+            ))),
+            _ => f(inst),
+        }
+    })
+}
+
+/// fmi2ExitInitializationMode of a Model Exchange instance: the core's, then the model's refusal
+/// of a machine it cannot offer as Model Exchange (the instance then stays in initialization
+/// mode, as after any failed fmi2ExitInitializationMode); on success the instance is in event
+/// mode (FMI 2.0 §3.2.3).
+pub fn exit_initialization_mode<M: FmuModel>(inst: &mut Instance<M>) -> Result<(), Failure> {
+    let before = inst.snapshot();
+    inst.exit_initialization_mode()?;
+    let refusal = inst.me_parts().and_then(|(built, _, _)| M::model_exchange_refusal(built));
+    if let Some(why) = refusal {
+        inst.restore(&before)?;
+        return Err(Failure::error(format!("fmi2ExitInitializationMode: {why}")));
+    }
+    inst.me_continuous_time = false;
+    Ok(())
+}
+
+fn state_count<M: FmuModel>(function: &str, nx: usize) -> Result<(), Failure> {
+    let n = M::CONTINUOUS_STATES.len();
+    if n != nx {
+        return Err(Failure::error(format!(
+            "{function}: nx = {nx}; this FMU has {n} continuous states"
+        )));
+    }
+    Ok(())
+}
+
+unsafe fn out_slice<'a>(
+    function: &str,
+    what: &str,
+    p: *mut fmi2Real,
+    n: usize,
+) -> Result<&'a mut [f64], Failure> {
+    if n == 0 {
+        Ok(&mut [])
+    } else if p.is_null() {
+        Err(null_argument(function, what))
+    } else {
+        Ok(std::slice::from_raw_parts_mut(p, n))
+    }
+}
+
+/// fmi2GetReal of a list that names a state derivative (`der(...)`) or a state's own variable
+/// ([`FmuModel::STATE_VARIABLES`]), which are not in the table: each value read on its own,
+/// those from the model. None: the list names none (the ordinary fmi2GetReal answers).
+pub unsafe fn get_real_with_derivatives<M: FmuModel>(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *mut fmi2Real,
+) -> Option<fmi2Status> {
+    let n = M::CONTINUOUS_STATES.len();
+    if n == 0 || c.is_null() || value.is_null() {
+        return None;
+    }
+    let vrs = slice(vr, nvr)?;
+    let first = derivative_vr::<M>(0);
+    let is_der = |r: u32| r >= first && r < first + n as u32;
+    let own = |r: u32| {
+        let k = r.wrapping_sub(first + n as u32) as usize;
+        (k < n && own_state::<M>(k).is_some()).then_some(k)
+    };
+    if !vrs.iter().any(|&r| is_der(r) || own(r).is_some()) {
+        return None;
+    }
+    let f = "fmi2GetReal";
+    Some(call::<M>(c, f, |inst| {
+        let mut dx: Option<Vec<f64>> = None;
+        for (k, &r) in vrs.iter().enumerate() {
+            *value.add(k) = if is_der(r) {
+                if dx.is_none() {
+                    let (built, values, state) = inst.me_parts_initial()?.ok_or_else(|| {
+                        Failure::error(format!(
+                            "{f}: der({}) is not available before fmi2EnterInitializationMode",
+                            M::CONTINUOUS_STATES[(r - first) as usize].0
+                        ))
+                    })?;
+                    let mut d = vec![0.0; n];
+                    M::derivatives(built, values, state, &mut d)?;
+                    dx = Some(d);
+                }
+                dx.as_ref().map_or(f64::NAN, |d| d[(r - first) as usize])
+            } else if let Some(j) = own(r) {
+                let (_, _, state) = inst.me_parts_initial()?.ok_or_else(|| {
+                    Failure::error(format!(
+                        "{f}: {} is not available before fmi2EnterInitializationMode",
+                        M::CONTINUOUS_STATES[j].0
+                    ))
+                })?;
+                let mut x = vec![0.0; n];
+                M::continuous_states(state, &mut x);
+                x[j]
+            } else {
+                let mut x = f64::NAN;
+                inst.get(f, VarType::Real, &[r], |_, v| x = v)?;
+                x
+            };
+        }
+        Ok(())
+    }))
+}
+
+pub unsafe fn fmi2EnterEventMode<M: FmuModel>(c: fmi2Component) -> fmi2Status {
+    me::<M>(c, "fmi2EnterEventMode", Allowed::ContinuousTime, |inst| {
+        inst.me_continuous_time = false;
+        Ok(())
+    })
+}
+
+/// No discrete states, no events, no time events: nothing to update (docs/fmi-interface.md).
+pub unsafe fn fmi2NewDiscreteStates<M: FmuModel>(
+    c: fmi2Component,
+    eventInfo: *mut fmi2EventInfo,
+) -> fmi2Status {
+    me::<M>(c, "fmi2NewDiscreteStates", Allowed::Event, |_| {
+        if eventInfo.is_null() {
+            return Err(null_argument("fmi2NewDiscreteStates", "fmi2EventInfo"));
+        }
+        *eventInfo = fmi2EventInfo::default();
+        Ok(())
+    })
+}
+
+pub unsafe fn fmi2EnterContinuousTimeMode<M: FmuModel>(c: fmi2Component) -> fmi2Status {
+    me::<M>(c, "fmi2EnterContinuousTimeMode", Allowed::Event, |inst| {
+        inst.me_continuous_time = true;
+        Ok(())
+    })
+}
+
+pub unsafe fn fmi2CompletedIntegratorStep<M: FmuModel>(
+    c: fmi2Component,
+    _noSetFMUStatePriorToCurrentPoint: fmi2Boolean,
+    enterEventMode: *mut fmi2Boolean,
+    terminateSimulation: *mut fmi2Boolean,
+) -> fmi2Status {
+    me::<M>(c, "fmi2CompletedIntegratorStep", Allowed::ContinuousTime, |_| {
+        if enterEventMode.is_null() || terminateSimulation.is_null() {
+            return Err(null_argument(
+                "fmi2CompletedIntegratorStep",
+                "enterEventMode or terminateSimulation",
+            ));
+        }
+        *enterEventMode = 0;
+        *terminateSimulation = 0;
+        Ok(())
+    })
+}
+
+pub unsafe fn fmi2SetTime<M: FmuModel>(c: fmi2Component, time: fmi2Real) -> fmi2Status {
+    me::<M>(c, "fmi2SetTime", Allowed::Both, |inst| {
+        if !time.is_finite() {
+            return Err(Failure::error(format!(
+                "fmi2SetTime: time = {time}; allowed: a finite number"
+            )));
+        }
+        inst.me_update(|t, _| *t = time);
+        Ok(())
+    })
+}
+
+pub unsafe fn fmi2SetContinuousStates<M: FmuModel>(
+    c: fmi2Component,
+    x: *const fmi2Real,
+    nx: usize,
+) -> fmi2Status {
+    let f = "fmi2SetContinuousStates";
+    me::<M>(c, f, Allowed::ContinuousTime, |inst| {
+        state_count::<M>(f, nx)?;
+        let x = slice(x, nx).ok_or_else(|| null_argument(f, "x"))?;
+        if let Some(k) = x.iter().position(|v| !v.is_finite()) {
+            return Err(Failure::error(format!(
+                "{f}: {} = {}; allowed: a finite number",
+                M::CONTINUOUS_STATES[k].0,
+                x[k]
+            )));
+        }
+        inst.me_update(|_, state| M::set_continuous_states(state, x));
+        Ok(())
+    })
+}
+
+pub unsafe fn fmi2GetDerivatives<M: FmuModel>(
+    c: fmi2Component,
+    derivatives: *mut fmi2Real,
+    nx: usize,
+) -> fmi2Status {
+    let f = "fmi2GetDerivatives";
+    me::<M>(c, f, Allowed::Getter, |inst| {
+        state_count::<M>(f, nx)?;
+        let dx = out_slice(f, "derivatives", derivatives, nx)?;
+        let mode = inst.mode();
+        let (built, values, state) =
+            inst.me_parts_initial()?.ok_or_else(|| Failure::illegal(f, mode))?;
+        M::derivatives(built, values, state, dx)?;
+        Ok(())
+    })
+}
+
+/// No event indicators: the drive train's torque curve and load, and the pump's outputs as
+/// functions of the crank inputs and cage states, are smooth (docs/fmi-interface.md).
+pub unsafe fn fmi2GetEventIndicators<M: FmuModel>(
+    c: fmi2Component,
+    _indicators: *mut fmi2Real,
+    ni: usize,
+) -> fmi2Status {
+    me::<M>(c, "fmi2GetEventIndicators", Allowed::Getter, |_| {
+        if ni != 0 {
+            return Err(Failure::error(format!(
+                "fmi2GetEventIndicators: ni = {ni}; this FMU has no event indicators \
+                 (numberOfEventIndicators=\"0\")"
+            )));
+        }
+        Ok(())
+    })
+}
+
+pub unsafe fn fmi2GetContinuousStates<M: FmuModel>(
+    c: fmi2Component,
+    x: *mut fmi2Real,
+    nx: usize,
+) -> fmi2Status {
+    let f = "fmi2GetContinuousStates";
+    me::<M>(c, f, Allowed::Getter, |inst| {
+        state_count::<M>(f, nx)?;
+        let out = out_slice(f, "x", x, nx)?;
+        let mode = inst.mode();
+        let (_, _, state) = inst.me_parts_initial()?.ok_or_else(|| Failure::illegal(f, mode))?;
+        M::continuous_states(state, out);
+        Ok(())
+    })
+}
+
+pub unsafe fn fmi2GetNominalsOfContinuousStates<M: FmuModel>(
+    c: fmi2Component,
+    nominals: *mut fmi2Real,
+    nx: usize,
+) -> fmi2Status {
+    let f = "fmi2GetNominalsOfContinuousStates";
+    me::<M>(c, f, Allowed::Getter, |_| {
+        state_count::<M>(f, nx)?;
+        out_slice(f, "x_nominal", nominals, nx)?.fill(1.0);
+        Ok(())
+    })
+}
+
+/// Exports the ten FMI 2.0 Model Exchange functions for one model (called by
+/// [`export_fmu!`](crate::export_fmu)), their types checked against the FMI 2.0 headers.
+#[macro_export]
+macro_rules! export_fmu2_model_exchange {
+    ($model:ty) => {
+        const _: () = {
+            use $crate::fmi2::model_exchange as glue;
+            use $crate::fmi_sys::fmi2::*;
+            type M = $model;
+
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2EnterEventMode(c: fmi2Component) -> fmi2Status {
+                glue::fmi2EnterEventMode::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2NewDiscreteStates(
+                c: fmi2Component,
+                eventInfo: *mut fmi2EventInfo,
+            ) -> fmi2Status {
+                glue::fmi2NewDiscreteStates::<M>(c, eventInfo)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2EnterContinuousTimeMode(c: fmi2Component) -> fmi2Status {
+                glue::fmi2EnterContinuousTimeMode::<M>(c)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2CompletedIntegratorStep(
+                c: fmi2Component,
+                noSetFMUStatePriorToCurrentPoint: fmi2Boolean,
+                enterEventMode: *mut fmi2Boolean,
+                terminateSimulation: *mut fmi2Boolean,
+            ) -> fmi2Status {
+                glue::fmi2CompletedIntegratorStep::<M>(
+                    c,
+                    noSetFMUStatePriorToCurrentPoint,
+                    enterEventMode,
+                    terminateSimulation,
+                )
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetTime(c: fmi2Component, time: fmi2Real) -> fmi2Status {
+                glue::fmi2SetTime::<M>(c, time)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2SetContinuousStates(
+                c: fmi2Component,
+                x: *const fmi2Real,
+                nx: usize,
+            ) -> fmi2Status {
+                glue::fmi2SetContinuousStates::<M>(c, x, nx)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetDerivatives(
+                c: fmi2Component,
+                derivatives: *mut fmi2Real,
+                nx: usize,
+            ) -> fmi2Status {
+                glue::fmi2GetDerivatives::<M>(c, derivatives, nx)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetEventIndicators(
+                c: fmi2Component,
+                eventIndicators: *mut fmi2Real,
+                ni: usize,
+            ) -> fmi2Status {
+                glue::fmi2GetEventIndicators::<M>(c, eventIndicators, ni)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetContinuousStates(
+                c: fmi2Component,
+                x: *mut fmi2Real,
+                nx: usize,
+            ) -> fmi2Status {
+                glue::fmi2GetContinuousStates::<M>(c, x, nx)
+            }
+            #[no_mangle]
+            pub unsafe extern "C" fn fmi2GetNominalsOfContinuousStates(
+                c: fmi2Component,
+                x_nominal: *mut fmi2Real,
+                nx: usize,
+            ) -> fmi2Status {
+                glue::fmi2GetNominalsOfContinuousStates::<M>(c, x_nominal, nx)
+            }
+
+            const _: fmi2EnterEventModeTYPE = Some(fmi2EnterEventMode);
+            const _: fmi2NewDiscreteStatesTYPE = Some(fmi2NewDiscreteStates);
+            const _: fmi2EnterContinuousTimeModeTYPE = Some(fmi2EnterContinuousTimeMode);
+            const _: fmi2CompletedIntegratorStepTYPE = Some(fmi2CompletedIntegratorStep);
+            const _: fmi2SetTimeTYPE = Some(fmi2SetTime);
+            const _: fmi2SetContinuousStatesTYPE = Some(fmi2SetContinuousStates);
+            const _: fmi2GetDerivativesTYPE = Some(fmi2GetDerivatives);
+            const _: fmi2GetEventIndicatorsTYPE = Some(fmi2GetEventIndicators);
+            const _: fmi2GetContinuousStatesTYPE = Some(fmi2GetContinuousStates);
+            const _: fmi2GetNominalsOfContinuousStatesTYPE =
+                Some(fmi2GetNominalsOfContinuousStates);
+        };
+    };
+}
