@@ -501,7 +501,8 @@ impl<M: FmuModel> Instance<M> {
     /// caller's array, the status and log) cost more than the evaluation of the kinematics. It
     /// evaluates the model, so it runs behind the panic barrier.
     // Always inlined: with two callers (fmi2GetReal and fmi3GetFloat64) plain `#[inline]` left it
-    // out of line, a call and its argument spills on every read (docs/performance.md).
+    // out of line, a call and its argument spills on every read (docs/performance.md "The FMI
+    // layer").
     #[inline(always)]
     pub fn quick_get_real(&mut self, vrs: &[u32], out: &mut [f64]) -> bool {
         if self.core.mode != Mode::StepComplete
@@ -642,7 +643,7 @@ impl<M: FmuModel> Instance<M> {
     // One copy per caller (`API`: 2 for fmi2SetReal, 3 for fmi3SetFloat64): with a single shared
     // copy and two callers LLVM kept it, or no_panic's inner closure, out of line, a call and
     // argument spills on every step; each copy has one caller and is inlined whole
-    // (docs/performance.md).
+    // (docs/performance.md "The FMI layer").
     #[inline]
     pub fn quick_set_real<const API: u8>(&mut self, vrs: &[u32], values: &[f64]) -> bool {
         if self.core.mode != Mode::StepComplete
