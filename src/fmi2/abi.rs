@@ -374,7 +374,7 @@ pub unsafe fn fmi2SetReal<M: FmuModel>(
     // Finite crank inputs at every step cannot panic (proved at link time,
     // `Instance::quick_set_real`) and need no barrier; anything else takes the general path.
     if let (false, Some(vrs), Some(vals)) = (c.is_null(), slice(vr, nvr), slice(value, nvr)) {
-        if (*(c as *mut Instance<M>)).quick_set_real(vrs, vals) {
+        if (*(c as *mut Instance<M>)).quick_set_real::<2>(vrs, vals) {
             return fmi2Status_fmi2OK;
         }
     }

@@ -522,7 +522,10 @@ impl<M: FmuModel> Instance<M> {
     /// the first output for a message, the list of non-finite names, the closure over the
     /// caller's array, the status and log) cost more than the evaluation of the kinematics. It
     /// evaluates the model, so it runs behind the panic barrier.
-    #[inline]
+    // Always inlined: with two callers (fmi2GetReal and fmi3GetFloat64) plain `#[inline]` left it
+    // out of line, a call and its argument spills on every read (docs/performance.md "The FMI
+    // layer").
+    #[inline(always)]
     pub fn quick_get_real(&mut self, vrs: &[u32], out: &mut [f64]) -> bool {
         if self.core.mode != Mode::StepComplete
             || self.logger.wants(Category::Calls)
@@ -659,8 +662,12 @@ impl<M: FmuModel> Instance<M> {
     /// more than the values it stores. It cannot panic, which release builds prove at link time
     /// (as for [`Self::quick_step`]).
     #[cfg_attr(not(debug_assertions), no_panic::no_panic)]
+    // One copy per caller (`API`: 2 for fmi2SetReal, 3 for fmi3SetFloat64): with a single shared
+    // copy and two callers LLVM kept it, or no_panic's inner closure, out of line, a call and
+    // argument spills on every step; each copy has one caller and is inlined whole
+    // (docs/performance.md "The FMI layer").
     #[inline]
-    pub fn quick_set_real(&mut self, vrs: &[u32], values: &[f64]) -> bool {
+    pub fn quick_set_real<const API: u8>(&mut self, vrs: &[u32], values: &[f64]) -> bool {
         if self.core.mode != Mode::StepComplete
             || self.logger.wants(Category::Calls)
             || vrs.len() != values.len()

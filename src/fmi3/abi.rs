@@ -542,7 +542,7 @@ pub unsafe fn fmi3SetFloat64<M: FmuModel>(
     if let (false, Some(vrs), Some(vals), true) =
         (c.is_null(), slice(vr, nvr), slice(value, nvr), nValues == nvr)
     {
-        if (*(c as *mut Instance<M>)).quick_set_real(vrs, vals) {
+        if (*(c as *mut Instance<M>)).quick_set_real::<3>(vrs, vals) {
             return fmi3Status_fmi3OK;
         }
     }

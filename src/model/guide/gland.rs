@@ -226,8 +226,10 @@ impl GlandTable {
         })
     }
 
-    /// The rigid rod's load cases only (base, per Q), as `Guide::solve_rigid` uses them.
-    #[inline]
+    /// The rigid rod's load cases only (base, per Q), as `Guide::solve_rigid` uses them. Always
+    /// inlined: `SupportSystem::rigid_influence`, always inlined into two callers, would otherwise
+    /// make it an out-of-line call on the rigid evaluation's hot path.
+    #[inline(always)]
     pub fn evaluate_rigid(
         &self,
         s_scaled: f64,

@@ -281,7 +281,9 @@ impl Guide {
         self.system.length()
     }
 
-    /// Checks an evaluation input; s may exceed [0, S] by rounding only.
+    /// Checks an evaluation input; s may exceed [0, S] by rounding only. Always inlined: with
+    /// two callers it was left out of line, a call on every rigid evaluation.
+    #[inline(always)]
     fn check_inputs(&self, s: f64, v: f64, p_base: f64) -> Result<(), ModelError> {
         let tol = 1e-9 * (self.stroke + self.system.length());
         if !s.is_finite() || s < -tol || s > self.stroke + tol {
