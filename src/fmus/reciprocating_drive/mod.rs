@@ -238,6 +238,17 @@ impl FmuModel for ReciprocatingDrive {
     /// state (docs/fmi-interface.md "Directional derivatives"), rigid and elastic rods.
     const DIRECTIONAL_DERIVATIVES: bool = true;
 
+    /// A rigid mechanism's outputs do not depend on the cage states and their derivatives are
+    /// 0: its state partials are exactly 0 (the tangent's zeros). An elastic rod's are refused
+    /// until derived (docs/fmi-interface.md "Directional derivatives").
+    fn state_partials_refusal(model: &Model) -> Option<&'static str> {
+        model.has_state().then_some(
+            "partials with respect to the elastic rod's cage states (rod.cage_angle, \
+             rod.cage_rate) and of der(rod.cage_angle), der(rod.cage_rate) are not provided; \
+             those of the outputs with respect to the inputs are",
+        )
+    }
+
     fn tangent(
         model: &Model,
         values: &[f64],
