@@ -586,12 +586,12 @@ pub unsafe fn fmi2GetDirectionalDerivative<M: FmuModel>(
         nKnown,
         dvKnown,
         dvUnknown,
-        &crate::fmi2::directional::NO_STATES,
+        &crate::fmi2::directional::model_exchange_refs::<M>(),
     )
 }
 
 /// `fmi2GetDirectionalDerivative` with the value references of the continuous states and their
-/// derivatives of a Model Exchange instance (`refs`; co-simulation: `NO_STATES`), every
+/// derivatives of a Model Exchange instance (`refs`, used by a Model Exchange instance only), every
 /// argument checked, inside the panic barrier (`crate::fmi2::directional`).
 #[allow(clippy::too_many_arguments)]
 pub unsafe fn fmi2_directional_derivative<M: FmuModel>(

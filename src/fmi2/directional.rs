@@ -8,6 +8,7 @@
 use crate::fmi2::instance::{Failure, Instance, Mode};
 use crate::fmi2::model::FmuModel;
 use crate::fmi2::variables::Causality;
+use crate::fmi3::model_description::{derivative_vr, state_vr};
 use crate::model::error::num;
 
 /// How an importer's value references map onto the continuous states of a Model Exchange
@@ -21,6 +22,26 @@ pub struct StateRefs<'a> {
 
 /// No continuous state is addressable (co-simulation: the state is held).
 pub const NO_STATES: StateRefs<'static> = StateRefs { state: &|_| None, derivative: &|_| None };
+
+/// The index of the continuous state whose variable has value reference `vr`: the same number
+/// in the FMI 2.0 and the FMI 3.0 model description (`crate::fmi3::model_description`).
+fn state_of<M: FmuModel>(vr: u32) -> Option<usize> {
+    (0..M::CONTINUOUS_STATES.len()).find(|&k| state_vr::<M>(k) == vr as usize)
+}
+
+/// The index of the continuous state whose derivative has value reference `vr` (both
+/// standards).
+fn derivative_of<M: FmuModel>(vr: u32) -> Option<usize> {
+    (0..M::CONTINUOUS_STATES.len()).find(|&k| derivative_vr::<M>(k) == vr)
+}
+
+/// The continuous states and their derivatives as knowns and unknowns: both standards number
+/// them alike, so `fmi2GetDirectionalDerivative` and `fmi3GetDirectionalDerivative` of a Model
+/// Exchange instance address the same partials (a co-simulation instance refuses them:
+/// [`directional_derivative`] takes states only from a Model Exchange instance).
+pub fn model_exchange_refs<M: FmuModel>() -> StateRefs<'static> {
+    StateRefs { state: &state_of::<M>, derivative: &derivative_of::<M> }
+}
 
 /// Tables up to this many variables keep the seed on the stack.
 const STACK_VALUES: usize = 256;
@@ -112,6 +133,12 @@ pub fn directional_derivative<M: FmuModel>(
                 if states_known && n_states > 0 { " or a state derivative" } else { "" }
             )));
         }
+    }
+    // A machine without exact state partials refuses any call that needs one.
+    let needs_states = knowns.iter().any(|&vr| (refs.state)(vr).is_some())
+        || unknowns.iter().any(|&vr| (refs.derivative)(vr).is_some());
+    if let Some(why) = M::state_partials_refusal(built).filter(|_| states_known && needs_states) {
+        return Err(Failure::error(format!("{function}: {why}")));
     }
     let mut tangent = M::Outputs::default();
     M::tangent(built, values, state, d_values, d_states, &mut tangent, d_derivatives)

@@ -252,6 +252,13 @@ pub trait FmuModel: Sized + 'static {
         Err(ModelError::evaluation("directional derivatives are not provided by this FMU"))
     }
 
+    /// Model Exchange: why this built machine gives no partials with respect to its continuous
+    /// states or of their derivatives (a one-line reason naming the states); None: it gives
+    /// them exactly through [`FmuModel::tangent`]. A partial not provided is refused, never 0.
+    fn state_partials_refusal(_built: &Self::Built) -> Option<&'static str> {
+        None
+    }
+
     /// Model Exchange: the continuous states (indices into `CONTINUOUS_STATES`) each output
     /// depends on, by the output's name; an output not named depends on none. With the table's
     /// `depends_on` (inputs) these are the `<ModelStructure>` dependencies.

@@ -29,9 +29,22 @@ fn ty_name(t: VarType) -> &'static str {
     }
 }
 
-/// The 1-based index (in ModelVariables) of the input bound to `slot`.
-fn input_index<M: FmuModel>(slot: M::Input) -> usize {
-    M::table().input_vr(slot).map_or(0, |vr| vr + 1)
+/// The knowns the output or state derivative `vr` depends on, as 1-based indices in
+/// ModelVariables: its inputs and, for Model Exchange, its continuous states (FMI 2.0 §3.3.1:
+/// the knowns of <Outputs> and <Derivatives> are the inputs and the continuous states), the same
+/// dependencies as the FMI 3.0 file (`crate::fmi3::model_description::dependencies_of`).
+fn dependency_indices<M: FmuModel>(vr: usize) -> Vec<String> {
+    let n = M::CONTINUOUS_STATES.len();
+    let deps = crate::fmi3::model_description::dependencies_of::<M>(vr).unwrap_or_default();
+    deps.iter()
+        .map(|&d| {
+            match (0..n).find(|&k| crate::fmi3::model_description::state_vr::<M>(k) == d as usize) {
+                Some(k) => state_index::<M>(k),
+                None => d as usize + 1,
+            }
+        })
+        .map(|i| i.to_string())
+        .collect()
 }
 
 fn body<M: FmuModel>() -> String {
@@ -140,10 +153,9 @@ fn body<M: FmuModel>() -> String {
     let _ = writeln!(w, "  <ModelStructure>");
     let _ = writeln!(w, "    <Outputs>");
     for (vr, v) in M::table().variables.iter().enumerate() {
-        if let (Causality::Output, Binding::Output { depends_on, .. }) = (v.causality, v.binding) {
-            let deps: Vec<String> =
-                depends_on.iter().map(|s| input_index::<M>(*s).to_string()).collect();
-            let kinds: Vec<&str> = depends_on.iter().map(|_| "dependent").collect();
+        if let (Causality::Output, Binding::Output { .. }) = (v.causality, v.binding) {
+            let deps = dependency_indices::<M>(vr);
+            let kinds: Vec<&str> = deps.iter().map(|_| "dependent").collect();
             let _ = writeln!(
                 w,
                 r#"      <Unknown index="{}" dependencies="{}" dependenciesKind="{}"/>"#,
@@ -181,10 +193,13 @@ fn model_exchange_element<M: FmuModel>(w: &mut String) {
         return;
     }
     // completedIntegratorStepNotNeeded: the FMU has no events a step could trigger.
+    // providesDirectionalDerivative: with the states as knowns and their derivatives as unknowns
+    // (`crate::fmi2::directional`), as in the FMI 3.0 file.
     let _ = writeln!(
         w,
-        r#"  <ModelExchange modelIdentifier="{}" needsExecutionTool="false" completedIntegratorStepNotNeeded="true" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="true" canSerializeFMUstate="true" providesDirectionalDerivative="false"/>"#,
-        M::info().model_identifier
+        r#"  <ModelExchange modelIdentifier="{}" needsExecutionTool="false" completedIntegratorStepNotNeeded="true" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="true" canSerializeFMUstate="true" providesDirectionalDerivative="{}"/>"#,
+        M::info().model_identifier,
+        provides_directional_derivative::<M>()
     );
 }
 
@@ -244,14 +259,28 @@ fn own_state_initial_unknowns<M: FmuModel>(w: &mut String) {
     }
 }
 
-/// No `dependencies` attribute: each derivative may depend on every state and input.
+/// Each derivative's inputs and states ([`FmuModel::DERIVATIVE_DEPENDENCIES`]); not declared:
+/// no `dependencies` attribute, each derivative may depend on every state and input.
 fn derivatives_structure<M: FmuModel>(w: &mut String) {
     if M::CONTINUOUS_STATES.is_empty() {
         return;
     }
     let _ = writeln!(w, "    <Derivatives>");
     for k in 0..M::CONTINUOUS_STATES.len() {
-        let _ = writeln!(w, r#"      <Unknown index="{}"/>"#, derivative_index::<M>(k));
+        if M::DERIVATIVE_DEPENDENCIES.is_empty() {
+            let _ = writeln!(w, r#"      <Unknown index="{}"/>"#, derivative_index::<M>(k));
+            continue;
+        }
+        let vr = crate::fmi2::model_exchange::derivative_vr::<M>(k) as usize;
+        let deps = dependency_indices::<M>(vr);
+        let kinds: Vec<&str> = deps.iter().map(|_| "dependent").collect();
+        let _ = writeln!(
+            w,
+            r#"      <Unknown index="{}" dependencies="{}" dependenciesKind="{}"/>"#,
+            derivative_index::<M>(k),
+            deps.join(" "),
+            kinds.join(" ")
+        );
     }
     let _ = writeln!(w, "    </Derivatives>");
 }

@@ -857,8 +857,7 @@ pub unsafe fn fmi3GetDirectionalDerivative<M: FmuModel>(
     sensitivity: *mut fmi3Float64,
     nSensitivity: usize,
 ) -> fmi3Status {
-    use crate::fmi2::directional::{directional_derivative, StateRefs};
-    use crate::fmi3::model_description::{derivative_vr, state_vr};
+    use crate::fmi2::directional::{directional_derivative, model_exchange_refs};
     let f = "fmi3GetDirectionalDerivative";
     call::<M>(c, f, |inst| {
         if nSeed != nKnowns || nSensitivity != nUnknowns {
@@ -878,13 +877,8 @@ pub unsafe fn fmi3GetDirectionalDerivative<M: FmuModel>(
         } else {
             std::slice::from_raw_parts_mut(sensitivity, nSensitivity)
         };
-        // FMI 3.0 numbering (`model_description.rs`): a state is its table variable, its
-        // derivative follows `time`.
-        let n = M::CONTINUOUS_STATES.len();
-        let state = |vr: u32| (0..n).find(|&j| state_vr::<M>(j) == vr as usize);
-        let derivative = |vr: u32| (0..n).find(|&j| derivative_vr::<M>(j) == vr);
-        let refs = StateRefs { state: &state, derivative: &derivative };
-        directional_derivative::<M>(inst, f, u, k, s, out, &refs)
+        // FMI 3.0 numbering (`model_description.rs`), which the 2.0 file shares.
+        directional_derivative::<M>(inst, f, u, k, s, out, &model_exchange_refs::<M>())
     })
 }
 

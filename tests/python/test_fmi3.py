@@ -106,14 +106,14 @@ def test_same_variables_as_fmi2(fmu_path, model):
         assert a.variability == b.variability or (
             a.variability == "continuous" and b.variability == "discrete" and b.type != "Float64"
         ), a.name
+    # Both list the inputs and the continuous states an output or a state derivative depends on
+    # (Model Exchange: the knowns are the inputs and the states).
     deps2 = {o.variable.name: sorted(d.name for d in o.dependencies) for o in md2.outputs}
-    # FMI 3.0 also lists the continuous states an output depends on (Model Exchange).
-    states = {d.derivative.name for d in ders}
-    deps3 = {
-        o.variable.name: sorted(d.name for d in o.dependencies if d.name not in states)
-        for o in md3.outputs
-    }
+    deps3 = {o.variable.name: sorted(d.name for d in o.dependencies) for o in md3.outputs}
     assert deps2 == deps3
+    der2 = {d.variable.name: sorted(x.name for x in d.dependencies or []) for d in md2.derivatives}
+    der3 = {d.variable.name: sorted(x.name for x in d.dependencies or []) for d in md3.derivatives}
+    assert der2 == der3 and len(der2) == 2
     init2 = sorted(u.variable.name for u in md2.initialUnknowns)
     # Both list the state derivatives (Model Exchange) as initial unknowns.
     init3 = sorted(u.variable.name for u in md3.initialUnknowns)

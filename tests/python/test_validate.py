@@ -74,19 +74,22 @@ def test_interface_matches_physics_md_section_10(model_description):
 
 def test_output_dependencies_are_the_true_feedthrough(model_description):
     """<ModelStructure><Outputs>: each output depends on exactly the inputs its formula uses
-    (§2-§4): s, TF, β on θ; v, β' on θ, ω; a, Φ on θ, ω, ε; P, T on all four."""
+    (§2-§4): s, TF, β on θ; v, β' on θ, ω; a, Φ on θ, ω, ε; P, T on all four; and, Model
+    Exchange's other knowns, on the elastic rod's cage states (§6): ϑ (the rod angle, and P, T
+    through the clamp loads) and ϑ̇ (the rod's angular velocity)."""
     md = model_description
     theta, omega, eps, f = "crank.angle", "crank.speed", "crank.acceleration", "link.external_force"
+    cage, rate = "rod.cage_angle", "rod.cage_rate"
     expected = {
         "suspension.position": {theta},
         "kinematics.torque_factor": {theta},
-        "rod.angle": {theta},
+        "rod.angle": {theta, cage},
         "suspension.velocity": {theta, omega},
-        "rod.angular_velocity": {theta, omega},
+        "rod.angular_velocity": {theta, omega, rate},
         "suspension.acceleration": {theta, omega, eps},
         "inertia.force": {theta, omega, eps},
-        "rod.force": {theta, omega, eps, f},
-        "crank.torque": {theta, omega, eps, f},
+        "rod.force": {theta, omega, eps, f, cage},
+        "crank.torque": {theta, omega, eps, f, cage},
         # The crank state itself: the angle as set (carried forward), the speed as set.
         "crank.model_angle": {theta},
         "crank.model_speed": {omega},

@@ -207,6 +207,28 @@ impl FmuModel for ReciprocatingDrive {
         ),
     ];
 
+    /// An elastic rod's outputs on its cage (docs/model.md §6): ϑ and ϑ̇ themselves, and everything
+    /// downstream of the clamp loads (M0, V depend on ϑ): the rod force through the clamp
+    /// friction, the torque, the guide's and supports' loads, the stress and the shortening (the
+    /// outputs that depend on `link.external_force`). Listed for every machine (the
+    /// `<ModelStructure>` does not depend on the parameters); a rigid mechanism's partials are 0.
+    const OUTPUT_STATES: &'static [(&'static str, &'static [usize])] = &[
+        ("rod.angle", &[0]),
+        ("rod.angular_velocity", &[1]),
+        ("rod.force", &[0]),
+        ("crank.torque", &[0]),
+        ("guide.friction", &[0]),
+        ("guide.reaction", &[0]),
+        ("guide.moment", &[0]),
+        ("guide.edge_force_1", &[0]),
+        ("guide.edge_force_2", &[0]),
+        ("support_A.reaction", &[0]),
+        ("support_C.reaction", &[0]),
+        ("link.friction_total", &[0]),
+        ("rod.stress_max", &[0]),
+        ("rod.axial_deflection", &[0]),
+    ];
+
     fn continuous_states(state: &State, x: &mut [f64]) {
         x[0] = state.rod.cage.theta;
         x[1] = state.rod.cage.rate;
@@ -237,6 +259,17 @@ impl FmuModel for ReciprocatingDrive {
     /// Exact directional derivatives of the outputs with respect to the inputs at the current
     /// state (docs/fmi-interface.md "Directional derivatives"), rigid and elastic rods.
     const DIRECTIONAL_DERIVATIVES: bool = true;
+
+    /// A rigid mechanism's outputs do not depend on the cage states and their derivatives are
+    /// 0: its state partials are exactly 0 (the tangent's zeros). An elastic rod's are refused
+    /// until derived (docs/fmi-interface.md "Directional derivatives").
+    fn state_partials_refusal(model: &Model) -> Option<&'static str> {
+        model.has_state().then_some(
+            "partials with respect to the elastic rod's cage states (rod.cage_angle, \
+             rod.cage_rate) and of der(rod.cage_angle), der(rod.cage_rate) are not provided; \
+             those of the outputs with respect to the inputs are",
+        )
+    }
 
     fn tangent(
         model: &Model,
