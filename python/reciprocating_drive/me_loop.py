@@ -54,7 +54,17 @@ class _Me:
         self._get = f.getReal if fmi2 else f.getFloat64
         self.get_derivatives = f.getDerivatives if fmi2 else f.getContinuousStateDerivatives
         set_int = f.setInteger if fmi2 else f.setInt32
-        f.instantiate()
+        if fmi2:
+            # The project's own FMI 2.0 logger (fmu._Log), not fmpy's default: fmpy's native
+            # proxy forwards every instance's messages to one process-wide callback, and once
+            # the instance that registered it is freed, the next message (an error this FMU
+            # reports) calls freed memory and the process dies.
+            from .fmu import _Log
+
+            self._log = _Log(echo=False)
+            f.instantiate(callbacks=self._log.callbacks)
+        else:
+            f.instantiate()
         if fmi2:
             f.setupExperiment(startTime=0.0)
         f.enterInitializationMode()
