@@ -6,9 +6,9 @@ replayed by `scripts/twin.py --distributed` on a LocalCluster of 1 and of 2 work
 
 Each figure is `scripts/twin.py`'s own last line, "N samples computed in T s": the clock runs from
 the workers being ready (the FMU shipped to them) until the result files are written, so it
-includes sending the pieces, computing, returning them as bytes, writing the pieces and the
-result. The cluster's start-up and the scan of the input (sequential, reported) are not in it.
-The sequential baseline is the twin's wall time less its start-up (the time to a run of a
+includes sending the pieces, computing them, the workers writing them to the work folder, and
+assembling the result. The cluster's start-up and the scan of the input (sequential, reported)
+are not in it. The sequential baseline is the twin's wall time less its start-up (the time to a run of a
 ten-line file). The last line gives the floor of 2 workers on this machine from CPU times, which
 the machine's load changes little: half the pieces' CPU, or the pieces' and the client's CPU
 (the client hosts the LocalCluster's scheduler) over the cores, against 1 worker's pieces' CPU.
