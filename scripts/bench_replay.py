@@ -6,10 +6,13 @@ replayed by `scripts/twin.py --distributed` on a LocalCluster of 1 and of 2 work
 
 Each figure is `scripts/twin.py`'s own last line, "N samples computed in T s": the clock runs from
 the workers being ready (the FMU shipped to them) until the result files are written, so it
-includes sending the pieces, computing, returning them as bytes, writing the pieces and the
-result. The cluster's start-up and the scan of the input (sequential, reported) are not in it.
-The sequential baseline is the twin's wall time less its start-up (the time to a run of a
-ten-line file). The machine's load (`uptime`) is printed before and after: figures from a shared
+includes sending the pieces, computing them, the workers writing them to the work folder, and
+assembling the result. The cluster's start-up and the scan of the input (sequential, reported)
+are not in it. The sequential baseline is the twin's wall time less its start-up (the time to a run of a
+ten-line file). The last line gives the floor of 2 workers on this machine from CPU times, which
+the machine's load changes little: half the pieces' CPU, or the pieces' and the client's CPU
+(the client hosts the LocalCluster's scheduler) over the cores, against 1 worker's pieces' CPU.
+The machine's load (`uptime`) is printed before and after: figures from a shared
 machine carry its noise.
 
     .venv/bin/python scripts/bench_replay.py [--repeat N] [--times 10] [--revolutions-per-piece 10]
@@ -59,9 +62,9 @@ def uptime() -> str:
     return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
 
-def distributed(src, out, workers: int, n_rev: int) -> tuple[float, int, int, float]:
-    """(seconds, samples, pieces, the workers' CPU seconds in the pieces) of one distributed
-    replay, from its own last line."""
+def distributed(src, out, workers: int, n_rev: int) -> tuple[float, int, int, float, float]:
+    """(seconds, samples, pieces, the workers' CPU seconds in the pieces, the client's CPU
+    seconds meanwhile) of one distributed replay, from its own last line."""
     p = subprocess.run(
         [*TWIN, str(src), *ARGS, "--out", str(out), "--distributed", "--workers", str(workers)]
         + ["--revolutions-per-piece", str(n_rev)],
@@ -73,8 +76,14 @@ def distributed(src, out, workers: int, n_rev: int) -> tuple[float, int, int, fl
         raise SystemExit(f"bench_replay.py: the distributed replay failed: {p.stderr.strip()}")
     m = re.search(r"replay: (\d+) samples computed in ([0-9.]+) s", p.stderr)
     pieces = re.search(r"in (\d+) pieces", p.stderr)
-    cpu = re.search(r"CPU in the pieces ([0-9.]+) s", p.stderr)
-    return float(m.group(2)), int(m.group(1)), int(pieces.group(1)), float(cpu.group(1))
+    cpu = re.search(r"CPU in the pieces ([0-9.]+) s, the client's ([0-9.]+) s", p.stderr)
+    return (
+        float(m.group(2)),
+        int(m.group(1)),
+        int(pieces.group(1)),
+        float(cpu.group(1)),
+        float(cpu.group(2)),
+    )
 
 
 def sequential(src, out) -> tuple[float, float]:
@@ -128,6 +137,19 @@ def main(argv=None) -> int:
                 f"{'identical to' if same else 'DIFFERENT from'} the sequential one)"
             )
         print(f"2 workers / 1 worker: {rates[2] / rates[1]:.2f}× (target ≥ 1.8×)")
+        # The floor of 2 workers on this machine: no worker finishes before half the pieces'
+        # CPU, and the pieces' CPU and the client's (which hosts the LocalCluster's scheduler)
+        # share the cores. One worker's floor is its pieces' CPU (the client on another core).
+        pieces1 = min(r[3] for r in runs[1])
+        pieces2 = min(r[3] for r in runs[2])
+        client2 = min(r[4] for r in runs[2])
+        cores = os.cpu_count() or 1
+        floor = max(pieces2 / 2, (pieces2 + client2) / cores)
+        print(
+            f"2 workers' floor: max(pieces' CPU {pieces2:.3f} s / 2, (pieces' {pieces2:.3f} + "
+            f"client's {client2:.3f} s CPU) / {cores} cores) = {floor:.3f} s; 1 worker's: "
+            f"its pieces' CPU {pieces1:.3f} s; at best {pieces1 / floor:.2f}× on an idle machine"
+        )
     print(f"load after: {uptime()}")
     return 0
 
