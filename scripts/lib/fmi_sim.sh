@@ -15,8 +15,11 @@ fmi_sim_enabled() {
 # is reported in one line and does not stop the caller (the test reports it as the skip reason,
 # from target/tools/fmi-sim-install.log).
 ensure_fmi_sim() {
-    # (fmi-sim 0.7.0 prints its version on standard error.)
-    if [ -x "$FMI_SIM" ] && "$FMI_SIM" --version 2>&1 | grep -q "fmi-sim $FMI_SIM_VERSION\$"; then
+    # (fmi-sim 0.7.0 prints its version on standard error and exits with 1: its output is taken
+    # first, so that a caller's `set -o pipefail` does not read the exit status as "not there".)
+    local have=""
+    [ -x "$FMI_SIM" ] && have=$("$FMI_SIM" --version 2>&1 || true)
+    if grep -q "fmi-sim $FMI_SIM_VERSION\$" <<<"$have"; then
         return 0
     fi
     mkdir -p "$FMI_SIM_ROOT"
