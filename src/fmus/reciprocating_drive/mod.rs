@@ -260,33 +260,34 @@ impl FmuModel for ReciprocatingDrive {
     /// state (docs/fmi-interface.md "Directional derivatives"), rigid and elastic rods.
     const DIRECTIONAL_DERIVATIVES: bool = true;
 
-    /// A rigid mechanism's outputs do not depend on the cage states and their derivatives are
-    /// 0: its state partials are exactly 0 (the tangent's zeros). An elastic rod's are refused
-    /// until derived (docs/fmi-interface.md "Directional derivatives").
-    fn state_partials_refusal(model: &Model) -> Option<&'static str> {
-        model.has_state().then_some(
-            "partials with respect to the elastic rod's cage states (rod.cage_angle, \
-             rod.cage_rate) and of der(rod.cage_angle), der(rod.cage_rate) are not provided; \
-             those of the outputs with respect to the inputs are",
-        )
-    }
-
     fn tangent(
         model: &Model,
         values: &[f64],
         state: &State,
         d_values: &[f64],
-        _d_states: &[f64],
+        d_states: &[f64],
         tangent: &mut Outputs,
-        _d_derivatives: &mut [f64],
+        d_derivatives: &mut [f64],
     ) -> Result<(), ModelError> {
+        // d_states is zeros outside Model Exchange; a rigid mechanism's outputs do not depend on
+        // the cage states and its derivatives are 0 (`Model::state_tangent`).
         let seed = Seed {
             angle: d_values[input_vr(InputSlot::CrankAngle)],
             speed: d_values[input_vr(InputSlot::CrankSpeed)],
             acceleration: d_values[input_vr(InputSlot::CrankAcceleration)],
             external_force: d_values[input_vr(InputSlot::ExternalForce)],
+            cage_angle: d_states.first().copied().unwrap_or(0.0),
+            cage_rate: d_states.get(1).copied().unwrap_or(0.0),
         };
-        *tangent = model.tangent(&state.crank, &inputs(values), &state.rod, &seed)?.1;
+        let (_, t, d_acc) =
+            model.state_tangent(&state.crank, &inputs(values), &state.rod, &seed)?;
+        *tangent = t;
+        if d_derivatives.len() >= 2 {
+            // der(ϑ) = ϑ̇, der(ϑ̇) = ϑ̈; both 0 for a rigid mechanism (`derivatives`).
+            let has = model.has_state();
+            d_derivatives[0] = if has { seed.cage_rate } else { 0.0 };
+            d_derivatives[1] = if has { d_acc } else { 0.0 };
+        }
         Ok(())
     }
 

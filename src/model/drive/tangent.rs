@@ -16,20 +16,24 @@ use crate::model::guide::GuideOutputs;
 use crate::model::kinematics::Kinematics;
 use crate::model::loads;
 
-/// A direction in the space of the inputs: the changes of crank.angle, crank.speed,
-/// crank.acceleration and link.external_force.
+/// A direction in the space of the inputs and the cage state: the changes of crank.angle,
+/// crank.speed, crank.acceleration, link.external_force and (Model Exchange, an elastic rod)
+/// of the cage states rod.cage_angle ϑ and rod.cage_rate ϑ̇ (ignored by a rigid mechanism).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Seed {
     pub angle: f64,
     pub speed: f64,
     pub acceleration: f64,
     pub external_force: f64,
+    pub cage_angle: f64,
+    pub cage_rate: f64,
 }
 
 impl Model {
     /// The outputs at (crank, inputs, rod) and their directional derivatives along `seed`
     /// (the tangent, in the same fields; `ready` marks every group of both). The cage state of
-    /// an elastic rod is held (co-simulation's meaning).
+    /// an elastic rod moves along `seed.cage_angle`, `seed.cage_rate` (0 in co-simulation,
+    /// which holds it).
     pub fn tangent(
         &self,
         crank: &CrankState,
@@ -37,6 +41,18 @@ impl Model {
         rod: &RodState,
         seed: &Seed,
     ) -> Result<(Outputs, Outputs), ModelError> {
+        self.state_tangent(crank, inputs, rod, seed).map(|(value, tangent, _)| (value, tangent))
+    }
+
+    /// [`Model::tangent`] and the directional derivative of ϑ̈ (`Model::cage_acceleration`,
+    /// docs/model.md §6) along `seed`; 0 for a rigid mechanism, which has no cage.
+    pub fn state_tangent(
+        &self,
+        crank: &CrankState,
+        inputs: &Inputs,
+        rod: &RodState,
+        seed: &Seed,
+    ) -> Result<(Outputs, Outputs, f64), ModelError> {
         if let Mechanism::ElasticRodSlider(law, elastic) = &self.mechanism {
             return self.elastic_tangent(law, elastic, crank, inputs, rod, seed);
         }
@@ -99,15 +115,16 @@ impl Model {
             rod_stress_max: 0.0,
             rod_axial_deflection: 0.0,
         };
-        Ok((value, tangent))
+        Ok((value, tangent, 0.0))
     }
 }
 
 impl Model {
-    /// [`Model::tangent`] of an elastic rod (§6), the cage state (ϑ, ϑ̇) held: the piston law
-    /// and the loads in dual numbers, the rod force by implicit differentiation of the clamp
-    /// solve (`Guide::solve_clamp_tangent`), the clamp loads and the stress by the dual beam
-    /// column (`elastic_rod/tangent.rs`).
+    /// [`Model::state_tangent`] of an elastic rod (§6): the piston law and the loads in dual
+    /// numbers, the rod force by implicit differentiation of the clamp solve
+    /// (`Guide::solve_clamp_tangent`; ϑ moves the clamp loads at fixed P as Δ does), the clamp
+    /// loads, the stress and K_ϑ, K_Δ by the dual beam column (`elastic_rod/tangent.rs`), ϑ̈ by
+    /// the cage equation (`ElasticRod::acceleration_with`) in dual numbers.
     fn elastic_tangent(
         &self,
         law: &PistonLaw,
@@ -116,7 +133,7 @@ impl Model {
         inputs: &Inputs,
         rod: &RodState,
         seed: &Seed,
-    ) -> Result<(Outputs, Outputs), ModelError> {
+    ) -> Result<(Outputs, Outputs, f64), ModelError> {
         let value = self.evaluate(crank, inputs, rod)?;
         let theta = Dual64::new(self.model_angle(crank), seed.angle);
         let w = Dual64::new(crank.speed, seed.speed);
@@ -136,13 +153,18 @@ impl Model {
         let acceleration = k.acceleration(w, eps);
         let (inertia_force, balancer_force, p_base) =
             self.dual_loads(theta, k.s, velocity, acceleration, inputs, seed);
-        let cage_theta = rod.cage.theta;
+        let cage_theta = Dual64::new(rod.cage.theta, seed.cage_angle);
+        let cage_rate = Dual64::new(rod.cage.rate, seed.cage_rate);
         let bc = elastic.beam_column(value.rod_force)?;
         let stiff = &elastic.stiffness;
         let guide = match &self.guide {
             Some(g) => g.solve_clamp_tangent(k.s, velocity, p_base, &value.guide, |p, along| {
-                let d = if along { delta } else { Dual64::from(delta.re) };
-                rod_tangent::clamp_loads(stiff, &bc, p, d, cage_theta)
+                let (d, t) = if along {
+                    (delta, cage_theta)
+                } else {
+                    (Dual64::from(delta.re), Dual64::from(cage_theta.re))
+                };
+                rod_tangent::clamp_loads(stiff, &bc, p, d, t)
             })?,
             None => GuideOutputs { rod_force: p_base.eps, ..GuideOutputs::default() },
         };
@@ -151,6 +173,14 @@ impl Model {
         // §4: T = −P·TF + V·dΔ/dθ (as `evaluate_elastic`).
         let crank_torque = transverse * delta_rate - p * k.tf;
         let stress = rod_tangent::stress_max(&elastic.spec, stiff, &bc, p, delta, cage_theta);
+        // The cage equation of §6 (`ElasticRod::acceleration_with`), Δ̈ = r(ε·cosθ − ω²·sinθ).
+        let (k_theta, k_delta) = rod_tangent::stiffnesses(stiff, &bc, p);
+        let delta_ddot = (eps * cos - w * w * sin) * law.r;
+        let cage_acceleration =
+            (k_delta * delta + p * elastic.load_eccentricity + delta_ddot * elastic.rigid_moment
+                - cage_rate * elastic.damping
+                - k_theta * cage_theta)
+                / elastic.cage_inertia;
         let tangent = Outputs {
             ready: groups::ALL,
             p_base: p_base.eps,
@@ -164,9 +194,9 @@ impl Model {
             inertia_force: inertia_force.eps,
             rod_force: guide.rod_force,
             crank_torque: crank_torque.eps,
-            // The cage state is held.
-            rod_angle: 0.0,
-            rod_angular_velocity: 0.0,
+            // rod.angle = ϑ, rod.angular_velocity = ϑ̇ (§6).
+            rod_angle: seed.cage_angle,
+            rod_angular_velocity: seed.cage_rate,
             balancer_force: balancer_force.eps,
             balancer_residual: (inertia_force + balancer_force).eps,
             balancer_stiffness_used: 0.0,
@@ -175,7 +205,7 @@ impl Model {
             // P·l_f/A3, linear in P.
             rod_axial_deflection: elastic.axial_deflection(guide.rod_force),
         };
-        Ok((value, tangent))
+        Ok((value, tangent, cage_acceleration.eps))
     }
 
     /// The loads of `Model::loads_at` (§4, §7) in dual numbers: (Φ, F_bal, p_base).

@@ -1,6 +1,7 @@
 //! The elastic rod's P- and Δ-dependent quantities in dual numbers (docs/fmi-interface.md
-//! "Directional derivatives"): the clamp loads (§5.4) and the largest stress (§6 "Stress") along a
-//! direction of the axial load P and the pin offset Δ, the cage state held. The same formulas as
+//! "Directional derivatives"): the clamp loads (§5.4), the largest stress (§6 "Stress") and the
+//! cage stiffnesses K_ϑ, K_Δ (§6) along a direction of the axial load P, the pin offset Δ and the
+//! cage angle ϑ. The same formulas as
 //! `beam_column.rs`, `fundamental_functions.rs` and `stress.rs`, branch for branch (the branch is
 //! chosen by the real part, as the f64 code chooses it), run once with `num_dual::Dual64`: a
 //! forward-mode derivative of the model's own arithmetic, not a difference. They are a separate
@@ -60,6 +61,8 @@ struct DualColumn {
     s_n: Dual64,
     x: Dual64,
     ff: Ff,
+    eta: Dual64,
+    f1: Dual64,
     e_bar: Dual64,
     d_bar: Dual64,
     w_star: Dual64,
@@ -85,32 +88,32 @@ impl DualColumn {
             (ff.s * l - ff.v3 * 2.0) / x
         };
         let w_star = core + eta * l * ff.s;
-        DualColumn { a2, s_n, x, ff, e_bar, d_bar, w_star, flex_length: l }
+        DualColumn { a2, s_n, x, ff, eta, f1, e_bar, d_bar, w_star, flex_length: l }
     }
 
     /// `BeamColumn::c3_c4`.
-    fn c3_c4(&self, delta: Dual64, theta: f64) -> (Dual64, Dual64) {
+    fn c3_c4(&self, delta: Dual64, theta: Dual64) -> (Dual64, Dual64) {
         let c3 = (self.ff.v3 * delta - self.s_n * self.d_bar * theta) / self.w_star;
         let c4 = (self.s_n * self.e_bar * theta - self.ff.s * delta) / self.w_star;
         (c3, c4)
     }
 }
 
-/// The clamp loads (M0, V) of `BeamColumn::clamp_loads` (§5.4) at the dual P and Δ, the cage
-/// angle ϑ held; `bc` is the f64 beam column at `p.re`.
+/// The clamp loads (M0, V) of `BeamColumn::clamp_loads` (§5.4) at the dual P, Δ and cage angle
+/// ϑ; `bc` is the f64 beam column at `p.re`.
 pub fn clamp_loads(
     stiff: &RodStiffness,
     bc: &BeamColumn,
     p: Dual64,
     delta: Dual64,
-    theta: f64,
+    theta: Dual64,
 ) -> (Dual64, Dual64) {
     let col = DualColumn::new(stiff, bc, p);
     let (c3, c4) = col.c3_c4(delta, theta);
     (c3 * col.a2 / col.s_n, -c4 * col.a2 / (col.s_n * col.s_n))
 }
 
-/// `stress_max` (§6 "Stress") at the dual P and Δ, the cage angle ϑ held. The largest |M(z_j)|
+/// `stress_max` (§6 "Stress") at the dual P, Δ and cage angle ϑ. The largest |M(z_j)|
 /// is the station the real parts pick (the derivative of a maximum is that of its argument,
 /// one-sided where two stations tie, as at every other kink of the model).
 pub fn stress_max(
@@ -119,7 +122,7 @@ pub fn stress_max(
     bc: &BeamColumn,
     p: Dual64,
     delta: Dual64,
-    theta: f64,
+    theta: Dual64,
 ) -> Dual64 {
     let col = DualColumn::new(stiff, bc, p);
     let n = station_intervals(spec);
@@ -157,6 +160,17 @@ pub fn stress_max(
     }
 }
 
+/// The cage stiffnesses (K_ϑ, K_Δ) of `BeamColumn::new` (§6) at the dual P: K_ϑ = A2·W/W*,
+/// K_Δ = A2·ē/(s_N·W*), W = l·V3 − V4 + f1(l + f1)·S + η·l·(C + f1·x·S) (V3'' = C, V3''' = x·S);
+/// `bc` is the f64 beam column at `p.re`.
+pub fn stiffnesses(stiff: &RodStiffness, bc: &BeamColumn, p: Dual64) -> (Dual64, Dual64) {
+    let col = DualColumn::new(stiff, bc, p);
+    let (l, ff, f1) = (col.flex_length, col.ff, col.f1);
+    let l3 = ff.c + f1 * col.x * ff.s;
+    let w = ff.v3 * l - ff.v4 + f1 * (f1 + l) * ff.s + col.eta * l * l3;
+    (w * col.a2 / col.w_star, col.e_bar * col.a2 / (col.s_n * col.w_star))
+}
+
 #[cfg(test)]
 mod tests {
     //! The dual clamp loads and stress have the f64 values as their real parts, and their dual
@@ -165,7 +179,7 @@ mod tests {
     //! tension, both series and closed-form branches.
     use num_dual::Dual64;
 
-    use super::{clamp_loads, stress_max};
+    use super::{clamp_loads, stiffnesses, stress_max};
     use crate::model::elastic_rod::tests::{kvo630, thin_rod};
     use crate::model::elastic_rod::{BeamColumn, RodStiffness};
 
@@ -193,6 +207,7 @@ mod tests {
                 }
             }
             let (delta, theta) = (7e-4, 0.03);
+            let th = Dual64::from(theta);
             for frac in [-3.0, -0.5, -0.02, 0.01, 0.2, 0.45, 0.6] {
                 let p = frac * lo;
                 let bc = col(p);
@@ -204,17 +219,31 @@ mod tests {
                     crate::model::elastic_rod::stress_max(&spec, &st, &col(q), delta, theta, q)
                 };
                 let f_vd = |d: f64| bc.clamp_loads(d, theta).1;
-                let (m0, v) =
-                    clamp_loads(&st, &bc, Dual64::new(p, 1.0), Dual64::from(delta), theta);
-                let (_, v_d) =
-                    clamp_loads(&st, &bc, Dual64::from(p), Dual64::new(delta, 1.0), theta);
-                let s =
-                    stress_max(&spec, &st, &bc, Dual64::new(p, 1.0), Dual64::from(delta), theta);
+                let (m0, v) = clamp_loads(&st, &bc, Dual64::new(p, 1.0), Dual64::from(delta), th);
+                let (_, v_d) = clamp_loads(&st, &bc, Dual64::from(p), Dual64::new(delta, 1.0), th);
+                let s = stress_max(&spec, &st, &bc, Dual64::new(p, 1.0), Dual64::from(delta), th);
+                // Along the cage angle ϑ, and the stiffnesses along P.
+                let th_seed = Dual64::new(theta, 1.0);
+                let (m0_t, v_t) =
+                    clamp_loads(&st, &bc, Dual64::from(p), Dual64::from(delta), th_seed);
+                let s_t =
+                    stress_max(&spec, &st, &bc, Dual64::from(p), Dual64::from(delta), th_seed);
+                let (k_t, k_d) = stiffnesses(&st, &bc, Dual64::new(p, 1.0));
+                let f_m0t = |t: f64| bc.clamp_loads(delta, t).0;
+                let f_vt = |t: f64| bc.clamp_loads(delta, t).1;
+                let f_st =
+                    |t: f64| crate::model::elastic_rod::stress_max(&spec, &st, &bc, delta, t, p);
+                let f_kt = |q: f64| col(q).k_theta;
+                let f_kd = |q: f64| col(q).k_delta;
                 let (m0_ref, v_ref) = bc.clamp_loads(delta, theta);
                 let s_ref = crate::model::elastic_rod::stress_max(&spec, &st, &bc, delta, theta, p);
-                for (name, got, want) in
-                    [("M0", m0.re, m0_ref), ("V", v.re, v_ref), ("σ", s.re, s_ref)]
-                {
+                for (name, got, want) in [
+                    ("M0", m0.re, m0_ref),
+                    ("V", v.re, v_ref),
+                    ("σ", s.re, s_ref),
+                    ("K_ϑ", k_t.re, bc.k_theta),
+                    ("K_Δ", k_d.re, bc.k_delta),
+                ] {
                     assert!(
                         (got - want).abs() <= 1e-12 * want.abs(),
                         "{name} at {p}: {got} vs {want}"
@@ -225,6 +254,12 @@ mod tests {
                     ("dV/dP", v.eps, diff(&f_v, p, h)),
                     ("dσ/dP", s.eps, diff(&f_s, p, h)),
                     ("dV/dΔ", v_d.eps, diff(&f_vd, delta, 1e-5)),
+                    ("dM0/dϑ", m0_t.eps, diff(&f_m0t, theta, 1e-4)),
+                    ("dV/dϑ", v_t.eps, diff(&f_vt, theta, 1e-4)),
+                    // A small step: a wider stencil crosses a change of the largest station.
+                    ("dσ/dϑ", s_t.eps, diff(&f_st, theta, 1e-7)),
+                    ("dK_ϑ/dP", k_t.eps, diff(&f_kt, p, h)),
+                    ("dK_Δ/dP", k_d.eps, diff(&f_kd, p, h)),
                 ] {
                     assert!(
                         (got - want).abs() <= 1e-7 * want.abs().max(1e-300),
