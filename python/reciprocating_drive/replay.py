@@ -470,6 +470,27 @@ def run_piece(
     return bytes(format_csv(allrows[s - w : e - w])), summ, e - s, time.thread_time() - cpu
 
 
+#: The file by which a stopped client tells its LocalCluster's workers to start no more pieces.
+STOP = "stop"
+
+
+def run_group(fmu_key_or_path, values, options, half, cols, offset, items, work=None):
+    """On a worker: consecutive pieces, one Dask task (docs/twin.md "Distributed replay",
+    Speed: the scheduler's cost is per task, not per sample). `items` holds (index, piece,
+    arrays) in order. With `work` each piece is written there as it ends (the client counts
+    and assembles it from its record) and the result is None; without, the list of each
+    piece's (bytes, bytes, rows, CPU seconds). A stopped client's STOP file in `work` ends
+    the group before its next piece: a running task cannot be cancelled, and a group is long."""
+    got = []
+    for i, piece, arrays in items:
+        if work is not None and (pathlib.Path(work) / STOP).exists():
+            return None  # the client stopped: it counts none of these (resume computes them)
+        r = run_piece(fmu_key_or_path, values, options, half, cols, offset, piece, arrays, work, i)
+        if work is None:
+            got.append(r)
+    return None if work is not None else got
+
+
 #: format_csv's buffer of each thread of this (worker) process, reused by every piece.
 _TEXT = threading.local()
 

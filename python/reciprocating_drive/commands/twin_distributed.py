@@ -13,23 +13,28 @@ import time
 from ..fmu import FmuError
 from ..line_input import InputChanged
 from ..replay import (
+    STOP,
     Assembler,
     PieceFailed,
     Progress,
     ReplayError,
+    _names,
     is_postgres,
     is_sqlite,
     manifest_of,
     open_work,
     piece_cpu,
     plan,
-    run_piece,
+    run_group,
     scan,
     warm_up_time,
     warm_worker,
     write_piece,
 )
 from ..twin import CheckpointError, DataError, Options, summary_header
+
+#: At most this many pieces in one Dask task (`_compute`).
+_GROUP_MAX = 32
 
 #: Options of the sequential twin that a distributed replay does not take (it reads a whole
 #: recorded file; its work folder is its checkpoint).
@@ -218,68 +223,91 @@ def _compute(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
         progress.workers = n_workers
         wopts = worker_options(sc.options)
         names = ("line", "t", "theta", "speed", "force")
-        queue = list(todo)
         lonely = None  # since when the cluster has had no worker
         # A local cluster's workers write their pieces to the work folder themselves; those of
         # a cluster that shares no disk send them back as bytes.
         shared = str(work.resolve()) if a.scheduler is None else None
-        running: dict = {}
-        # A few pieces per worker in flight: the next is there when one ends, and the data
-        # sent ahead stays bounded (arrays, not Python objects).
-        limit = 4 * n_workers
+        if shared:
+            # A record in the work folder then says a worker wrote that piece in this run: a
+            # stale one (a damaged piece of an earlier run, which resume computes again) goes.
+            for i in todo:
+                _names(work, i)[2].unlink(missing_ok=True)
+            (work / STOP).unlink(missing_ok=True)  # that of a stopped run: this one resumes
+        # Consecutive pieces in groups, one task each: Dask's scheduler (in this process for a
+        # LocalCluster) costs about the same CPU per task whatever its size, which 2 cores cannot
+        # hide (docs/twin.md "Distributed replay", Speed). Two groups per worker keep the
+        # workers evenly busy to the end; a group stays small enough that the arrays sent ahead
+        # stay bounded and a worker killed loses little.
+        size = max(1, min(_GROUP_MAX, -(-len(todo) // (2 * n_workers))))
+        queue = [todo[k : k + size] for k in range(0, len(todo), size)]
+        running: dict = {}  # future -> the group's pieces not yet counted
+        limit = 2 * n_workers
+        # The records of a shared disk are looked at often, so that the (sequential) assembly
+        # follows the pieces as they end rather than their groups.
+        poll = 0.05 if shared else 0.5
+
+        def count(i):
+            asm.add(i)
+            progress.cpu += piece_cpu(work, i)
+            progress.step(pieces[i][1] - pieces[i][0])
+
         while queue or running:
             while queue and len(running) < limit:
-                i = queue.pop(0)
-                w, f = pieces[i][2:4]
-                arrays = tuple(sc.data[n][w:f] for n in names)
+                group = queue.pop(0)
+                items = [
+                    (i, pieces[i], tuple(sc.data[n][pieces[i][2] : pieces[i][3]] for n in names))
+                    for i in group
+                ]
                 fut = client.submit(
-                    run_piece,
+                    run_group,
                     key,
                     sc.values,
                     wopts,
                     sc.half,
                     sc.cols,
                     sc.offset,
-                    pieces[i],
-                    arrays,
+                    items,
                     shared,
-                    i,
                     pure=False,
-                    key=f"replay-piece-{i}-{os.getpid()}",
+                    key=f"replay-group-{group[0]}-{os.getpid()}",
                 )
-                running[fut] = i
+                running[fut] = list(group)
             if stopping:
                 break
             try:
-                done, _ = wait(list(running), timeout=0.5, return_when="FIRST_COMPLETED")
-            except TimeoutError:  # none ended within the half second: look at the signals
+                done, _ = wait(list(running), timeout=poll, return_when="FIRST_COMPLETED")
+            except TimeoutError:  # none ended meanwhile: look at the records and the signals
                 done = ()
             fetched = 0
+            if shared:
+                # A group's pieces are written in order: each one whose record is there is
+                # counted and assembled now, not when its whole group ends (progress, resume).
+                for left in running.values():
+                    while left and _names(work, left[0])[2].exists():
+                        count(left.pop(0))
+                        fetched += 1
             for fut in done:
                 if shared and fut.status == "finished":
-                    # The worker wrote the piece and its record to the work folder: its result
-                    # (None) is not fetched, which saves the client (and the scheduler it
-                    # hosts) a round trip to the worker per piece (docs/twin.md, Speed).
-                    i = running.pop(fut)
-                    asm.add(i)
-                    progress.cpu += piece_cpu(work, i)
-                    progress.step(pieces[i][1] - pieces[i][0])
-                    fetched += 1
+                    # The worker wrote its pieces and their records to the work folder: its
+                    # result (None) is not fetched, which saves the client (and the scheduler
+                    # it hosts) a round trip to the worker (docs/twin.md, Speed).
+                    for i in running.pop(fut):
+                        count(i)
+                        fetched += 1
                     continue
                 try:
-                    out, rev, n, cpu = fut.result(timeout=1.0)
+                    got = fut.result(timeout=1.0)
                 except TimeoutError:
                     continue  # its result went with its worker: Dask computes it again
                 except PieceFailed as e:
                     print(f"twin.py: {a.input}: {e}", file=err)
                     return 1
-                i = running.pop(fut)
-                if out is not None:
+                for i, (out, rev, n, cpu) in zip(running.pop(fut), got):
                     write_piece(work, i, out, rev)
-                asm.add(i)
-                progress.cpu += cpu
-                progress.step(n)
-                fetched += 1
+                    asm.add(i)
+                    progress.cpu += cpu
+                    progress.step(n)
+                    fetched += 1
             # A cluster whose workers are all gone would wait for ever: bounded.
             if fetched or client.scheduler_info().get("workers"):
                 lonely = None
@@ -298,6 +326,8 @@ def _compute(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
         progress.t_end = time.monotonic()
         progress.client_cpu = time.process_time() - cpu0
         if stopping:
+            if shared:
+                (work / STOP).touch()  # the groups running end at their next piece
             for fut in running:
                 fut.cancel()
             print(
