@@ -191,6 +191,9 @@ pub struct Table<M: FmuModel> {
     /// The FMI 3.0 instantiationToken (`crate::fmi3::model_description::token`).
     pub(crate) token3: OnceLock<String>,
     pub(crate) fingerprint: OnceLock<u64>,
+    /// The value references of the continuous states (Model Exchange), found once by name: the
+    /// directional derivatives ask for them at every call (`crate::fmi2::directional`).
+    state_vrs: OnceLock<Vec<usize>>,
 }
 
 impl<M: FmuModel> Table<M> {
@@ -205,7 +208,20 @@ impl<M: FmuModel> Table<M> {
             guid: OnceLock::new(),
             token3: OnceLock::new(),
             fingerprint: OnceLock::new(),
+            state_vrs: OnceLock::new(),
         }
+    }
+
+    /// The value reference of each continuous state, in the order of
+    /// [`FmuModel::CONTINUOUS_STATES`] (`crate::fmi3::model_description::state_vr`, derived once:
+    /// it looks the names up in the table).
+    #[inline]
+    pub fn state_vrs(&self) -> &[usize] {
+        self.state_vrs.get_or_init(|| {
+            (0..M::CONTINUOUS_STATES.len())
+                .map(crate::fmi3::model_description::state_vr::<M>)
+                .collect()
+        })
     }
 
     /// [`Self::info`] once it has been derived (the first instance derives it), without the
