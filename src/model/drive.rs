@@ -734,7 +734,7 @@ impl Model {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::cage_step::{CageRhs, STAGE_P_TOLERANCE_FACTOR};
     use super::*;
     use crate::model::integrator::{IntegratorStats, SecondOrderRhs};
@@ -777,7 +777,7 @@ mod tests {
     }
 
     /// The kvo630 machine of docs/model.md §8 (as in benches/host_loop.rs).
-    fn kvo630() -> Params {
+    pub(crate) fn kvo630() -> Params {
         let d = Params::default();
         let mut supports = d.supports;
         supports[0].kind = 0;

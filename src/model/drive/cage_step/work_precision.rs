@@ -27,24 +27,7 @@ const SAMPLE: f64 = 0.01;
 /// The kvo630 machine of `model::drive`'s tests (docs/model.md §8), `rod_kind` 2 (the spring)
 /// or 1 (a thin straight rod).
 fn kvo630(rod_kind: i32) -> Params {
-    let d = Params::default();
-    let mut supports = d.supports;
-    supports[0].kind = 0;
-    supports[1].z = 0.005;
-    supports[1].length = 0.010;
-    supports[1].offset = 0.0;
-    supports[1].tilt = 0.0;
-    supports[2].kind = 0;
-    Params {
-        crank_radius: 0.001,
-        mass: 0.02,
-        load_mean: 14.7,
-        link_lengths: [0.010, 0.0, 0.0, 0.0],
-        link_diameters: [0.008, d.link_diameters[1], d.link_diameters[2], d.link_diameters[3]],
-        supports,
-        rod_kind,
-        ..d
-    }
+    Params { rod_kind, ..crate::model::drive::tests::kvo630() }
 }
 
 /// The cage state at every SAMPLE point over DURATION with communication step `h`.
