@@ -133,6 +133,56 @@ def test_rejected_cases_have_the_reference_rows_and_messages(fmu_path):
     assert_rows_equal(run_batch(fmu_path, st, cases), ref)
 
 
+def _steps_fail_study(fmu_path):
+    """kvo630 at 3000 strokes/min: a reciprocating mass of 0.5 or 2 kg loads the spring rod so
+    that the FMU fails in the middle of the run (fmi2DoStep at steps 29 and 24), the others run."""
+    return study_from_dict(
+        {
+            "name": "mid",
+            "machine": "kvo630",
+            "skip_revolutions": 0,
+            "revolutions": 2,
+            "steps_per_revolution": 90,
+            "metrics": ["rod_angle_amplitude", "stress_max", "friction_work"],
+            "parameters": {
+                "strokes_per_minute": {"values": [3000.0]},
+                "mass.reciprocating": {"values": [0.02, 0.03, 0.5, 2.0, 0.04, 0.01]},
+            },
+        },
+        fmu=fmu_path,
+    )
+
+
+def test_a_case_failing_in_the_middle_of_a_native_batch(fmu_path, monkeypatch):
+    """One native call runs the batch's cases; it stops at the case whose fmi2DoStep fails, the
+    reference path runs that one case (its row and the FMU's message), and the next cases go on
+    natively: only the failing cases reach the per-step path, every row equals the reference's."""
+    st = _steps_fail_study(fmu_path)
+    cases = list(range(st.n_cases))
+    ref = run_batch(fmu_path, st, cases, reference=True)
+    assert [r["status"] for r in ref] == ["ok", "ok", "error", "error", "ok", "ok"]
+    assert "fmi2DoStep" in ref[2]["message"]
+    ran, calls = [], []
+    run_case, native = sweep.run_case, sweep_cases._Prepared.run
+
+    def counted(fmu, study, params):
+        ran.append(params["mass.reciprocating"])
+        return run_case(fmu, study, params)
+
+    def spy(self, groups, first, count, *a):
+        done = native(self, groups, first, count, *a)
+        calls.append((first, count, done, self.fail.function, self.fail.step))
+        return done
+
+    monkeypatch.setattr(sweep, "run_case", counted)
+    monkeypatch.setattr(sweep_cases._Prepared, "run", spy)
+    fast = run_batch(fmu_path, st, cases)
+    assert ran == [0.5, 2.0]
+    # fmi2DoStep (1) failed at step 29 of case 2 and at step 24 of case 3.
+    assert calls == [(0, 6, 2, 1, 29), (3, 3, 0, 1, 24), (4, 2, 2, 0, 0)]
+    assert_rows_equal(fast, ref)
+
+
 def synthetic(rng, n_runs: int, n: int, steps: int):
     """Runs of smooth random outputs whose model angle starts anywhere in (−2π, 0] and advances
     unevenly (a crank that speeds up and slows down), at random step sizes."""
