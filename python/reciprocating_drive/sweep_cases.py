@@ -27,6 +27,7 @@ from __future__ import annotations
 import ctypes
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -65,7 +66,7 @@ class _Prepared:
             groups.setdefault(var.type, []).append(name)
         raw = fmu._raw
         self.groups = []  # (fmi2Set* address, vr array, base row)
-        self.slots = []  # (group, column, varied parameter or None for the speed)
+        self.slots = []  # (group, column, index of the varied parameter or None: the speed)
         for g, (ty, names) in enumerate(groups.items()):
             conv = float if ty == "Real" else int
             base = np.array([conv(order[k]) for k in names], dtype=dtype[ty])
@@ -73,7 +74,7 @@ class _Prepared:
             self.groups.append((batch.address(raw[f"fmi2Set{ty}"]), vrs, base))
             for j, k in enumerate(names):
                 if k in varied:
-                    self.slots.append((g, j, k))
+                    self.slots.append((g, j, study.varied.index(k)))
                 elif k == "crank.speed":
                     self.slots.append((g, j, None))
         ch = fmu.channel(["crank.angle", "crank.speed"], list(outputs))
@@ -90,16 +91,17 @@ class _Prepared:
         self.work = Workspace()
         self.native = batch.library().fmi2_batch_cases
 
-    def values(self, params: list[dict], omega: np.ndarray) -> ctypes.Array:
-        """The groups of values of cases with parameters `params` and speeds `omega`: each a row
-        per case (fmi2_batch_cases's SetGroup array, valid until the next call)."""
+    def values(self, params: np.ndarray, omega: np.ndarray) -> ctypes.Array:
+        """The groups of values of cases with parameters `params` (rows of Study.case_array)
+        and speeds `omega`: each a row per case (fmi2_batch_cases's SetGroup array, valid until
+        the next call). An Integer or Boolean is its float's integer, as run_case's int()."""
         rows = []
         for g, (_, _, base) in enumerate(self.groups):
             m = self.work.get(f"values{g}", (len(omega), len(base)), base.dtype)
             m[:] = base
             rows.append(m)
-        for g, j, name in self.slots:
-            rows[g][:, j] = omega if name is None else [p[name] for p in params]
+        for g, j, v in self.slots:
+            rows[g][:, j] = omega if v is None else params[:, v]
         return (batch.SetGroup * len(rows))(
             *[
                 batch.SetGroup(f, ctypes.addressof(vrs), len(vrs), m.ctypes.data, m.itemsize,
@@ -146,29 +148,63 @@ def _prepared(fmu, study, outputs: tuple) -> _Prepared:
     return p
 
 
-def run_cases(fmu, study, cases: list[int], outputs: tuple) -> list[tuple]:
-    """The cases `cases` of `study` on a loaded Fmu: per case (case, params, metrics, status,
-    message, seconds in FMU calls, seconds of the case), as run_batch's rows need them."""
-    from .sweep import _speed, _summary_metrics, run_case
+@dataclass
+class Results:
+    """The rows of a batch's cases as columns: `params` one row of the varied values per case
+    (Study.case_array; the values of `study.case` exactly when `study.floats_only`), `metrics`
+    one row of the study's metrics per case (NaN for a rejected case), per case its status
+    ("ok" or "error"), message, seconds in FMU calls and seconds of the whole case."""
+
+    study: object
+    cases: list
+    params: np.ndarray
+    metrics: np.ndarray
+    status: list
+    message: list
+    seconds_fmu: np.ndarray
+    seconds_case: np.ndarray
+
+    def params_of(self, c: int) -> dict:
+        """Row c's parameters as `study.case` gives them (types included)."""
+        if self.study.floats_only:
+            return dict(zip(self.study.varied, self.params[c].tolist()))
+        return self.study.case(self.cases[c])
+
+
+def speeds(study, params: np.ndarray) -> np.ndarray:
+    """The crank speed of each case (rows of Study.case_array), as sweep._speed computes it."""
+    names = study.varied
+    if "strokes_per_minute" in names:
+        return params[:, names.index("strokes_per_minute")] * TWO_PI / 60.0
+    if "crank.speed" in names:
+        return params[:, names.index("crank.speed")].copy()
+    return np.full(len(params), study.crank_speed)
+
+
+def run_cases(fmu, study, cases: list[int], outputs: tuple) -> Results:
+    """The cases `cases` of `study` on a loaded Fmu, as run_batch's rows need them."""
+    from .sweep import _summary_metrics, run_case
 
     p = _prepared(fmu, study, outputs)
     n_rows, n_out = p.n + 1, len(outputs)
     block = max(1, _BLOCK_VALUES // (n_rows * n_out))
-    out = []
+    n = len(cases)
+    res = Results(
+        study, list(cases), study.case_array(cases), np.full((n, len(study.metrics)), np.nan),
+        ["ok"] * n, [""] * n, np.zeros(n), np.zeros(n),
+    )  # fmt: skip
     clock = time.perf_counter
-    for b in range(0, len(cases), block):
+    for b in range(0, n, block):
         t_block = clock()
-        ids = cases[b : b + block]
-        C = len(ids)
+        C = min(block, n - b)
+        params = res.params[b : b + C]
         data = p.work.get("data", (C, n_rows, n_out))
-        params = [study.case(i) for i in ids]
-        omega = np.array([_speed(study, q) for q in params], dtype=np.float64)
+        omega = speeds(study, params)
         with np.errstate(all="ignore"):
             h = TWO_PI / omega / study.steps_per_revolution
-        seconds = np.zeros(C)
+        seconds = res.seconds_fmu[b : b + C]
         native = (omega > 0) & np.isfinite(omega)
         groups = p.values(params, np.where(native, omega, 1.0))
-        rows: list = [None] * C
         fast = np.zeros(C, dtype=bool)
         c, spent = 0, 0.0  # spent: seconds of the reference path
         while c < C:
@@ -184,46 +220,40 @@ def run_cases(fmu, study, cases: list[int], outputs: tuple) -> list[tuple]:
             # A call of case c failed, or its speed is not > 0: the reference path runs it and
             # makes its row (with the FMU's message); the next cases go on natively.
             t0 = clock()
-            rows[c] = _reference_row(fmu, study, params[c], run_case, t0)
+            _reference_row(fmu, study, res, b + c, run_case)
             data[c, 0] = np.nan  # not for the batched metrics
+            res.seconds_case[b + c] = clock() - t0
             spent += clock() - t0
             c += 1
         idx = np.flatnonzero(fast)
         if len(idx):
             values, good = batch_metrics(h, data, study, outputs, p.work)
-            bad = set(idx[~good[idx]].tolist())
-            for c in idx.tolist():
-                r = rows[c] = [params[c], None, "ok", "", float(seconds[c]), float(seconds[c])]
-                if c not in bad:
-                    r[1] = dict(zip(study.metrics, values[c].tolist()))
-                    continue
+            ok = idx[good[idx]]
+            res.metrics[b + ok] = values[ok]
+            res.seconds_case[b + idx] = seconds[idx]
+            for c in idx[~good[idx]].tolist():
                 t1 = clock()
                 try:
-                    r[1] = _summary_metrics(study, np.arange(n_rows) * h[c], data[c])
+                    m = _summary_metrics(study, np.arange(n_rows) * h[c], data[c])
+                    res.metrics[b + c] = [m[k] for k in study.metrics]
                 except (ValueError, RuntimeError) as e:
-                    r[1] = {m: math.nan for m in study.metrics}
-                    r[2], r[3] = "error", str(e)
-                r[5] += clock() - t1
+                    res.status[b + c], res.message[b + c] = "error", str(e)
+                res.seconds_case[b + c] += clock() - t1
                 spent += clock() - t1
             # The rest of the block's time (the native calls' Python side, the metrics) is
             # shared among its natively run cases.
             share = (clock() - t_block - spent - float(seconds[idx].sum())) / len(idx)
-            for c in idx.tolist():
-                rows[c][5] += share
-        out += [(ids[c], *rows[c]) for c in range(C)]
-    return out
+            res.seconds_case[b + idx] += share
+    return res
 
 
-def _reference_row(fmu, study, params, run_case, t0: float) -> list:
-    """run_batch's row of one case through the reference path (run_case)."""
-    status, message = "ok", ""
-    metrics, inside = {}, 0.0
+def _reference_row(fmu, study, res: Results, c: int, run_case) -> None:
+    """Row c of `res` through the reference path (run_case), as run_batch(reference=True)."""
     try:
-        metrics, inside = run_case(fmu, study, params)
+        metrics, res.seconds_fmu[c] = run_case(fmu, study, res.params_of(c))
+        res.metrics[c] = [metrics[k] for k in study.metrics]
     except (FmuError, ValueError, RuntimeError) as e:
-        status, message = "error", str(e)
-        metrics = {m: math.nan for m in study.metrics}
-    return [params, metrics, status, message, inside, time.perf_counter() - t0]
+        res.status[c], res.message[c] = "error", str(e)
 
 
 def _first_max(v: np.ndarray) -> np.ndarray:
