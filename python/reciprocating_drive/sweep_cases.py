@@ -412,10 +412,18 @@ def _batch_metrics(h, data, study, outputs, w: Workspace):
     def series(name):
         return cache[name]
 
-    def masked(yw, m, fill):
-        """yw where m, else fill (m None: the columns of a revolution that fills the window)."""
+    def masked(yw, m, fill, contiguous=False):
+        """yw where m, else fill (m None: the columns of a revolution that fills the window,
+        copied to a contiguous array if `contiguous`)."""
         if m is None:
-            return yw[:, : W - 1]
+            if not contiguous:
+                return yw[:, : W - 1]
+            # np.argmax/argmin along a strided axis would copy the rows into a fresh array of
+            # their own, of megabytes: memory that a Dask worker's malloc returns to the system
+            # at once (its MALLOC_TRIM_THRESHOLD_ of 64 kB), every block's page faults again.
+            out = w.get("window", (C, W - 1))
+            np.copyto(out, yw[:, : W - 1])
+            return out
         out = w.get("masked", (C, W))
         out.fill(fill)
         np.copyto(out, yw, where=m)
@@ -431,7 +439,7 @@ def _batch_metrics(h, data, study, outputs, w: Workspace):
             y = series(q)
             yw = y[:, w0:w1]
             fill, pick = (-np.inf, np.argmax) if key == "max" else (np.inf, np.argmin)
-            j = np.stack([w0 + pick(masked(yw, m, fill), axis=1) for m in masks], axis=1)
+            j = np.stack([w0 + pick(masked(yw, m, fill, True), axis=1) for m in masks], axis=1)
             i = rows * N + j
             v, a = _refined_peaks(TH, y.ravel(), i, (j > 0) & (j < N - 1))
             extremes[q, key] = v, _degrees(a)
@@ -466,7 +474,11 @@ def _batch_metrics(h, data, study, outputs, w: Workspace):
             c, r = np.nonzero(use & (n == length) & (ja == start))
             terms = w.get("terms", (len(c), length + 1))
             terms[:, 0], terms[:, length] = first[c, r], last[c, r]
-            terms[:, 1:length] = inner[c, start - w0 : start - w0 + length - 1]
+            span = slice(start - w0, start - w0 + length - 1)
+            if c[-1] - c[0] + 1 == len(c):  # consecutive runs: a slice, not a fresh copy
+                terms[:, 1:length] = inner[c[0] : c[-1] + 1, span]
+            else:
+                terms[:, 1:length] = inner[c, span]
             work[c, r] = np.add.reduce(terms, axis=1)
         return np.mean(work, axis=1)
 
