@@ -91,13 +91,15 @@ class _Prepared:
         self.work = Workspace()
         self.native = batch.library().fmi2_batch_cases
 
-    def values(self, params: np.ndarray, omega: np.ndarray) -> ctypes.Array:
+    def values(self, params: np.ndarray, omega: np.ndarray, work=None) -> ctypes.Array:
         """The groups of values of cases with parameters `params` (rows of Study.case_array)
         and speeds `omega`: each a row per case (fmi2_batch_cases's SetGroup array, valid until
-        the next call). An Integer or Boolean is its float's integer, as run_case's int()."""
+        the next call with the same Workspace `work`, by default the set-up's own). An Integer
+        or Boolean is its float's integer, as run_case's int()."""
         rows = []
+        work = work or self.work
         for g, (_, _, base) in enumerate(self.groups):
-            m = self.work.get(f"values{g}", (len(omega), len(base)), base.dtype)
+            m = work.get(f"values{g}", (len(omega), len(base)), base.dtype)
             m[:] = base
             rows.append(m)
         for g, j, v in self.slots:
