@@ -128,13 +128,24 @@ def _rejected_study(fmu_path):
     )
 
 
-def test_rejected_cases_have_the_reference_rows_and_messages(fmu_path):
+def test_rejected_cases_have_the_reference_rows_and_messages(fmu_path, monkeypatch):
+    """The native call stops at fmi2ExitInitializationMode (8) of a rejected case; the reference
+    path makes its row, the next cases go on natively."""
     st = _rejected_study(fmu_path)
     cases = list(range(st.n_cases))
     ref = run_batch(fmu_path, st, cases, reference=True)
     assert [r["status"] for r in ref] == ["ok", "error", "ok"] * 2
     assert "geometry.rod_length" in ref[1]["message"]
+    calls, native = [], sweep_cases._Prepared.run
+
+    def spy(self, groups, first, count, *a):
+        done = native(self, groups, first, count, *a)
+        calls.append((first, count, done, self.fail.function))
+        return done
+
+    monkeypatch.setattr(sweep_cases._Prepared, "run", spy)
     assert_rows_equal(run_batch(fmu_path, st, cases), ref)
+    assert calls == [(0, 6, 1, 8), (2, 4, 2, 8), (5, 1, 1, 0)]
 
 
 def _steps_fail_study(fmu_path):
