@@ -127,7 +127,16 @@ def run_case(fmu, study: Study, params: dict) -> tuple[dict, float]:
 
 
 def _summary_metrics(study: Study, time_: np.ndarray, rows: np.ndarray) -> dict:
-    """The metrics of one run's samples through summarize_revolutions (the reference)."""
+    """The metrics of one run's samples through summarize_revolutions (the reference). Raises
+    ValueError (the case's row is an error) for a sample the FMU returned as NaN or infinite:
+    summarize_revolutions would fail on it with an IndexError, which would end the batch."""
+    bad = ~np.isfinite(rows)
+    if bad.any():
+        k, q = (int(x) for x in np.argwhere(bad)[0])
+        raise ValueError(
+            f"the FMU returned {OUTPUTS[q]} = {rows[k, q]} at t = {time_[k]:.6g} s (communication "
+            f"point {k}); allowed: finite values (the case's metrics cannot be computed)"
+        )
     data = {name: rows[:, i] for i, name in enumerate(OUTPUTS)}
     revs = [
         r

@@ -349,14 +349,15 @@ def _batch_metrics(h, data, study, outputs, w: Workspace):
     # rows of all outputs stay in the cache while their columns are taken out.
     need = ["crank.model_angle", *{q: 0 for m in study.metrics for q in _SERIES[m]}]
     cache = {q: w.get(q, (C, N)) for q in need}
-    total = np.zeros(C)
+    total = np.empty(C)
     for a in range(0, C, 16):
         part = data[a : a + 16]
         for q in need:
             np.copyto(cache[q][a : a + 16], part[:, :, col[q]])
-            total[a : a + 16] += cache[q][a : a + 16].sum(axis=1)
-    # A sum is finite only if every term is (an overflow sends a run to the reference too). The
-    # outputs no metric reads are not looked at (the reference fails on a NaN in any of them).
+        # Every output, also those no metric reads: the reference refuses a run with a NaN or an
+        # infinity in any (sweep._summary_metrics). A sum is finite only if every term is (an
+        # overflow sends a run to the reference too).
+        np.sum(part, axis=(1, 2), out=total[a : a + 16])
     good = np.isfinite(total) & np.isfinite(h) & (N >= 3)
     th = cache["crank.model_angle"]
     good &= ~np.less(th[:, 1:], th[:, :-1], out=w.get("less", (C, N - 1), bool)).any(axis=1)

@@ -198,6 +198,38 @@ def test_a_case_failing_in_the_middle_of_a_native_batch(fmu_path, monkeypatch):
     assert_rows_equal(fast, ref)
 
 
+def test_a_non_finite_output_makes_an_error_row_not_a_failed_batch(fmu_path, monkeypatch):
+    """A NaN or an infinity among a case's outputs (put into the native driver's output array
+    after its call, as an FMU returning one with fmi2OK would), also in an output no metric
+    reads: the case's row is an error naming the output, the value and the point, from the
+    reference summary (sweep._summary_metrics, which summarize_revolutions would fail in with an
+    IndexError); the other rows of the batch are the reference's."""
+    st = load_study(ROOT / "studies" / "default_balancer.toml", fmu=fmu_path)
+    assert "rod.stress_max" not in {q for m in st.metrics for q in sweep_cases._SERIES[m]}
+    put = {2: ("crank.torque", 50, math.nan), 4: ("rod.stress_max", 60, -math.inf)}
+    native = sweep_cases._Prepared.run
+
+    def spoil(self, groups, first, count, omega, h, data, seconds):
+        done = native(self, groups, first, count, omega, h, data, seconds)
+        for c, (name, k, v) in put.items():
+            if first <= c < first + done:
+                data[c, k, OUTPUTS.index(name)] = v
+        return done
+
+    cases = list(range(7))
+    ref = run_batch(fmu_path, st, cases, reference=True)
+    monkeypatch.setattr(sweep_cases._Prepared, "run", spoil)
+    fast = run_batch(fmu_path, st, cases)
+    for c, (name, k, v) in put.items():
+        r = fast[c]
+        assert r["status"] == "error" and f"the FMU returned {name} = {v} at t = " in r["message"]
+        assert f"(communication point {k}); allowed: finite values" in r["message"]
+        assert all(math.isnan(r[m]) for m in st.metrics)
+        ref[c] = {**ref[c], **{m: math.nan for m in st.metrics}}
+        ref[c].update(status="error", message=r["message"])
+    assert_rows_equal(fast, ref)
+
+
 def _typed_study(fmu_path):
     """Integer and Boolean parameters (their values written as 1, -1, 0, 1 in a row) beside an
     Integer range (floats) and a Real's values."""
