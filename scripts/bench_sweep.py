@@ -8,21 +8,27 @@
     fmi2SetReal/fmi2DoStep/fmi2GetReal driven by the native batch driver (libfmi2_batch.so), with
     every argument prepared beforehand: no Python work per step, none between the calls of a case
     but the calls themselves;
-(b) one worker's time per case: `sweep.run_batch` on the same cases in this process, one call (and,
-    as the baseline, `reference=True`, the per-step Python loop, on 24 of them);
+(a') the stricter floor: the same cases' calls all made from native code: the sweep's own driver
+    (`fmi2_batch_cases`, libfmi2_batch.so) on the cases' value rows prepared beforehand, a few
+    hundred cases per call, no metrics; (a) minus (a') is what calling the FMU from Python costs
+    any Python importer;
+(b) one worker's time per case: `sweep.run_batch_csv` (a sweep's Dask task) on the same cases in
+    this process, one call (and, as the baseline, `run_batch(..., reference=True)`, the per-step
+    Python loop, on 24 of them);
 (c) cases per second of `run_sweep` on a LocalCluster (processes, one thread each) with 1 and with
     2 workers, on the study with a denser grid (the same cases' kind, enough of them for several
     seconds of one worker's work), from the first submission to the last result; and the CPU
     time the worker processes spent per case (their whole work, the cases and Dask's).
 
 The ratios printed: floor time / worker time (≥ 0.8 is the target: a worker's cases/s at least 0.8×
-the floor's), and 2-worker / 1-worker cases/s (≥ 1.8). Every time is the minimum over --repeat
-repetitions, by wall time and by CPU time: on a shared machine the minimum is the run least
-disturbed, and the CPU time leaves out the time other processes had the core (but not their
-effect on the caches).
+the floor's (a)), the same against (a'), and 2-worker / 1-worker cases/s (≥ 1.8). (a), (a') and
+(b) run on the same FMU instance, the one `run_batch` loads, in turn: each of --repeat rounds runs
+each once. Every time is the minimum over the rounds, by wall time and by CPU time: on a shared
+machine the minimum is the run least disturbed, and the CPU time leaves out the time other
+processes had the core (but not their effect on the caches).
 
     .venv/bin/python scripts/bench_sweep.py [--repeat 5] [--seconds 0.5] [--dask-seconds 8]
-    .venv/bin/python scripts/bench_sweep.py --no-dask        # (a) and (b) only
+    .venv/bin/python scripts/bench_sweep.py --no-dask        # (a), (a') and (b) only
 """
 
 from __future__ import annotations
@@ -101,17 +107,19 @@ def prepared_calls(fmu: Fmu, study, cases: list[int]) -> list:
     return prepared, ch, lib, (inputs, out, fail)
 
 
-def floor_seconds(fmu: Fmu, study, cases: list[int], repeat: int) -> float:
-    """(a): the FMU's calls of the cases alone, min over `repeat`: (wall, CPU) seconds."""
-    prepared, ch, lib, _keep = prepared_calls(fmu, study, cases)
+def floor_run(fmu: Fmu, study, cases: list[int]):
+    """(a): a function that makes the FMU's calls of the cases alone once and returns its (wall,
+    CPU) seconds."""
+    prepared, ch, lib, keep = prepared_calls(fmu, study, cases)
     raw, c = fmu._raw, fmu._component
     reset, setup = raw["fmi2Reset"], raw["fmi2SetupExperiment"]
     enter, leave = raw["fmi2EnterInitializationMode"], raw["fmi2ExitInitializationMode"]
     set_real, get_real, run = ch._set, ch._get, lib.fmi2_batch_run
     vin, vout, no = ch._vin, ch._vout, len(sweep.OUTPUTS)
     fmu.start({})  # an instance that has run: every case begins with fmi2Reset, as in a sweep
-    best = np.array([math.inf, math.inf])
-    for _ in range(repeat):
+
+    def once():
+        _keep = keep  # the arrays the prepared arguments point into
         t0 = clocks()
         for sets, x0, out0, run_args in prepared:
             reset(c)
@@ -123,7 +131,67 @@ def floor_seconds(fmu: Fmu, study, cases: list[int], repeat: int) -> float:
             set_real(c, vin, 2, x0)
             get_real(c, vout, no, out0)
             run(*run_args)
-        best = np.minimum(best, clocks() - t0)
+        return clocks() - t0
+
+    return once
+
+
+def native_floor_run(fmu: Fmu, study, cases: list[int]):
+    """(a'): a function that makes the cases' calls from native code alone once
+    (fmi2_batch_cases on value rows prepared beforehand, 256 cases per call into one reused
+    output array) and returns its (wall, CPU) seconds."""
+    from reciprocating_drive import sweep_cases
+
+    p = sweep_cases._prepared(fmu, study, sweep.OUTPUTS)
+    params = study.case_array(cases)
+    omega = sweep_cases.speeds(study, params)
+    h = TWO_PI / omega / study.steps_per_revolution
+    chunks = []
+    for a in range(0, len(cases), 256):
+        work = sweep_cases.Workspace()  # each chunk's value rows kept
+        groups = p.values(params[a : a + 256], omega[a : a + 256], work)
+        chunks.append((groups, work, omega[a : a + 256].copy(), h[a : a + 256].copy()))
+    data = np.empty((256, p.n + 1, len(sweep.OUTPUTS)))
+    seconds = np.empty(256)
+
+    def once():
+        t0 = clocks()
+        for groups, _work, w, hc in chunks:
+            if p.run(groups, 0, len(w), w, hc, data, seconds) != len(w):
+                raise SystemExit(f"{study.name}: a case failed in the native floor")
+        return clocks() - t0
+
+    return once
+
+
+def worker_run(fmu_path: str, study, cases: list[int], reference: bool = False):
+    """(b): a function that runs the cases as a sweep's Dask task does (`run_batch_csv`; with
+    `reference`, `run_batch(..., reference=True)`) once, in this process, and returns its (wall,
+    CPU) seconds."""
+    rows = sweep.run_batch(fmu_path, study, cases, reference=reference)  # loads the FMU once
+    bad = [r for r in rows if r["status"] != "ok"]
+    if bad:
+        raise SystemExit(f"{study.name}: case {bad[0]['case']} failed: {bad[0]['message']}")
+    cols, fp = sweep.columns(study), sweep.fingerprint(study, fmu_path)
+
+    def once():
+        t0 = clocks()
+        if reference:
+            sweep.run_batch(fmu_path, study, cases, reference=True)
+        else:
+            sweep.run_batch_csv(fmu_path, study, cases, False, cols, fp)
+        return clocks() - t0
+
+    return once
+
+
+def interleaved(runs: list, repeat: int) -> list[np.ndarray]:
+    """The minimum (wall, CPU) seconds of each of `runs` over `repeat` rounds, each round running
+    every one once: a disturbance of the shared machine falls on all of them alike."""
+    best = [np.array([math.inf, math.inf]) for _ in runs]
+    for _ in range(repeat):
+        for k, once in enumerate(runs):
+            best[k] = np.minimum(best[k], once())
     return best
 
 
@@ -131,20 +199,6 @@ def clocks() -> np.ndarray:
     """(wall time, this process's CPU time) [s]: on a shared machine the CPU time is the less
     disturbed of the two (it leaves out the time other processes had the core)."""
     return np.array([time.perf_counter(), time.process_time()])
-
-
-def worker_seconds(fmu_path: str, study, cases: list[int], repeat: int, **kw) -> float:
-    """(b): `run_batch` of the cases in this process, min over `repeat`: (wall, CPU) seconds."""
-    sweep.run_batch(fmu_path, study, cases[:1], **kw)  # the FMU loaded once, as on a worker
-    best = np.array([math.inf, math.inf])
-    for _ in range(repeat):
-        t0 = clocks()
-        rows = sweep.run_batch(fmu_path, study, cases, **kw)
-        best = np.minimum(best, clocks() - t0)
-    bad = [r for r in rows if r["status"] != "ok"]
-    if bad:
-        raise SystemExit(f"{study.name}: case {bad[0]['case']} failed: {bad[0]['message']}")
-    return best
 
 
 def denser(study_path: pathlib.Path, fmu: str, n_cases: int):
@@ -214,31 +268,39 @@ def main(argv=None) -> int:
           f"{platform.processor() or platform.machine()}; uptime: {uptime()}")  # fmt: skip
     print("times: minimum over repetitions (wall clock, the machine may be shared)")
     fmu_path = str(pathlib.Path(a.fmu).resolve())
-    fmu = Fmu(fmu_path)
+    # The instance run_batch uses: two loads of the FMU are two copies of its code and data in
+    # memory, whose speeds differ by some percent (caches, alignment) for no reason of the calls'.
+    fmu = sweep._worker_fmu(fmu_path)
     summary = []
     for name in a.study or STUDIES:
         path = ROOT / "studies" / f"{name}.toml"
         study = load_study(path, fmu=fmu_path)
-        pilot = floor_seconds(fmu, study, sample_cases(study, 8), 2)[0] / min(8, study.n_cases)
+        few8 = sample_cases(study, 8)
+        pilot = interleaved([floor_run(fmu, study, few8)], 2)[0][0] / len(few8)
         # The cases of (a) and (b): the study's grid made denser, to about --seconds of floor,
         # as one batch (a sweep's batches hold about a second of work).
         k = int(min(2000, max(24, a.seconds / pilot)))
         dense = denser(path, fmu_path, k)
         cases = sample_cases(dense, k)
-        fl = floor_seconds(fmu, dense, cases, a.repeat) / len(cases)
-        wk = worker_seconds(fmu_path, dense, cases, a.repeat) / len(cases)
+        runs = [floor_run(fmu, dense, cases), native_floor_run(fmu, dense, cases),
+                worker_run(fmu_path, dense, cases)]  # fmt: skip
+        fl, nf, wk = (x / len(cases) for x in interleaved(runs, a.repeat))
         steps = (study.skip_revolutions + study.revolutions) * study.steps_per_revolution + 2
         print(f"\n{name}: cases of {steps} steps; {len(cases)} cases of its grid made denser")
         print("                          wall ms/case  cases/s   CPU ms/case  cases/s")
-        for label, x in (("(a) FMU calls alone", fl), ("(b) run_batch", wk)):
+        for label, x in (
+            ("(a) FMU calls alone", fl), ("(a') all native", nf), ("(b) run_batch_csv", wk)
+        ):  # fmt: skip
             print(
                 f"  {label:<22}{1e3 * x[0]:10.3f} {1 / x[0]:9.1f} {1e3 * x[1]:11.3f} {1 / x[1]:9.1f}"
             )
-        print(f"      (a)/(b): wall {fl[0] / wk[0]:.2f}, CPU {fl[1] / wk[1]:.2f}")
-        row = [name, fl[0] / wk[0], fl[1] / wk[1]]
+        print(f"      (a)/(b): wall {fl[0] / wk[0]:.2f}, CPU {fl[1] / wk[1]:.2f}; "
+              f"(a')/(b): wall {nf[0] / wk[0]:.2f}, CPU {nf[1] / wk[1]:.2f}")  # fmt: skip
+        row = [name, fl[0] / wk[0], fl[1] / wk[1], nf[1] / wk[1]]
         if not a.no_reference:
             few = cases[:: max(1, len(cases) // 24)][:24]
-            rf = worker_seconds(fmu_path, dense, few, min(a.repeat, 2), reference=True) / len(few)
+            rf = interleaved([worker_run(fmu_path, dense, few, True)], min(a.repeat, 2))[0]
+            rf = rf / len(few)
             print(f"      per-step reference ({len(few)} of the cases): {1e3 * rf[0]:.3f} ms/case "
                   f"wall, {1e3 * rf[1]:.3f} CPU; (a)/(reference) wall {fl[0] / rf[0]:.2f}")  # fmt: skip
         if not a.no_dask:
@@ -249,27 +311,30 @@ def main(argv=None) -> int:
                 print(f"  (c) {workers} worker(s), {big.n_cases} cases: {rate[workers]:8.1f} "
                       f"cases/s (wall {r.wall:.2f} s); per worker {rate[workers] / workers * fl[0]:.2f}"
                       f"× the floor's cases/s (wall); workers' CPU {1e3 * cpu:.3f} ms/case, "
-                      f"{fl[1] / cpu:.2f}× the floor's (CPU)")  # fmt: skip
+                      f"{fl[1] / cpu:.2f}× the floor's (CPU), {nf[1] / cpu:.2f}× (a')'s")  # fmt: skip
                 # Dask's share: the workers' wall time not spent in tasks (task overhead, transfer,
                 # waiting for the next batch, the last batches' unequal ends).
                 outside = 1 - r.seconds_cases / (r.wall * workers)
                 print(
                     f"      {r.batches} batches; workers' time outside the tasks: {100 * outside:.1f} %"
                 )
-                row += [rate[workers] / workers * fl[0], fl[1] / cpu]
+                row += [rate[workers] / workers * fl[0], fl[1] / cpu, nf[1] / cpu]
             print(f"      2 workers / 1 worker = {rate[2] / rate[1]:.2f}")
             row.append(rate[2] / rate[1])
         summary.append(row)
     print(
-        "\nper worker: a worker's cases/s ÷ the floor's, by wall time and by CPU time; "
-        "2/1: cases/s of 2 workers ÷ 1 worker's"
+        "\nper worker: a worker's cases/s ÷ the floor's (a), by wall time and by CPU time, and "
+        "÷ (a')'s by CPU time; 2/1: cases/s of 2 workers ÷ 1 worker's"
     )
     print(
-        "study               (a)/(b) wall  (a)/(b) CPU"
-        + ("" if a.no_dask else "  1 worker wall, CPU  2 workers wall, CPU   2/1")
+        "study               (a)/(b) wall  (a)/(b) CPU  (a')/(b) CPU"
+        + ("" if a.no_dask else "  1 worker wall, CPU, (a')  2 workers wall, CPU, (a')   2/1")
     )
     for row in summary:
-        print(f"{row[0]:<20}{row[1]:12.2f}{row[2]:13.2f}" + "".join(f"{v:9.2f}" for v in row[3:]))
+        print(
+            f"{row[0]:<20}{row[1]:12.2f}{row[2]:13.2f}{row[3]:14.2f}"
+            + "".join(f"{v:9.2f}" for v in row[4:])
+        )
     print(f"uptime after: {uptime()}")
     return 0
 

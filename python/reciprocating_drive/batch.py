@@ -1,5 +1,6 @@
 """The digital twin's native inner loops (tools/fmi2-batch, `libfmi2_batch.so`) through ctypes:
-many communication points of a loaded FMU in one call (`run`, used by `fmu.Channel.run`), rows of
+many communication points of a loaded FMU in one call (`run`, used by `fmu.Channel.run`), many
+cases of a design sweep in one call (`fmi2_batch_cases`, used by `sweep_cases`), rows of
 numbers as CSV text exactly as Python's repr writes them (`format_csv`), and the local-cubic
 estimate of speed and acceleration (`local_cubic`, the algorithm of `conditioning.fit`), and the
 clean lines of a CSV (`parse_csv`).
@@ -31,6 +32,53 @@ _BAD_ARGUMENTS, _PANICKED = -1, -2
 
 class Failure(ctypes.Structure):
     _fields_ = [("status", ctypes.c_int), ("function", ctypes.c_int)]
+
+
+#: Which call of a case failed in fmi2_batch_cases (beyond FUNCTIONS; tools/fmi2-batch/src/cases.rs).
+CASE_FUNCTIONS = {
+    **FUNCTIONS,
+    4: "fmi2Reset",
+    5: "fmi2SetupExperiment",
+    6: "fmi2EnterInitializationMode",
+    7: "fmi2Set*",
+    8: "fmi2ExitInitializationMode",
+}
+
+
+class CaseFunctions(ctypes.Structure):
+    """The addresses of the FMU's functions a case calls (cases.rs, CaseFunctions)."""
+
+    _fields_ = [
+        (name, ctypes.c_void_p)
+        for name in ("reset", "setup", "enter", "exit", "set_real", "do_step", "get_real")
+    ]
+
+
+class SetGroup(ctypes.Structure):
+    """The values of one type set in initialization mode: `set` (fmi2SetReal, fmi2SetInteger or
+    fmi2SetBoolean) with the `n` value references `vr` and, for case c, the `n` values of
+    `value_bytes` bytes at `values + c * row_bytes` (cases.rs, SetGroup)."""
+
+    _fields_ = [
+        ("set", ctypes.c_void_p),
+        ("vr", ctypes.c_void_p),
+        ("n", ctypes.c_size_t),
+        ("values", ctypes.c_void_p),
+        ("value_bytes", ctypes.c_size_t),
+        ("row_bytes", ctypes.c_size_t),
+    ]
+
+
+class CaseFailure(ctypes.Structure):
+    """Where fmi2_batch_cases stopped: the case, the step (or the SetGroup), the status, the
+    call (CASE_FUNCTIONS)."""
+
+    _fields_ = [
+        ("case", ctypes.c_size_t),
+        ("step", ctypes.c_size_t),
+        ("status", ctypes.c_int),
+        ("function", ctypes.c_int),
+    ]
 
 
 _lib = None
@@ -69,6 +117,11 @@ def library() -> ctypes.CDLL:
             ctypes.POINTER(Failure),
         ]
         lib.fmi2_batch_run.restype = ctypes.c_ssize_t
+        lib.fmi2_batch_cases.argtypes = [
+            ctypes.POINTER(CaseFunctions), vp, ip, ctypes.POINTER(SetGroup), sz, vp, vp, sz,
+            sz, dp, dp, sz, dp, sz, dp, ip, ctypes.POINTER(CaseFailure),
+        ]  # fmt: skip
+        lib.fmi2_batch_cases.restype = ctypes.c_ssize_t
         lib.fmi2_batch_format_csv.argtypes = [dp, sz, sz, sz, vp, sz]
         lib.fmi2_batch_format_csv.restype = ctypes.c_ssize_t
         lib.fmi2_batch_max_number_len.restype = sz

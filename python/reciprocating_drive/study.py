@@ -397,6 +397,57 @@ class Study:
         return dict(zip(names, (float(v) for v in x)))
 
     @property
+    def floats_only(self) -> bool:
+        """Whether every varied value is a float (not an Integer's or a Boolean's `values`): then
+        `case_array` holds the values of `case` exactly, types included."""
+        return self.design != "grid" or all(
+            a.values is None or all(type(v) is float for v in a.values) for a in self.axes
+        )
+
+    def case_array(self, ids) -> np.ndarray:
+        """The values of the cases `ids` as a float64 array, one row per case, one column per
+        varied parameter: row k is `case(ids[k])`'s values (an integer or boolean as its float),
+        computed with the same operations on the same numbers, bit for bit. For a batch of
+        cases, where one `case` call per case would cost more than the arithmetic."""
+        names = self.varied
+        n = len(ids)
+        out = np.empty((n, len(names)))
+        if n == 0:
+            return out
+        if min(ids) < 0 or max(ids) >= self.n_cases:
+            raise IndexError(f"cases {min(ids)}..{max(ids)} of {self.n_cases}")
+        if self.design == "grid":
+            if self.n_cases >= 2**62:  # beyond numpy's integers: case by case
+                for k, i in enumerate(ids):
+                    out[k] = [float(v) for v in self.case(i).values()]
+                return out
+            i = np.asarray(ids, dtype=np.int64)
+            for j in range(len(names) - 1, -1, -1):  # mixed radix, as case()
+                axis = self.axes[j]
+                i, k = np.divmod(i, len(axis))
+                if axis.values is not None:
+                    out[:, j] = np.asarray([float(v) for v in axis.values])[k]
+                    continue
+                step = (axis.stop - axis.start) / (axis.num - 1) if axis.num > 1 else 0.0
+                # Axis[k]: start + k·step (k as a float), the stop itself at the end.
+                out[:, j] = axis.start + k.astype(np.float64) * step
+                out[k == axis.num - 1, j] = axis.stop
+            return out
+        if self.design == "random":
+            # Each run of consecutive cases continues one stream: row i of default_rng(seed)
+            # .random((samples, d)) is the doubles i·d .. i·d + d − 1 of PCG64(seed), as in case().
+            ids = np.asarray(ids, dtype=np.int64)
+            cuts = np.flatnonzero(np.diff(ids) != 1) + 1
+            u = np.empty_like(out)
+            for a, b in zip([0, *cuts.tolist()], [*cuts.tolist(), n]):
+                bg = np.random.PCG64(self.seed)
+                bg.advance(int(ids[a]) * len(names))
+                u[a:b] = np.random.Generator(bg).random((b - a, len(names)))
+        else:
+            u = self.lhs[np.asarray(ids, dtype=np.int64)]
+        return self.bounds[:, 0] + u * (self.bounds[:, 1] - self.bounds[:, 0])
+
+    @property
     def case_values(self) -> list[dict]:
         """Every case (for small studies and tests; a sweep asks for them one by one)."""
         return [self.case(i) for i in range(self.n_cases)]

@@ -26,6 +26,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import hashlib
+import io
 import itertools
 import logging
 import math
@@ -126,7 +127,16 @@ def run_case(fmu, study: Study, params: dict) -> tuple[dict, float]:
 
 
 def _summary_metrics(study: Study, time_: np.ndarray, rows: np.ndarray) -> dict:
-    """The metrics of one run's samples through summarize_revolutions (the reference)."""
+    """The metrics of one run's samples through summarize_revolutions (the reference). Raises
+    ValueError (the case's row is an error) for a sample the FMU returned as NaN or infinite:
+    summarize_revolutions would fail on it with an IndexError, which would end the batch."""
+    bad = ~np.isfinite(rows)
+    if bad.any():
+        k, q = (int(x) for x in np.argwhere(bad)[0])
+        raise ValueError(
+            f"the FMU returned {OUTPUTS[q]} = {rows[k, q]} at t = {time_[k]:.6g} s (communication "
+            f"point {k}); allowed: finite values (the case's metrics cannot be computed)"
+        )
     data = {name: rows[:, i] for i, name in enumerate(OUTPUTS)}
     revs = [
         r
@@ -207,12 +217,13 @@ def run_batch(
     fmu = _worker_fmu(fmu_path)
     worker = _worker_name()
     if not reference:
+        res = run_cases(fmu, study, list(cases), OUTPUTS)
         return [
-            {"case": i, **params, **metrics, "status": status, "message": message,
-             "seconds_fmu": inside, "seconds_case": seconds, "worker": worker}
-            for i, params, metrics, status, message, inside, seconds in run_cases(
-                fmu, study, list(cases), OUTPUTS
-            )
+            {"case": i, **res.params_of(c), **dict(zip(study.metrics, res.metrics[c].tolist())),
+             "status": res.status[c], "message": res.message[c],
+             "seconds_fmu": float(res.seconds_fmu[c]), "seconds_case": float(res.seconds_case[c]),
+             "worker": worker}
+            for c, i in enumerate(res.cases)
         ]  # fmt: skip
     out = []
     for i in cases:
@@ -236,8 +247,6 @@ def run_batch_csv(
     (columns `cols`, which are `columns(study)`; fingerprint `fp`), formatted on the worker: the
     client only appends them, so it takes no share of the cores from the workers. Returns (text,
     rows, Σ seconds in FMU calls, seconds of the whole task but loading the FMU)."""
-    import io
-
     from .sweep_cases import run_cases
 
     if cols != columns(study):
@@ -249,19 +258,50 @@ def run_batch_csv(
     fmu = _worker_fmu(fmu_path)
     t0 = time.perf_counter()
     worker = _worker_name()
-    lines, inside_sum = [], 0.0
-    for i, params, metrics, status, message, inside, seconds in run_cases(
-        fmu, study, list(cases), OUTPUTS
-    ):
-        lines.append(
-            [i, *[int(v) if isinstance(v, bool) else v for v in map(params.get, study.varied)],
-             *map(metrics.get, study.metrics), status, message, inside, seconds, worker, fp]
-        )  # fmt: skip
-        inside_sum += inside
+    res = run_cases(fmu, study, list(cases), OUTPUTS)
+    text = _csv_lines(res, worker, fp)
+    return text, len(res.cases), float(res.seconds_fmu.sum()), time.perf_counter() - t0
+
+
+def _csv_row(fields: list) -> str:
+    """One line of csv.writer (the result file's dialect), without its line end."""
     buf = io.StringIO()
-    csv.writer(buf).writerows(lines)
-    text = buf.getvalue()
-    return text, len(lines), inside_sum, time.perf_counter() - t0
+    csv.writer(buf).writerow(fields)
+    return buf.getvalue()[:-2]
+
+
+def _csv_lines(res, worker: str, fp: str) -> str:
+    """The lines csv.writer writes for the rows of `res` (run_cases) with `worker` and the
+    fingerprint `fp`, byte for byte: the numbers formatted natively as repr writes them
+    (batch.format_csv: csv.writer writes a float as its repr), the text cells as csv.writer
+    quotes them, once per distinct value."""
+    from . import batch
+
+    study = res.study
+    if not res.cases:
+        return ""
+    if not study.floats_only:  # integer or boolean values: csv.writer, as they are
+        lines = [
+            [i, *[int(v) if isinstance(v, bool) else v for v in res.params_of(c).values()],
+             *res.metrics[c].tolist(), res.status[c], res.message[c],
+             float(res.seconds_fmu[c]), float(res.seconds_case[c]), worker, fp]
+            for c, i in enumerate(res.cases)
+        ]  # fmt: skip
+        buf = io.StringIO()
+        csv.writer(buf).writerows(lines)
+        return buf.getvalue()
+    numbers = batch.format_csv(np.hstack([res.params, res.metrics])).decode().split("\n")
+    seconds = batch.format_csv(np.column_stack([res.seconds_fmu, res.seconds_case]))
+    seconds = seconds.decode().split("\n")
+    tail = _csv_row([worker, fp])
+    middle: dict = {}
+    for sm in zip(res.status, res.message):
+        if sm not in middle:
+            middle[sm] = _csv_row(list(sm))
+    return "".join(
+        f"{i},{a},{middle[sm]},{s},{tail}\r\n"
+        for i, a, sm, s in zip(res.cases, numbers, zip(res.status, res.message), seconds)
+    )
 
 
 def columns(study: Study) -> list[str]:

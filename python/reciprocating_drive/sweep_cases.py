@@ -4,16 +4,19 @@
 `sweep.run_case` does, with the same FMI calls in the same order and the same arguments, but:
 
 * what every case of a study needs is built once per worker and study (`_Prepared`): the value
-  references, the typed value arrays in the order `run_case` sets them (a case writes only its
-  varied parameters and the speed into them), the channel's arrays and the call's arguments;
-* the communication steps of a case are one call of the native batch driver (batch.py,
-  tools/fmi2-batch: fmi2SetReal, fmi2DoStep, fmi2GetReal per step, no Python in between);
+  references, the typed rows of values in the order `run_case` sets them (a case writes only its
+  varied parameters and the speed into its row), the FMU's functions;
+* the cases of a batch are one call of the native batch driver (batch.py, tools/fmi2-batch,
+  `fmi2_batch_cases`): per case fmi2Reset, fmi2SetupExperiment, fmi2EnterInitializationMode,
+  the fmi2Set* of its row of values, fmi2ExitInitializationMode, and fmi2SetReal, fmi2DoStep,
+  fmi2GetReal per step, no Python in between; the outputs go straight into the block's array;
 * the metrics of all cases of a batch are computed together, vectorised over cases and
   revolutions (`batch_metrics`), with the arithmetic of `revolution.revolution_table` and
   `sweep.metrics_of` element for element, so every number is the same bit for bit.
 
 Anything unusual falls back to the reference path for that one case, which then decides the row:
-a case the FMU rejects (its row and message are exactly `run_case`'s), and samples for which the
+a case the FMU rejects (the native call stops at the call that failed; its row and message are
+exactly `run_case`'s, and the next cases go on natively), and samples for which the
 batched summary is not certain to hold (a non-finite value, an angle that decreases, an evaluated
 revolution missing or of fewer than three samples, a non-finite metric) go through
 `summarize_revolutions` and `metrics_of`, the reference summary.
@@ -24,6 +27,7 @@ from __future__ import annotations
 import ctypes
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -36,17 +40,15 @@ _BLOCK_VALUES = 2_000_000
 
 _PREPARED: dict = {}
 
-_VP, _INT, _SZ = ctypes.c_void_p, ctypes.c_int, ctypes.c_size_t
-# fmi2SetReal/fmi2GetReal(component, vr[], n, value[]) called with plain addresses: fmpy's
-# prototypes would build a ctypes pointer object per call.
-_RW = ctypes.CFUNCTYPE(_INT, _VP, _VP, _SZ, _VP)
-
 
 class _Prepared:
-    """One worker FMU's set-up for the cases of one study, reused by every case."""
+    """One worker FMU's set-up for the cases of one study, reused by every batch: the value
+    references and the rows of values `run_case` sets in initialization mode (one group per type,
+    in its order; a case writes only its varied parameters and the speed into its row), the
+    FMU's functions and the arguments of the native call of many cases (`fmi2_batch_cases`)."""
 
     def __init__(self, fmu, study, outputs: tuple):
-        from fmpy.fmi2 import fmi2Boolean, fmi2Integer, fmi2Real, fmi2ValueReference
+        from fmpy.fmi2 import fmi2ValueReference
 
         from .sweep import SPEED_PARAMETERS, case_values
 
@@ -54,91 +56,89 @@ class _Prepared:
         # The order of run_case's values: the same dict with placeholders.
         varied = [k for k in study.varied if k not in SPEED_PARAMETERS]
         order = case_values(study, {k: 0.0 for k in varied}, 1.0)
-        ctype = {"Real": fmi2Real, "Integer": fmi2Integer, "Boolean": fmi2Boolean}
+        # fmi2Real is a double, fmi2Integer and fmi2Boolean are C ints (fmpy.fmi2).
+        dtype = {"Real": np.float64, "Integer": np.intc, "Boolean": np.intc}
         groups: dict = {}
         for name in order:
             var = fmu.variables[name]
-            if var.type not in ctype:
+            if var.type not in dtype:
                 raise TypeError(f"variables of type {var.type} are not supported")
             groups.setdefault(var.type, []).append(name)
-        self.sets = []  # (raw fmi2Set*, vr array, n, value array)
-        self.slots = []  # (name, value array, index, conversion) written per case
-        for ty, names in groups.items():
-            conv = float if ty == "Real" else int
-            # Placeholders of the varied values and the speed: every case writes its own.
-            vals = (ctype[ty] * len(names))(*[conv(order[k]) for k in names])
-            vrs = (fmi2ValueReference * len(names))(*[fmu.vr[k] for k in names])
-            self.sets.append((fmu._raw[f"fmi2Set{ty}"], vrs, len(names), vals))
-            for j, k in enumerate(names):
-                if k in varied or k == "crank.speed":
-                    self.slots.append((k, vals, j, conv))
         raw = fmu._raw
-        self.reset, self.setup = raw["fmi2Reset"], raw["fmi2SetupExperiment"]
-        self.enter = raw["fmi2EnterInitializationMode"]
-        self.leave = raw["fmi2ExitInitializationMode"]
+        self.groups = []  # (fmi2Set* address, vr array, base row)
+        self.slots = []  # (group, column, index of the varied parameter or None: the speed)
+        for g, (ty, names) in enumerate(groups.items()):
+            conv = float if ty == "Real" else int
+            base = np.array([conv(order[k]) for k in names], dtype=dtype[ty])
+            vrs = (fmi2ValueReference * len(names))(*[fmu.vr[k] for k in names])
+            self.groups.append((batch.address(raw[f"fmi2Set{ty}"]), vrs, base))
+            for j, k in enumerate(names):
+                if k in varied:
+                    self.slots.append((g, j, study.varied.index(k)))
+                elif k == "crank.speed":
+                    self.slots.append((g, j, None))
         ch = fmu.channel(["crank.angle", "crank.speed"], list(outputs))
         self.vin, self.vout = ch._vin, ch._vout  # kept alive: their addresses are used
-        self.vin_at, self.vout_at = ctypes.addressof(ch._vin), ctypes.addressof(ch._vout)
         self.n_out = len(outputs)
-        self.set_real = _RW(ch._addresses[0])
-        self.get_real = _RW(ch._addresses[2])
-        self.x0 = np.zeros(2)
-        self.n = (study.skip_revolutions + study.revolutions) * study.steps_per_revolution + 2
-        self.k = np.arange(1, self.n + 1)
-        self.t = np.empty(self.n)
-        self.xin = np.empty((self.n, 2))
-        self.inputs_of = None  # (omega, h) of the inputs in self.t, self.xin
-        self.fail = batch.Failure()
-        self.work = Workspace()
-        self.native = batch.library().fmi2_batch_run
-        self.x0_at = self.x0.ctypes.data
-        # fmi2_batch_run's arguments before and after the outputs' address (batch.run).
-        self.head = (
-            *ch._addresses, fmu._component, self.vin_at, 2, self.vout_at, self.n_out, 0.0,
-            self.n, self.t.ctypes.data, self.xin.ctypes.data, 2,
+        self.functions = batch.CaseFunctions(
+            *(batch.address(raw[f]) for f in ("fmi2Reset", "fmi2SetupExperiment")),
+            *(batch.address(raw[f]) for f in ("fmi2EnterInitializationMode",
+                                              "fmi2ExitInitializationMode")),
+            *ch._addresses,
         )  # fmt: skip
-        self.end = (self.n_out, batch.ORDER_SET_STEP_GET, 1, ctypes.byref(self.fail))
+        self.n = (study.skip_revolutions + study.revolutions) * study.steps_per_revolution + 2
+        self.fail = batch.CaseFailure()
+        self.work = Workspace()
+        self.native = batch.library().fmi2_batch_cases
 
-    def run(self, params: dict, omega: float, h: float, out: int) -> None:
-        """One case: Fmu.start's calls with the case's values, then the channel's first
-        fmi2SetReal/fmi2GetReal and every step through the native driver, into the n+1 rows of
-        outputs at address `out`. A call that returns fmi2Discard or worse raises _Fallback:
-        the reference path runs the case again and makes its row and the FMU's message."""
-        fmu, c = self.fmu, self.fmu._component
-        for name, vals, j, conv in self.slots:
-            vals[j] = conv(omega if name == "crank.speed" else params[name])
-        if fmu._started and self.reset(c) > 1:
-            raise _Fallback
+    def values(self, params: np.ndarray, omega: np.ndarray, work=None) -> ctypes.Array:
+        """The groups of values of cases with parameters `params` (rows of Study.case_array)
+        and speeds `omega`: each a row per case (fmi2_batch_cases's SetGroup array, valid until
+        the next call with the same Workspace `work`, by default the set-up's own). An Integer
+        or Boolean is its float's integer, as run_case's int()."""
+        rows = []
+        work = work or self.work
+        for g, (_, _, base) in enumerate(self.groups):
+            m = work.get(f"values{g}", (len(omega), len(base)), base.dtype)
+            m[:] = base
+            rows.append(m)
+        for g, j, v in self.slots:
+            rows[g][:, j] = omega if v is None else params[:, v]
+        return (batch.SetGroup * len(rows))(
+            *[
+                batch.SetGroup(f, ctypes.addressof(vrs), len(vrs), m.ctypes.data, m.itemsize,
+                               m.strides[0])
+                for (f, vrs, _), m in zip(self.groups, rows)
+            ]
+        )  # fmt: skip
+
+    def run(self, groups, first: int, count: int, omega, h, data, seconds) -> int:
+        """Cases first .. first+count-1 of a block (their values rows of `groups`, speeds,
+        steps) through the native driver, the outputs into data[c], the seconds of the calls into
+        seconds[c]. Returns the cases completed: fewer than `count` when a call of the next
+        returned fmi2Discard or worse (`self.fail` says which), for the reference path."""
+        if count == 0:
+            return 0
+        fmu = self.fmu
+        moved = [
+            batch.SetGroup(g.set, g.vr, g.n, g.values + first * g.row_bytes, g.value_bytes,
+                           g.row_bytes)
+            for g in groups
+        ]  # fmt: skip
+        done = self.native(
+            ctypes.byref(self.functions), fmu._component, int(fmu._started),
+            (batch.SetGroup * len(moved))(*moved), len(moved),
+            ctypes.addressof(self.vin), ctypes.addressof(self.vout), self.n_out,
+            count, omega[first:].ctypes.data, h[first:].ctypes.data, self.n,
+            data[first:].ctypes.data, data.strides[0] // 8, seconds[first:].ctypes.data,
+            1, ctypes.byref(self.fail),
+        )  # fmt: skip
+        if done < 0:
+            raise RuntimeError("fmi2_batch_cases: " + ("bad arguments" if done == -1 else "panic"))
         fmu._started = True
-        if self.setup(c, 0, 0.0, 0.0, 0, 0.0) > 1 or self.enter(c) > 1:
-            raise _Fallback
-        for function, vrs, k, vals in self.sets:
-            if function(c, vrs, k, vals) > 1:
-                raise _Fallback
-        if self.leave(c) > 1:
-            raise _Fallback
-        fmu.time = 0.0
-        if self.inputs_of != (omega, h):
-            # The inputs of step k are the crank's state at the step's start (docs/model.md §2),
-            # the same numbers as run_case's omega * (k*h - h).
-            t, xin = self.t, self.xin
-            np.multiply(self.k, h, out=t)
-            np.subtract(t, h, out=xin[:, 0])
-            np.multiply(xin[:, 0], omega, out=xin[:, 0])
-            xin[:, 1] = omega
-            self.x0[1] = omega
-            self.inputs_of = (omega, h)
-        if (
-            self.set_real(c, self.vin_at, 2, self.x0_at) > 1
-            or self.get_real(c, self.vout_at, self.n_out, out) > 1
-            or self.native(*self.head, out + 8 * self.n_out, *self.end) != self.n
-        ):
-            raise _Fallback
-        fmu.time = float(self.t[-1])
-
-
-class _Fallback(Exception):
-    """A case for the reference path."""
+        if done:
+            fmu.time = float(self.n * h[first + done - 1])
+        return done
 
 
 def _prepared(fmu, study, outputs: tuple) -> _Prepared:
@@ -150,72 +150,112 @@ def _prepared(fmu, study, outputs: tuple) -> _Prepared:
     return p
 
 
-def run_cases(fmu, study, cases: list[int], outputs: tuple) -> list[tuple]:
-    """The cases `cases` of `study` on a loaded Fmu: per case (case, params, metrics, status,
-    message, seconds in FMU calls, seconds of the case), as run_batch's rows need them."""
-    from .sweep import _speed, _summary_metrics, run_case
+@dataclass
+class Results:
+    """The rows of a batch's cases as columns: `params` one row of the varied values per case
+    (Study.case_array; the values of `study.case` exactly when `study.floats_only`), `metrics`
+    one row of the study's metrics per case (NaN for a rejected case), per case its status
+    ("ok" or "error"), message, seconds in FMU calls and seconds of the whole case."""
+
+    study: object
+    cases: list
+    params: np.ndarray
+    metrics: np.ndarray
+    status: list
+    message: list
+    seconds_fmu: np.ndarray
+    seconds_case: np.ndarray
+
+    def params_of(self, c: int) -> dict:
+        """Row c's parameters as `study.case` gives them (types included)."""
+        if self.study.floats_only:
+            return dict(zip(self.study.varied, self.params[c].tolist()))
+        return self.study.case(self.cases[c])
+
+
+def speeds(study, params: np.ndarray) -> np.ndarray:
+    """The crank speed of each case (rows of Study.case_array), as sweep._speed computes it."""
+    names = study.varied
+    if "strokes_per_minute" in names:
+        return params[:, names.index("strokes_per_minute")] * TWO_PI / 60.0
+    if "crank.speed" in names:
+        return params[:, names.index("crank.speed")].copy()
+    return np.full(len(params), study.crank_speed)
+
+
+def run_cases(fmu, study, cases: list[int], outputs: tuple) -> Results:
+    """The cases `cases` of `study` on a loaded Fmu, as run_batch's rows need them."""
+    from .sweep import _summary_metrics, run_case
 
     p = _prepared(fmu, study, outputs)
     n_rows, n_out = p.n + 1, len(outputs)
     block = max(1, _BLOCK_VALUES // (n_rows * n_out))
-    out = []
-    for b in range(0, len(cases), block):
-        ids = cases[b : b + block]
-        data = p.work.get("data", (len(ids), n_rows, n_out))
-        at, size = data.ctypes.data, 8 * n_rows * n_out
-        hs = np.ones(len(ids))
-        rows: list = [None] * len(ids)
-        fast = []
-        clock = time.perf_counter
-        for c, i in enumerate(ids):
+    n = len(cases)
+    res = Results(
+        study, list(cases), study.case_array(cases), np.full((n, len(study.metrics)), np.nan),
+        ["ok"] * n, [""] * n, np.zeros(n), np.zeros(n),
+    )  # fmt: skip
+    clock = time.perf_counter
+    for b in range(0, n, block):
+        t_block = clock()
+        C = min(block, n - b)
+        params = res.params[b : b + C]
+        data = p.work.get("data", (C, n_rows, n_out))
+        omega = speeds(study, params)
+        with np.errstate(all="ignore"):
+            h = TWO_PI / omega / study.steps_per_revolution
+        seconds = res.seconds_fmu[b : b + C]
+        native = (omega > 0) & np.isfinite(omega)
+        groups = p.values(params, np.where(native, omega, 1.0))
+        fast = np.zeros(C, dtype=bool)
+        c, spent = 0, 0.0  # spent: seconds of the reference path
+        while c < C:
+            if native[c]:
+                # The cases up to the next one whose speed is not > 0, in one native call.
+                stop = np.flatnonzero(~native[c:])
+                end = c + int(stop[0]) if len(stop) else C
+                done = p.run(groups, c, end - c, omega, h, data, seconds)
+                fast[c : c + done] = True
+                c += done
+                if c == end:
+                    continue
+            # A call of case c failed, or its speed is not > 0: the reference path runs it and
+            # makes its row (with the FMU's message); the next cases go on natively.
             t0 = clock()
-            params = study.case(i)
-            t1 = clock()
-            try:
-                omega = _speed(study, params)
-                if not (omega > 0 and math.isfinite(omega)):
-                    raise _Fallback
-                h = TWO_PI / omega / study.steps_per_revolution
-                p.run(params, omega, h, at + c * size)
-            except (_Fallback, ValueError, ArithmeticError):
-                rows[c] = _reference_row(fmu, study, params, run_case, t0)
-                data[c, 0] = np.nan  # not for the batched metrics
-                continue
-            hs[c] = h
-            t2 = clock()
-            rows[c] = [params, None, "ok", "", t2 - t1, t2 - t0]
-            fast.append(c)
-        if fast:
-            t0 = clock()
-            values, good = batch_metrics(hs, data, study, outputs, p.work)
-            share = (clock() - t0) / len(fast)
-            for c in fast:
-                r = rows[c]
-                if good[c]:
-                    r[1] = dict(zip(study.metrics, values[c].tolist()))
-                else:
-                    t1 = clock()
-                    try:
-                        r[1] = _summary_metrics(study, np.arange(n_rows) * hs[c], data[c])
-                    except (ValueError, RuntimeError) as e:
-                        r[1] = {m: math.nan for m in study.metrics}
-                        r[2], r[3] = "error", str(e)
-                    r[5] += clock() - t1
-                r[5] += share
-        out += [(ids[c], *rows[c]) for c in range(len(ids))]
-    return out
+            _reference_row(fmu, study, res, b + c, run_case)
+            data[c, 0] = np.nan  # not for the batched metrics
+            res.seconds_case[b + c] = clock() - t0
+            spent += clock() - t0
+            c += 1
+        idx = np.flatnonzero(fast)
+        if len(idx):
+            values, good = batch_metrics(h, data, study, outputs, p.work)
+            ok = idx[good[idx]]
+            res.metrics[b + ok] = values[ok]
+            res.seconds_case[b + idx] = seconds[idx]
+            for c in idx[~good[idx]].tolist():
+                t1 = clock()
+                try:
+                    m = _summary_metrics(study, np.arange(n_rows) * h[c], data[c])
+                    res.metrics[b + c] = [m[k] for k in study.metrics]
+                except (ValueError, RuntimeError) as e:
+                    res.status[b + c], res.message[b + c] = "error", str(e)
+                res.seconds_case[b + c] += clock() - t1
+                spent += clock() - t1
+            # The rest of the block's time (the native calls' Python side, the metrics) is
+            # shared among its natively run cases.
+            share = (clock() - t_block - spent - float(seconds[idx].sum())) / len(idx)
+            res.seconds_case[b + idx] += share
+    return res
 
 
-def _reference_row(fmu, study, params, run_case, t0: float) -> list:
-    """run_batch's row of one case through the reference path (run_case)."""
-    status, message = "ok", ""
-    metrics, inside = {}, 0.0
+def _reference_row(fmu, study, res: Results, c: int, run_case) -> None:
+    """Row c of `res` through the reference path (run_case), as run_batch(reference=True)."""
     try:
-        metrics, inside = run_case(fmu, study, params)
+        metrics, res.seconds_fmu[c] = run_case(fmu, study, res.params_of(c))
+        res.metrics[c] = [metrics[k] for k in study.metrics]
     except (FmuError, ValueError, RuntimeError) as e:
-        status, message = "error", str(e)
-        metrics = {m: math.nan for m in study.metrics}
-    return [params, metrics, status, message, inside, time.perf_counter() - t0]
+        res.status[c], res.message[c] = "error", str(e)
 
 
 def _first_max(v: np.ndarray) -> np.ndarray:
@@ -309,14 +349,15 @@ def _batch_metrics(h, data, study, outputs, w: Workspace):
     # rows of all outputs stay in the cache while their columns are taken out.
     need = ["crank.model_angle", *{q: 0 for m in study.metrics for q in _SERIES[m]}]
     cache = {q: w.get(q, (C, N)) for q in need}
-    total = np.zeros(C)
+    total = np.empty(C)
     for a in range(0, C, 16):
         part = data[a : a + 16]
         for q in need:
             np.copyto(cache[q][a : a + 16], part[:, :, col[q]])
-            total[a : a + 16] += cache[q][a : a + 16].sum(axis=1)
-    # A sum is finite only if every term is (an overflow sends a run to the reference too). The
-    # outputs no metric reads are not looked at (the reference fails on a NaN in any of them).
+        # Every output, also those no metric reads: the reference refuses a run with a NaN or an
+        # infinity in any (sweep._summary_metrics). A sum is finite only if every term is (an
+        # overflow sends a run to the reference too).
+        np.sum(part, axis=(1, 2), out=total[a : a + 16])
     good = np.isfinite(total) & np.isfinite(h) & (N >= 3)
     th = cache["crank.model_angle"]
     good &= ~np.less(th[:, 1:], th[:, :-1], out=w.get("less", (C, N - 1), bool)).any(axis=1)
@@ -374,10 +415,18 @@ def _batch_metrics(h, data, study, outputs, w: Workspace):
     def series(name):
         return cache[name]
 
-    def masked(yw, m, fill):
-        """yw where m, else fill (m None: the columns of a revolution that fills the window)."""
+    def masked(yw, m, fill, contiguous=False):
+        """yw where m, else fill (m None: the columns of a revolution that fills the window,
+        copied to a contiguous array if `contiguous`)."""
         if m is None:
-            return yw[:, : W - 1]
+            if not contiguous:
+                return yw[:, : W - 1]
+            # np.argmax/argmin along a strided axis would copy the rows into a fresh array of
+            # their own, of megabytes: memory that a Dask worker's malloc returns to the system
+            # at once (its MALLOC_TRIM_THRESHOLD_ of 64 kB), every block's page faults again.
+            out = w.get("window", (C, W - 1))
+            np.copyto(out, yw[:, : W - 1])
+            return out
         out = w.get("masked", (C, W))
         out.fill(fill)
         np.copyto(out, yw, where=m)
@@ -393,7 +442,7 @@ def _batch_metrics(h, data, study, outputs, w: Workspace):
             y = series(q)
             yw = y[:, w0:w1]
             fill, pick = (-np.inf, np.argmax) if key == "max" else (np.inf, np.argmin)
-            j = np.stack([w0 + pick(masked(yw, m, fill), axis=1) for m in masks], axis=1)
+            j = np.stack([w0 + pick(masked(yw, m, fill, True), axis=1) for m in masks], axis=1)
             i = rows * N + j
             v, a = _refined_peaks(TH, y.ravel(), i, (j > 0) & (j < N - 1))
             extremes[q, key] = v, _degrees(a)
@@ -428,7 +477,11 @@ def _batch_metrics(h, data, study, outputs, w: Workspace):
             c, r = np.nonzero(use & (n == length) & (ja == start))
             terms = w.get("terms", (len(c), length + 1))
             terms[:, 0], terms[:, length] = first[c, r], last[c, r]
-            terms[:, 1:length] = inner[c, start - w0 : start - w0 + length - 1]
+            span = slice(start - w0, start - w0 + length - 1)
+            if c[-1] - c[0] + 1 == len(c):  # consecutive runs: a slice, not a fresh copy
+                terms[:, 1:length] = inner[c[0] : c[-1] + 1, span]
+            else:
+                terms[:, 1:length] = inner[c, span]
             work[c, r] = np.add.reduce(terms, axis=1)
         return np.mean(work, axis=1)
 

@@ -1,6 +1,7 @@
 //! The per-sample inner loops of the digital twin, called from Python through ctypes
 //! (python/reciprocating_drive/batch.py): a batch driver of any loaded FMI 2.0 co-simulation FMU
-//! (`fmi2_batch_run`), rows of numbers as CSV exactly as Python's repr writes them
+//! (`fmi2_batch_run`), the cases of a design sweep, each initialized and run over all its steps
+//! (`fmi2_batch_cases`), rows of numbers as CSV exactly as Python's repr writes them
 //! (`fmi2_batch_format_csv`), the local-cubic speed and acceleration estimate
 //! (`fmi2_batch_local_cubic`) and the clean lines of the input CSV (`fmi2_batch_parse_csv`).
 //!
@@ -9,6 +10,7 @@
 //! exported function checks its pointers and catches panics, so nothing unwinds across the C
 //! boundary; failures are return codes.
 
+pub mod cases;
 mod csv;
 pub mod fit;
 pub mod parse;
@@ -16,6 +18,7 @@ pub mod parse;
 use std::os::raw::{c_int, c_uint, c_void};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
+pub use cases::{CaseFailure, CaseFunctions, SetGroup};
 pub use csv::{format_number, MAX_NUMBER_LEN};
 
 /// `fmi2SetReal(c, vr[], nvr, value[])`
@@ -189,6 +192,113 @@ pub unsafe extern "C" fn fmi2_batch_run(
         let (done, f) =
             run(&fmu, vr_in, vr_out, t_start, t, x, in_stride, y, out_stride, order, worst_ok);
         *failure = f;
+        done as isize
+    }));
+    result.unwrap_or(PANICKED)
+}
+
+/// A slice of `len` doubles at `p`: None if `p` is null or not aligned for f64.
+unsafe fn doubles<'a>(p: *const f64, len: usize) -> Option<&'a [f64]> {
+    (p as usize).is_multiple_of(std::mem::align_of::<f64>()).then_some(())?;
+    slice(p, len)
+}
+
+unsafe fn doubles_mut<'a>(p: *mut f64, len: usize) -> Option<&'a mut [f64]> {
+    (p as usize).is_multiple_of(std::mem::align_of::<f64>()).then_some(())?;
+    slice_mut(p, len)
+}
+
+/// C entry of [`cases::run_cases`]: `n_cases` cases, case c at crank speed `omega[c]` with
+/// communication step `h[c]`, its initialization values row c of each of the `n_groups` groups,
+/// its `n_steps + 1` rows of the `n_out` outputs `vr_out` at `outputs + c * case_stride`, the
+/// seconds of its calls at `seconds[c]`; `vr_in` the two value references of the crank's angle
+/// and speed; `started` non-zero if the instance has run (the first case resets it). Returns the
+/// number of cases completed (then `*failure` says whether and where it stopped),
+/// `BAD_ARGUMENTS` for a null or misaligned pointer, a missing function, a value width other
+/// than 4 or 8 bytes or a stride narrower than its row, `PANICKED` if a panic was caught.
+///
+/// # Safety
+/// As [`cases::run_cases`]; every pointer must hold what its count and stride describe and
+/// `failure` must be writable.
+#[no_mangle]
+pub unsafe extern "C" fn fmi2_batch_cases(
+    functions: *const CaseFunctions,
+    component: *mut c_void,
+    started: c_int,
+    groups: *const SetGroup,
+    n_groups: usize,
+    vr_in: *const c_uint,
+    vr_out: *const c_uint,
+    n_out: usize,
+    n_cases: usize,
+    omega: *const f64,
+    h: *const f64,
+    n_steps: usize,
+    outputs: *mut f64,
+    case_stride: usize,
+    seconds: *mut f64,
+    worst_ok: c_int,
+    failure: *mut CaseFailure,
+) -> isize {
+    let result = catch_unwind(AssertUnwindSafe(|| {
+        if functions.is_null() || component.is_null() || failure.is_null() {
+            return BAD_ARGUMENTS;
+        }
+        let f = *functions;
+        let (Some(reset), Some(setup), Some(enter), Some(exit)) =
+            (f.reset, f.setup, f.enter, f.exit)
+        else {
+            return BAD_ARGUMENTS;
+        };
+        let (Some(set_real), Some(do_step), Some(get_real)) = (f.set_real, f.do_step, f.get_real)
+        else {
+            return BAD_ARGUMENTS;
+        };
+        let Some(rows) = n_steps.checked_add(1).and_then(|r| r.checked_mul(n_out)) else {
+            return BAD_ARGUMENTS;
+        };
+        let (Some(no), Some(groups)) =
+            (strided_len(n_cases, case_stride, rows), slice(groups, n_groups))
+        else {
+            return BAD_ARGUMENTS;
+        };
+        let (Some(vr_in), Some(vr_out), Some(omega), Some(h), Some(y), Some(s)) = (
+            slice(vr_in, 2),
+            slice(vr_out, n_out),
+            doubles(omega, n_cases),
+            doubles(h, n_cases),
+            doubles_mut(outputs, no),
+            doubles_mut(seconds, n_cases),
+        ) else {
+            return BAD_ARGUMENTS;
+        };
+        let mut sets = Vec::with_capacity(groups.len());
+        for g in groups {
+            let width = g.n.checked_mul(g.value_bytes);
+            let len = width.and_then(|w| strided_len(n_cases, g.row_bytes, w));
+            let (Some(set), true, Some(len)) = (g.set, matches!(g.value_bytes, 4 | 8), len) else {
+                return BAD_ARGUMENTS;
+            };
+            let (Some(vr), Some(values)) = (slice(g.vr, g.n), slice(g.values, len)) else {
+                return BAD_ARGUMENTS;
+            };
+            sets.push((set, vr, values, g.row_bytes));
+        }
+        let a = cases::Cases {
+            reset,
+            setup,
+            enter,
+            exit,
+            fmu: Fmu { set_real, do_step, get_real, component },
+            groups: sets,
+            vr_in,
+            vr_out,
+            omega,
+            h,
+            n_steps,
+        };
+        let (done, fail) = cases::run_cases(&a, started != 0, y, case_stride, s, worst_ok);
+        *failure = fail;
         done as isize
     }));
     result.unwrap_or(PANICKED)
