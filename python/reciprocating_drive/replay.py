@@ -19,8 +19,10 @@ progress. The distributed replay makes every cut exact as follows.
 3. **Result**: the rows of [s, e), and the summaries of the revolutions whose first sample (the
    first with model angle >= 2πk) lies in [s, e). A revolution's numbers depend only on its own
    samples and their neighbours (revolution.revolution_table), so they are those of the
-   sequential run. Rows and summaries come back formatted (bytes); each piece is written
-   atomically to the work folder, and the output files are assembled in order at the end.
+   sequential run. Rows and summaries are formatted on the worker. A LocalCluster's workers
+   write each piece's rows at their place in the work folder's rows file (`run_claimed`); a
+   cluster that shares no disk sends them back as bytes, which the client places
+   (`Assembler`). The rows file becomes the output at the end.
 """
 
 from __future__ import annotations
