@@ -809,6 +809,18 @@ class Assembler:
         self.ready: set = set()
         self.next = 0
         self.at = len(self.rows.readline())  # where the next piece's rows start: after the header
+        # The rows reach the disk while the pieces run (a thread's fdatasync every 50 ms), so that
+        # the sync at the end, in the replay's sequential part, has only the last ones left.
+        self._stop_sync = threading.Event()
+        self._sync = threading.Thread(target=self._sync_rows, name="rows-sync", daemon=True)
+        self._sync.start()
+
+    def _sync_rows(self) -> None:
+        while not self._stop_sync.wait(0.05):
+            try:
+                os.fdatasync(self.rows.fileno())
+            except (OSError, ValueError):  # closed meanwhile (abort), or a file system without
+                return
 
     def add(self, i: int) -> None:
         self.ready.add(i)
@@ -835,6 +847,7 @@ class Assembler:
     def finish(self) -> None:
         if self.next != self.n:
             raise RuntimeError(f"{self.n - self.next} pieces not assembled")
+        self._end_sync()
         self.rows.truncate(self.at)
         for fh in (self.rows, self.summ):
             fh.flush()
@@ -843,7 +856,13 @@ class Assembler:
         _move(self.work / ROWS, self.out)
         os.replace(self.summ.name, self.summary)
 
+    def _end_sync(self) -> None:
+        self._stop_sync.set()
+        if self._sync.is_alive():
+            self._sync.join()
+
     def abort(self) -> None:
+        self._end_sync()
         self.rows.close()
         self.summ.close()
         pathlib.Path(self.summ.name).unlink(missing_ok=True)
@@ -885,6 +904,18 @@ def _copy_to(src, dst, size: int, at: int) -> None:
         done += os.pwrite(dst.fileno(), chunk, at + done)
 
 
+def machine_cpu() -> tuple[int, int] | None:
+    """(busy, total) clock ticks of all the machine's cores since boot (Linux's /proc/stat:
+    busy is everything but idle and waiting for I/O), or None elsewhere."""
+    try:
+        with open("/proc/stat") as f:
+            ticks = [int(x) for x in f.readline().split()[1:]]
+    except (OSError, ValueError):
+        return None
+    total = sum(ticks[:8])  # user nice system idle iowait irq softirq steal (guest is in user)
+    return total - ticks[3] - ticks[4], total
+
+
 class Progress:
     """Pieces done/total and samples/s on stderr, at most once a second (and at the end)."""
 
@@ -904,6 +935,21 @@ class Progress:
         """The clock starts when the workers are ready (the cluster's start-up is not a rate)."""
         self.t0 = time.monotonic()
         self.base = self.done_samples
+        self.machine0 = machine_cpu()
+
+    def stop(self, client_cpu: float) -> None:
+        """The pieces are all written (or the run stopped): the clock and the CPU counts."""
+        self.t_end = time.monotonic()
+        self.client_cpu = client_cpu
+        self.machine1 = machine_cpu()
+
+    def machine_busy(self) -> float | None:
+        """The share of the machine's cores that was busy while the pieces ran (every process,
+        the kernel's too), or None where the kernel does not say (no /proc/stat)."""
+        a, b = getattr(self, "machine0", None), getattr(self, "machine1", None)
+        if a is None or b is None or b[1] <= a[1]:
+            return None
+        return (b[0] - a[0]) / (b[1] - a[1])
 
     def step(self, samples: int, final: bool = False) -> None:
         self.done += 1

@@ -188,6 +188,25 @@ def test_a_local_worker_killed_its_claimed_piece_is_computed_again(fmu_path, tmp
     assert (out.read_bytes(), (tmp_path / "d-revolutions.csv").read_bytes()) == seq
 
 
+def test_a_work_folder_on_another_file_system(fmu_path, tmp_path):
+    """--work-dir on another file system than --out (tmpfs /dev/shm against the test's folder):
+    the rows file cannot be renamed there, so it is copied; the files are the sequential
+    replay's and the work folder goes."""
+    import tempfile
+
+    if not os.path.isdir("/dev/shm") or os.stat("/dev/shm").st_dev == os.stat(tmp_path).st_dev:
+        pytest.skip("no second file system (/dev/shm) here")
+    seq = sequential(fmu_path, tmp_path, SAMPLE, COUNTS)
+    out = tmp_path / "d.csv"
+    with tempfile.TemporaryDirectory(dir="/dev/shm") as shm:
+        work = os.path.join(shm, "parts")
+        args = [SAMPLE, *COUNTS, "--out", out, "--distributed", "--workers", "2"]
+        twin([*args, "--revolutions-per-piece", "3", "--work-dir", work], fmu_path)
+        assert not os.path.exists(work)
+    assert (out.read_bytes(), (tmp_path / "d-revolutions.csv").read_bytes()) == seq
+    assert not list(tmp_path.glob("*.tmp"))
+
+
 def kvo630_file(path, seconds=2.0):
     """Exact crank angles of kvo630 at its design speed (157.08 rad/s, the sample's ±3 % speed
     fluctuation twice per revolution, time scaled), 1 kHz, wrapped, in rad."""

@@ -177,10 +177,13 @@ def run(a, opts: Options, stopping: list) -> int:
         # (scripts/bench_replay.py).
         took = progress.t_end - progress.t0 + time.monotonic() - t_assemble
         done = progress.done_samples - progress.base
+        busy = progress.machine_busy()
+        cores = "" if busy is None else f"; the machine's {os.cpu_count()} cores {busy:.0%} busy"
         print(
             f"replay: {done} samples computed in {took:.3f} s on {progress.workers} worker(s) "
             f"({done / max(took, 1e-9):.0f} samples/s, result files written; the workers' CPU "
-            f"in the pieces {progress.cpu:.3f} s, the client's {progress.client_cpu:.3f} s)",
+            f"in the pieces {progress.cpu:.3f} s, the client's {progress.client_cpu:.3f} s"
+            f"{cores})",
             file=err,
         )
     shutil.rmtree(work, ignore_errors=True)
@@ -229,8 +232,7 @@ def _compute(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
         # to the work folder themselves. Those of a cluster that shares no disk receive their
         # pieces' samples with the task and send the pieces back as bytes.
         code = job.shared(todo) if a.scheduler is None else job.remote(todo)
-        progress.t_end = time.monotonic()
-        progress.client_cpu = time.process_time() - cpu0
+        progress.stop(time.process_time() - cpu0)
         if code is None and stopping:
             print(
                 f"twin.py: stopped with {progress.done} of {progress.total} pieces written to "
