@@ -62,9 +62,10 @@ def uptime() -> str:
     return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
 
-def distributed(src, out, workers: int, n_rev: int) -> tuple[float, int, int, float, float]:
+def distributed(src, out, workers: int, n_rev: int) -> tuple:
     """(seconds, samples, pieces, the workers' CPU seconds in the pieces, the client's CPU
-    seconds meanwhile) of one distributed replay, from its own last line."""
+    seconds meanwhile, the share of the machine's cores busy meanwhile) of one distributed
+    replay, from its own last line."""
     p = subprocess.run(
         [*TWIN, str(src), *ARGS, "--out", str(out), "--distributed", "--workers", str(workers)]
         + ["--revolutions-per-piece", str(n_rev)],
@@ -77,12 +78,14 @@ def distributed(src, out, workers: int, n_rev: int) -> tuple[float, int, int, fl
     m = re.search(r"replay: (\d+) samples computed in ([0-9.]+) s", p.stderr)
     pieces = re.search(r"in (\d+) pieces", p.stderr)
     cpu = re.search(r"CPU in the pieces ([0-9.]+) s, the client's ([0-9.]+) s", p.stderr)
+    busy = re.search(r"cores (\d+)% busy", p.stderr)
     return (
         float(m.group(2)),
         int(m.group(1)),
         int(pieces.group(1)),
         float(cpu.group(1)),
         float(cpu.group(2)),
+        float(busy.group(1)) / 100 if busy else float("nan"),
     )
 
 
@@ -126,6 +129,7 @@ def main(argv=None) -> int:
         rates = {}
         for k in (1, 2):
             best = min(r[0] for r in runs[k])
+            busy = min(runs[k])[5]  # that of the best run
             samples, pieces = runs[k][0][1], runs[k][0][2]
             work_cpu = min(r[3] for r in runs[k])
             rates[k] = samples / best
@@ -133,7 +137,7 @@ def main(argv=None) -> int:
             print(
                 f"distributed, {k} worker(s): {best:.3f} s, {rates[k]:.0f} samples/s "
                 f"(workers' CPU in the pieces {work_cpu:.3f} s; {pieces} pieces of "
-                f"{a.revolutions_per_piece} revolutions; result "
+                f"{a.revolutions_per_piece} revolutions; the cores {busy:.0%} busy; result "
                 f"{'identical to' if same else 'DIFFERENT from'} the sequential one)"
             )
         print(f"2 workers / 1 worker: {rates[2] / rates[1]:.2f}× (target ≥ 1.8×)")

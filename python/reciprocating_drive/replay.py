@@ -19,13 +19,16 @@ progress. The distributed replay makes every cut exact as follows.
 3. **Result**: the rows of [s, e), and the summaries of the revolutions whose first sample (the
    first with model angle >= 2πk) lies in [s, e). A revolution's numbers depend only on its own
    samples and their neighbours (revolution.revolution_table), so they are those of the
-   sequential run. Rows and summaries come back formatted (bytes); each piece is written
-   atomically to the work folder, and the output files are assembled in order at the end.
+   sequential run. Rows and summaries are formatted on the worker. A LocalCluster's workers
+   write each piece's rows at their place in the work folder's rows file (`run_claimed`); a
+   cluster that shares no disk sends them back as bytes, which the client places
+   (`Assembler`). The rows file becomes the output at the end.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import json
 import math
@@ -45,7 +48,7 @@ from .line_input import chunks_of
 from .revolution import TWO_PI
 from .twin import SUMMARY_FIELDS, DataError, Options, Twin, _Segment
 
-MANIFEST_VERSION = 1
+MANIFEST_VERSION = 2
 
 #: Error in rad the elastic rod's cage angle may keep from its quasi-static start at the end of
 #: a piece's warm-up (docs/twin.md "Distributed replay"), and the bound on the start's error.
@@ -400,27 +403,16 @@ def warm_worker(fmu_key_or_path) -> None:
     load_fmu(fmu_key_or_path)
 
 
-def run_piece(
-    fmu_key_or_path,
-    values,
-    options: dict,
-    half: int,
-    cols: dict,
-    offset: float,
-    piece,
-    arrays,
-    work: str | None = None,
-    index: int = 0,
-):
-    """On a worker: the formatted rows and summaries of one piece (bytes, bytes, rows, CPU
-    seconds of this thread). With `work` (a worker on the client's disk: a LocalCluster) the
-    worker writes the piece there itself (`write_piece`) and returns None for the bytes: the
-    client then handles none."""
+def piece_text(fmu_key_or_path, values, options: dict, half: int, cols: dict, offset: float,
+               piece, arrays, buffer: bytearray | None = None):  # fmt: skip
+    """On a worker: one piece's rows and summaries as CSV text: (rows, summaries, number of rows).
+    The rows are bytes, or with `buffer` a memoryview into it (formatted in place: a piece's
+    ~2.5 MB of text neither allocated afresh nor copied); release it before the buffer is used
+    again."""
     # One loaded FMU per worker process, re-initialized at each piece's first sample as the
     # sequential twin re-initializes it after a gap (fmi2Reset, then initialization).
     fmu = load_fmu(fmu_key_or_path)
     s, e, w, f = piece[:4]
-    cpu = time.thread_time()
     line, t, theta, speed, force = arrays
     o = Options(**options)
     tw = Twin(fmu, "default", o, values)
@@ -456,39 +448,182 @@ def run_piece(
     summ = "".join(
         ",".join("" if sm[k] is None else repr(sm[k]) for k in SUMMARY_FIELDS) + "\n" for sm in keep
     ).encode()
-    if work is not None:
-        # Formatted into this process's buffer and written from it: a piece's ~5 MB of text
-        # is neither allocated afresh nor copied (as the sequential twin's writer does).
-        text = _TEXT.__dict__.setdefault("buffer", bytearray())
-        out = format_csv(allrows[s - w : e - w], text)
-        try:
-            write_piece(pathlib.Path(work), index, out, summ, cpu)
-        finally:
-            if isinstance(out, memoryview):  # b"" for a piece without rows
-                out.release()  # the buffer can grow again for the next piece
-        return None, None, e - s, time.thread_time() - cpu
-    return bytes(format_csv(allrows[s - w : e - w])), summ, e - s, time.thread_time() - cpu
+    out = format_csv(allrows[s - w : e - w], buffer)
+    return (bytes(out) if buffer is None else out), summ, e - s
+
+
+def run_piece(fmu_key_or_path, values, options: dict, half: int, cols: dict, offset: float,
+              piece, arrays):  # fmt: skip
+    """On a worker: the formatted rows and summaries of one piece (bytes, bytes, rows, CPU
+    seconds of this thread)."""
+    cpu = time.thread_time()
+    out, summ, n = piece_text(fmu_key_or_path, values, options, half, cols, offset, piece, arrays)
+    return out, summ, n, time.thread_time() - cpu
+
+
+def run_group(fmu_key_or_path, values, options, half, cols, offset, items):
+    """On a worker of a cluster that shares no disk: consecutive pieces, one Dask task
+    (docs/twin.md "Distributed replay", Speed: the scheduler's cost is per task, not per
+    sample). `items` holds (index, piece, arrays) in order; the result is the list of each
+    piece's (bytes, bytes, rows, CPU seconds)."""
+    return [
+        run_piece(fmu_key_or_path, values, options, half, cols, offset, piece, arrays)
+        for _, piece, arrays in items
+    ]
 
 
 #: The file by which a stopped client tells its LocalCluster's workers to start no more pieces.
 STOP = "stop"
 
+#: The output's rows as they are assembled, in the work folder (renamed to --out at the end).
+ROWS = "rows.csv"
 
-def run_group(fmu_key_or_path, values, options, half, cols, offset, items, work=None):
-    """On a worker: consecutive pieces, one Dask task (docs/twin.md "Distributed replay",
-    Speed: the scheduler's cost is per task, not per sample). `items` holds (index, piece,
-    arrays) in order. With `work` each piece is written there as it ends (the client counts
-    and assembles it from its record) and the result is None; without, the list of each
-    piece's (bytes, bytes, rows, CPU seconds). A stopped client's STOP file in `work` ends
-    the group before its next piece: a running task cannot be cancelled, and a group is long."""
-    got = []
-    for i, piece, arrays in items:
-        if work is not None and (pathlib.Path(work) / STOP).exists():
-            return None  # the client stopped: it counts none of these (resume computes them)
-        r = run_piece(fmu_key_or_path, values, options, half, cols, offset, piece, arrays, work, i)
-        if work is None:
-            got.append(r)
-    return None if work is not None else got
+#: The scanned arrays in a work folder that the workers share (`save_inputs`), by name.
+INPUT_NAMES = ("line", "t", "theta", "speed", "force")
+
+
+def save_inputs(work: pathlib.Path, data: dict) -> None:
+    """The scanned samples, one .npy file per array, for the workers of a LocalCluster (which
+    share the client's disk): each worker maps them (`run_claimed`) instead of receiving its
+    pieces' samples through the scheduler, which would cost the client, which hosts that
+    scheduler, CPU on the cores the workers need (docs/twin.md "Distributed replay", Speed)."""
+    for name in INPUT_NAMES:
+        tmp = work / f"input-{name}.tmp.npy"
+        np.save(tmp, np.ascontiguousarray(data[name]))
+        os.replace(tmp, work / f"input-{name}.npy")
+
+
+def _claim(work: pathlib.Path, i: int) -> bool:
+    """Piece i taken by this worker for this run: the first to create its claim file (O_EXCL,
+    atomic on a local file system) computes it; the client removes stale claims first."""
+    try:
+        os.close(os.open(work / f"claim-{i:06d}", os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644))
+        return True
+    except FileExistsError:
+        return False
+
+
+def clear_claims(work: pathlib.Path, indices) -> None:
+    """Before a round: the claims and lengths of an earlier round or run (a piece claimed by a
+    worker that died is claimed afresh)."""
+    for i in indices:
+        (work / f"claim-{i:06d}").unlink(missing_ok=True)
+        _len_path(work, i).unlink(missing_ok=True)
+
+
+def _len_path(work: pathlib.Path, i: int) -> pathlib.Path:
+    return work / f"len-{i:06d}"
+
+
+def _piece_len(work: pathlib.Path, i: int) -> int | None:
+    """The length of piece i's rows text, once a worker has computed it (its length file) or
+    written it (its record); None before."""
+    try:
+        return int(_len_path(work, i).read_bytes())
+    except (OSError, ValueError):
+        pass
+    try:
+        return int(json.loads(_names(work, i)[2].read_text())["out"][0])
+    except (OSError, ValueError, KeyError, TypeError, IndexError):
+        return None
+
+
+class _Offsets:
+    """Where each piece's rows start in the work folder's rows file: after the header and every
+    earlier piece's rows, known as soon as every earlier piece is computed (their lengths)."""
+
+    def __init__(self, work: pathlib.Path, first: int):
+        self.work = work
+        self.starts = [first]  # starts[k] of pieces 0..len-1
+
+    def of(self, i: int) -> int | None:
+        while len(self.starts) <= i:
+            n = _piece_len(self.work, len(self.starts) - 1)
+            if n is None:
+                return None
+            self.starts.append(self.starts[-1] + n)
+        return self.starts[i]
+
+
+def run_claimed(fmu_key_or_path, values, options, half, cols, offset, items, work: str,
+                first: int) -> int:  # fmt: skip
+    """On a worker of a LocalCluster: takes the pieces `items` ((index, piece) in order) that no
+    other worker has claimed, one at a time in order, computes each from the mapped input
+    (`save_inputs`) and writes its rows straight into the rows file of the work folder at their
+    place (`first` is the header's length). Every worker runs one such task over the same
+    list, so the pieces are dealt out as the workers free up and end nearly in order; Dask sees
+    one task per worker, and the client copies no text (docs/twin.md "Distributed replay",
+    Speed). A piece whose place is not known yet (an earlier one still computing on another
+    worker) waits in memory and is placed after this worker's next piece; at the end of the
+    list one still waiting is written to its own file, which the client places. Returns the
+    number of pieces this task computed. A piece claimed by a worker that died is computed in
+    the client's next round (`clear_claims`)."""
+    folder = pathlib.Path(work)
+    arrays = [np.load(folder / f"input-{n}.npy", mmap_mode="r") for n in INPUT_NAMES]
+    offsets = _Offsets(folder, first)
+    buffer = _TEXT.__dict__.setdefault("buffer", bytearray())
+    waiting: list = []  # (index, rows bytes, summaries, CPU seconds)
+    fd = os.open(folder / ROWS, os.O_WRONLY)
+    done = 0
+    try:
+        for i, piece in items:
+            if (folder / STOP).exists():
+                break  # the client stopped: the pieces not written are computed by a resumed run
+            if not _claim(folder, i):
+                continue
+            cpu = time.thread_time()
+            w, f = piece[2], piece[3]
+            mine = tuple(np.array(x[w:f]) for x in arrays)  # writable copies, as Dask's would be
+            out, summ, _ = piece_text(
+                fmu_key_or_path, values, options, half, cols, offset, piece, mine, buffer
+            )
+            try:
+                _atomic_write(_len_path(folder, i), str(len(out)).encode(), sync=False)
+                at = offsets.of(i)
+                if at is not None:
+                    _place(fd, folder, i, out, summ, at, cpu)
+                else:
+                    waiting.append((i, bytes(out), summ, time.thread_time() - cpu))
+            finally:
+                if isinstance(out, memoryview):  # b"" for a piece without rows
+                    out.release()  # the buffer can grow again for the next piece
+            done += 1
+            waiting = [x for x in waiting if not _place_waiting(fd, folder, offsets, x)]
+        for i, out, summ, cpu in waiting:
+            if not _place_waiting(fd, folder, offsets, (i, out, summ, cpu)):
+                write_piece(folder, i, out, summ, cpu=cpu)
+    finally:
+        os.close(fd)
+    return done
+
+
+def _place_waiting(fd, folder, offsets, item) -> bool:
+    i, out, summ, cpu = item
+    at = offsets.of(i)
+    if at is None:
+        return False
+    _place(fd, folder, i, out, summ, at, None, cpu)
+    return True
+
+
+def _place(fd, folder, i, out, summ, at, cpu0, cpu=None) -> None:
+    """Piece i's rows written into the rows file at `at`, its summaries to their file, then its
+    record (last: a piece without a valid record is computed again)."""
+    view = memoryview(out)
+    done = 0
+    while done < len(view):
+        done += os.pwrite(fd, view[done:], at + done)
+    view.release()
+    p_out, p_rev, p_rec = _names(folder, i)
+    _atomic_write(p_rev, summ, sync=False)
+    p_out.unlink(missing_ok=True)
+    rec = {
+        "out": [len(out), zlib.crc32(out)],
+        "rev": [len(summ), zlib.crc32(summ)],
+        "at": at,
+        "cpu": (time.thread_time() - cpu0) if cpu is None else cpu,
+    }
+    _atomic_write(p_rec, json.dumps(rec).encode(), sync=False)
 
 
 #: format_csv's buffer of each thread of this (worker) process, reused by every piece.
@@ -523,9 +658,10 @@ def manifest_of(sc: Scanned, machine: str, pieces: list, extra: dict) -> dict:
     }
 
 
-def open_work(work: pathlib.Path, manifest: dict) -> set:
-    """Creates the work folder with its manifest, or checks an existing one against `manifest`
-    (ReplayError naming what differs). Returns the indices of the pieces already written."""
+def open_work(work: pathlib.Path, manifest: dict, header: bytes) -> set:
+    """Creates the work folder with its manifest and its rows file (`header` first), or checks
+    an existing one against `manifest` (ReplayError naming what differs). Returns the indices of
+    the pieces already written."""
     mpath = work / "manifest.json"
     if work.exists() and not work.is_dir():
         raise ReplayError(f"--work-dir {work}: not a folder")
@@ -562,10 +698,26 @@ def open_work(work: pathlib.Path, manifest: dict) -> set:
                     f"{mpath}: its {key} differs from this run's (other piece options); remove "
                     f"{work} or give another --work-dir"
                 )
+        _rows_file(work, header)
         return {i for i in range(len(manifest["pieces"])) if _piece_ok(work, i)}
     work.mkdir(parents=True, exist_ok=True)
+    _rows_file(work, header)
     _atomic_write(mpath, json.dumps({**manifest, "sha256": _digest(manifest)}).encode())
     return set()
+
+
+def _rows_file(work: pathlib.Path, header: bytes) -> None:
+    """The rows file, begun with the header (made afresh if it does not begin with it: the
+    pieces placed in it then fail their check and are computed again)."""
+    path = work / ROWS
+    try:
+        with open(path, "rb") as fh:
+            if fh.read(len(header)) == header:
+                return
+    except FileNotFoundError:
+        pass
+    with open(path, "wb") as fh:
+        fh.write(header)
 
 
 def _show(v) -> str:
@@ -595,28 +747,33 @@ def piece_cpu(work: pathlib.Path, i: int) -> float:
 
 
 def _piece_ok(work: pathlib.Path, i: int) -> bool:
-    """A piece written completely: its record's sizes and CRC-32 match its two files (a check
-    against damage, which a crash or a cut can do; the manifest holds the input's SHA-256)."""
+    """A piece written completely: its record's sizes and CRC-32 match its summaries' file and
+    its rows, in their own file or at their place in the rows file (a check against damage,
+    which a crash or a cut can do; the manifest holds the input's SHA-256)."""
     out, rev, rec = _names(work, i)
     try:
         r = json.loads(rec.read_text())
-        for p, key in ((out, "out"), (rev, "rev")):
-            data = p.read_bytes()
-            if len(data) != r[key][0] or zlib.crc32(data) != r[key][1]:
-                return False
-        return True
+        if r.get("at") is None:
+            data = out.read_bytes()
+        else:
+            with open(work / ROWS, "rb") as fh:
+                fh.seek(int(r["at"]))
+                data = fh.read(int(r["out"][0]))
+        if len(data) != r["out"][0] or zlib.crc32(data) != r["out"][1]:
+            return False
+        data = rev.read_bytes()
+        return len(data) == r["rev"][0] and zlib.crc32(data) == r["rev"][1]
     except (OSError, ValueError, KeyError, TypeError, IndexError):
         return False
 
 
 def write_piece(
-    work: pathlib.Path, i: int, out: bytes, rev: bytes, cpu0: float | None = None
+    work: pathlib.Path, i: int, out: bytes, rev: bytes, cpu: float | None = None
 ) -> None:
-    """The piece's files, then its record (last: a piece without a valid record is computed
-    again). Not synced: a piece whose files do not match its record's CRC-32 after a crash is
-    computed again, so the sync (the slowest part of a piece on the client) buys nothing.
-    With `cpu0` (this thread's CPU clock when the piece started, on a worker) the record holds
-    the piece's CPU seconds, which the client reads instead of fetching the task's result."""
+    """The piece's rows and summaries in files of their own, then its record (last: a piece
+    without a valid record is computed again); the client places the rows (`Assembler`). Not
+    synced: a piece whose files do not match its record's CRC-32 after a crash is computed
+    again, so the sync buys nothing. `cpu`: the CPU seconds of the piece on its worker."""
     p_out, p_rev, p_rec = _names(work, i)
     _atomic_write(p_out, out, sync=False)
     _atomic_write(p_rev, rev, sync=False)
@@ -625,72 +782,138 @@ def write_piece(
         "out": [len(out), zlib.crc32(out)],
         "rev": [len(rev), zlib.crc32(rev)],
     }
-    if cpu0 is not None:
-        rec["cpu"] = time.thread_time() - cpu0
+    if cpu is not None:
+        rec["cpu"] = cpu
     _atomic_write(p_rec, json.dumps(rec).encode(), sync=False)
 
 
-class Assembler:
-    """The output files, made from the pieces in order while later pieces still run: each piece
-    is appended as soon as every piece before it is written, so that at the end only the last
-    ones remain to copy (the assembly is the replay's sequential part). The files grow beside
-    the outputs (`<out>.tmp`) and are renamed over them by `finish`; `abort` removes them (the
-    pieces stay in the work folder, and a resumed run assembles afresh)."""
+def header_bytes(header: list) -> bytes:
+    return (",".join(header) + "\n").encode()
 
-    def __init__(self, work: pathlib.Path, n: int, targets: list):
-        self.work, self.n = work, n
-        self.targets = targets  # (path, header line) of the rows and of the summaries
-        self.files = []
-        for target, header in targets:
-            fh = open(target.with_name(target.name + ".tmp"), "wb")
-            fh.write((",".join(header) + "\n").encode())
-            fh.flush()
-            self.files.append(fh)
+
+class Assembler:
+    """The output files, made from the pieces in order while later pieces still run. The rows
+    grow in the work folder's rows file, where the workers of a LocalCluster write their
+    pieces' rows at their place themselves (`run_claimed`); a piece that arrives in a file of
+    its own (from a cluster that shares no disk, or one whose worker did not know its place) is
+    copied to its place here, in the kernel, as soon as every piece before it is written. The
+    summaries (small) are appended to `<summary>.tmp`. `finish` syncs both and renames them
+    over the outputs; `abort` removes the summaries' file (the pieces and the rows file stay in
+    the work folder for a resumed run)."""
+
+    def __init__(self, work: pathlib.Path, n: int, out: pathlib.Path, summary, header: list):
+        self.work, self.n, self.out, self.summary = work, n, out, summary
+        self.rows = open(work / ROWS, "r+b")
+        self.summ = open(summary.with_name(summary.name + ".tmp"), "wb")
+        self.summ.write(header_bytes(header))
         self.ready: set = set()
         self.next = 0
+        self.at = len(self.rows.readline())  # where the next piece's rows start: after the header
+        # The rows reach the disk while the pieces run (a thread's fdatasync every 50 ms), so that
+        # the sync at the end, in the replay's sequential part, has only the last ones left.
+        self._stop_sync = threading.Event()
+        self._sync = threading.Thread(target=self._sync_rows, name="rows-sync", daemon=True)
+        self._sync.start()
+
+    def _sync_rows(self) -> None:
+        while not self._stop_sync.wait(0.05):
+            try:
+                os.fdatasync(self.rows.fileno())
+            except (OSError, ValueError):  # closed meanwhile (abort), or a file system without
+                return
 
     def add(self, i: int) -> None:
         self.ready.add(i)
         while self.next in self.ready:
-            for idx, fh in enumerate(self.files):
-                with open(_names(self.work, self.next)[idx], "rb") as src:
-                    _copy(src, fh)
-            self.ready.discard(self.next)
+            k = self.next
+            p_out, p_rev, p_rec = _names(self.work, k)
+            rec = json.loads(p_rec.read_text())
+            n = int(rec["out"][0])
+            if rec.get("at") is None:
+                with open(p_out, "rb") as src:
+                    _copy_to(src, self.rows, n, self.at)
+                # The record says where the rows are now (a resumed run checks them there); the
+                # piece's own file goes after it.
+                _atomic_write(p_rec, json.dumps({**rec, "at": self.at}).encode(), sync=False)
+                p_out.unlink(missing_ok=True)
+            elif int(rec["at"]) != self.at:
+                raise RuntimeError(f"piece {k}: its rows are at {rec['at']}, not at {self.at}")
+            with open(p_rev, "rb") as src:
+                shutil.copyfileobj(src, self.summ)
+            self.at += n
+            self.ready.discard(k)
             self.next += 1
 
     def finish(self) -> None:
         if self.next != self.n:
             raise RuntimeError(f"{self.n - self.next} pieces not assembled")
-        for (target, _), fh in zip(self.targets, self.files):
+        self._end_sync()
+        self.rows.truncate(self.at)
+        for fh in (self.rows, self.summ):
             fh.flush()
             os.fsync(fh.fileno())
             fh.close()
-            os.replace(fh.name, target)
+        _move(self.work / ROWS, self.out)
+        os.replace(self.summ.name, self.summary)
+
+    def _end_sync(self) -> None:
+        self._stop_sync.set()
+        if self._sync.is_alive():
+            self._sync.join()
 
     def abort(self) -> None:
-        for fh in self.files:
-            fh.close()
-            pathlib.Path(fh.name).unlink(missing_ok=True)
+        self._end_sync()
+        self.rows.close()
+        self.summ.close()
+        pathlib.Path(self.summ.name).unlink(missing_ok=True)
 
 
-def _copy(src, dst) -> None:
-    """Appends the file `src` to `dst` in the kernel (os.copy_file_range) where it can: the
-    result's assembly is sequential, so it is kept to the disk's speed."""
-    size = os.fstat(src.fileno()).st_size
+def _move(src: pathlib.Path, dst: pathlib.Path) -> None:
+    """Renamed; across file systems (a --work-dir elsewhere) copied beside `dst`, synced and
+    renamed over it."""
     try:
-        done = 0
+        os.replace(src, dst)
+    except OSError as e:
+        if e.errno != errno.EXDEV:
+            raise
+        tmp = dst.with_name(dst.name + ".tmp")
+        with open(src, "rb") as a, open(tmp, "wb") as b:
+            _copy_to(a, b, os.fstat(a.fileno()).st_size, 0)
+            b.flush()
+            os.fsync(b.fileno())
+        os.replace(tmp, dst)
+        src.unlink()
+
+
+def _copy_to(src, dst, size: int, at: int) -> None:
+    """`size` bytes of the file `src` written into `dst` at `at`, in the kernel
+    (os.copy_file_range) where it can (the copy is in the replay's sequential part)."""
+    done = 0
+    try:
         while done < size:
-            k = os.copy_file_range(src.fileno(), dst.fileno(), size - done)
+            k = os.copy_file_range(src.fileno(), dst.fileno(), size - done, done, at + done)
             if k == 0:
                 break
             done += k
-        if done == size:
-            return
-        src.seek(done)
-    except (AttributeError, OSError):
-        src.seek(0)
-        dst.seek(0, os.SEEK_END)
-    shutil.copyfileobj(src, dst, 1 << 20)
+    except OSError:
+        pass
+    while done < size:
+        chunk = os.pread(src.fileno(), min(size - done, 1 << 20), done)
+        if not chunk:
+            raise RuntimeError(f"{src.name}: {size - done} bytes short")
+        done += os.pwrite(dst.fileno(), chunk, at + done)
+
+
+def machine_cpu() -> tuple[int, int] | None:
+    """(busy, total) clock ticks of all the machine's cores since boot (Linux's /proc/stat:
+    busy is everything but idle and waiting for I/O), or None elsewhere."""
+    try:
+        with open("/proc/stat") as f:
+            ticks = [int(x) for x in f.readline().split()[1:]]
+    except (OSError, ValueError):
+        return None
+    total = sum(ticks[:8])  # user nice system idle iowait irq softirq steal (guest is in user)
+    return total - ticks[3] - ticks[4], total
 
 
 class Progress:
@@ -712,6 +935,21 @@ class Progress:
         """The clock starts when the workers are ready (the cluster's start-up is not a rate)."""
         self.t0 = time.monotonic()
         self.base = self.done_samples
+        self.machine0 = machine_cpu()
+
+    def stop(self, client_cpu: float) -> None:
+        """The pieces are all written (or the run stopped): the clock and the CPU counts."""
+        self.t_end = time.monotonic()
+        self.client_cpu = client_cpu
+        self.machine1 = machine_cpu()
+
+    def machine_busy(self) -> float | None:
+        """The share of the machine's cores that was busy while the pieces ran (every process,
+        the kernel's too), or None where the kernel does not say (no /proc/stat)."""
+        a, b = getattr(self, "machine0", None), getattr(self, "machine1", None)
+        if a is None or b is None or b[1] <= a[1]:
+            return None
+        return (b[0] - a[0]) / (b[1] - a[1])
 
     def step(self, samples: int, final: bool = False) -> None:
         self.done += 1

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import json
 import os
 import signal
 import socket
@@ -111,6 +112,101 @@ def test_local_cluster_is_bit_identical_and_shows_progress(fmu_path, tmp_path):
     assert (out.read_bytes(), (tmp_path / "d-revolutions.csv").read_bytes()) == seq
 
 
+def test_pieces_placed_by_workers_or_by_the_client_assemble_the_sequential_files(
+    fmu_path, tmp_path
+):
+    """The shared-disk path without Dask, each step the real function: a "worker" finds piece 1
+    claimed by another, so it cannot know where pieces 2.. start: it keeps them waiting and
+    writes them to files of their own at the end of its list; the other worker then computes
+    piece 1, whose place is known, and writes it into the rows file. The assembler copies the
+    waiting ones to their places. The files equal the sequential replay's; the records say
+    which piece went which way."""
+    seq = sequential(fmu_path, tmp_path, SAMPLE, COUNTS)
+    sc = R.scan(str(SAMPLE), fmu_path, "default", Options(angle_unit="counts", counts_per_rev=4096))
+    pieces = R.plan(sc, 3, None)
+    assert len(pieces) >= 4
+    work = tmp_path / "work"
+    head = R.header_bytes(sc.header)
+    assert R.open_work(work, R.manifest_of(sc, "default", pieces, {}), head) == set()
+    R.save_inputs(work, sc.data)
+    common = (fmu_path, sc.values, worker_options(sc.options), sc.half, sc.cols, sc.offset)
+    items = [(i, p) for i, p in enumerate(pieces)]
+    assert R._claim(work, 1)  # "another worker" has piece 1
+    assert R.run_claimed(*common, items, str(work), len(head)) == len(pieces) - 1
+    (work / "claim-000001").unlink()
+    assert R.run_claimed(*common, items[1:2], str(work), len(head)) == 1
+    recs = [json.loads((work / f"piece-{i:06d}.json").read_text()) for i in range(len(pieces))]
+    placed = [i for i, r in enumerate(recs) if "at" in r]
+    assert placed == [0, 1]  # pieces 2.. waited for piece 1's length: in files of their own
+    assert all((work / f"piece-{i:06d}.csv").exists() for i in range(2, len(pieces)))
+    out, summary = tmp_path / "d.csv", tmp_path / "d-revolutions.csv"
+    asm = R.Assembler(work, len(pieces), out, summary, summary_header())
+    for i in reversed(range(len(pieces))):  # in any order: each is placed once those before are
+        asm.add(i)
+    asm.finish()
+    assert (out.read_bytes(), summary.read_bytes()) == seq
+    assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_a_local_worker_killed_its_claimed_piece_is_computed_again(fmu_path, tmp_path):
+    """A LocalCluster: one worker process killed (SIGKILL) while pieces run. The piece it had
+    claimed is computed in another round; the files are the sequential replay's, byte for
+    byte."""
+    import psutil
+
+    inp = longer_encoder_file(tmp_path / "long.csv", 30.0)
+    seq = sequential(fmu_path, tmp_path, inp, COUNTS)
+    out = tmp_path / "d.csv"
+    work = tmp_path / "d.csv.parts"
+    args = [inp, *COUNTS, "--out", out, "--distributed", "--workers", "2"]
+    args += ["--revolutions-per-piece", "5", "--fmu", fmu_path]
+    run = subprocess.Popen(
+        [*TWIN, *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while len(list(work.glob("piece-*.json"))) < 2:
+            assert run.poll() is None, run.communicate()
+            assert time.monotonic() < deadline, "no piece written within 120 s"
+            time.sleep(0.01)
+        # The worker processes: the replay's children that run multiprocessing's spawn.
+        workers = [
+            c
+            for c in psutil.Process(run.pid).children()
+            if "multiprocessing.spawn" in " ".join(c.cmdline())
+        ]
+        assert len(workers) == 2, [c.cmdline() for c in workers]
+        workers[0].kill()
+        _, err = run.communicate(timeout=300)
+    finally:
+        if run.poll() is None:
+            run.kill()
+            run.wait(10)
+    assert run.returncode == 0, err
+    # Killed mid-piece (a piece takes about 30 ms, the step between two a fraction of one).
+    assert "claimed by a worker that was lost are computed again" in err, err
+    assert (out.read_bytes(), (tmp_path / "d-revolutions.csv").read_bytes()) == seq
+
+
+def test_a_work_folder_on_another_file_system(fmu_path, tmp_path):
+    """--work-dir on another file system than --out (tmpfs /dev/shm against the test's folder):
+    the rows file cannot be renamed there, so it is copied; the files are the sequential
+    replay's and the work folder goes."""
+    import tempfile
+
+    if not os.path.isdir("/dev/shm") or os.stat("/dev/shm").st_dev == os.stat(tmp_path).st_dev:
+        pytest.skip("no second file system (/dev/shm) here")
+    seq = sequential(fmu_path, tmp_path, SAMPLE, COUNTS)
+    out = tmp_path / "d.csv"
+    with tempfile.TemporaryDirectory(dir="/dev/shm") as shm:
+        work = os.path.join(shm, "parts")
+        args = [SAMPLE, *COUNTS, "--out", out, "--distributed", "--workers", "2"]
+        twin([*args, "--revolutions-per-piece", "3", "--work-dir", work], fmu_path)
+        assert not os.path.exists(work)
+    assert (out.read_bytes(), (tmp_path / "d-revolutions.csv").read_bytes()) == seq
+    assert not list(tmp_path.glob("*.tmp"))
+
+
 def kvo630_file(path, seconds=2.0):
     """Exact crank angles of kvo630 at its design speed (157.08 rad/s, the sample's ±3 % speed
     fluctuation twice per revolution, time scaled), 1 kHz, wrapped, in rad."""
@@ -202,9 +298,15 @@ def test_killed_replay_resumes_bit_identical(fmu_path, tmp_path, sig):
     # Another run's options: refused in one line, nothing touched.
     p = twin([*args, "--window", "0.2"], fmu_path, check=False)
     one_line_error(p, 2, "manifest.json", "--window 0.1 differs from this run's 0.2")
-    # A piece file cut short after it was written: computed again.
-    first = work / "piece-000000.csv"
-    os.truncate(first, first.stat().st_size // 2)
+    # A piece's rows damaged after they were written (a byte changed at their place in the
+    # rows file, found by its record's CRC-32): that piece is computed again.
+    rec = json.loads((work / "piece-000000.json").read_text())
+    assert rec["at"] > 0  # placed in the rows file by its worker
+    with open(work / "rows.csv", "r+b") as fh:
+        fh.seek(rec["at"] + rec["out"][0] // 2)
+        b = fh.read(1)
+        fh.seek(-1, os.SEEK_CUR)
+        fh.write(bytes([b[0] ^ 1]))
     p = twin(args, fmu_path)
     assert f"resuming: {len(done) - 1} of " in p.stderr
     assert (out.read_bytes(), (tmp_path / "d-revolutions.csv").read_bytes()) == seq

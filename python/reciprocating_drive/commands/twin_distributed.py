@@ -13,19 +13,24 @@ import time
 from ..fmu import FmuError
 from ..line_input import InputChanged
 from ..replay import (
+    INPUT_NAMES,
     STOP,
     Assembler,
     PieceFailed,
     Progress,
     ReplayError,
     _names,
+    clear_claims,
+    header_bytes,
     is_postgres,
     is_sqlite,
     manifest_of,
     open_work,
     piece_cpu,
     plan,
+    run_claimed,
     run_group,
+    save_inputs,
     scan,
     warm_up_time,
     warm_worker,
@@ -129,7 +134,7 @@ def run(a, opts: Options, stopping: list) -> int:
     extra = {"revolutions_per_piece": a.revolutions_per_piece, "overlap": a.overlap}
     manifest = manifest_of(sc, machine, pieces, extra)
     try:
-        written = open_work(work, manifest)
+        written = open_work(work, manifest, header_bytes(sc.header))
     except (ReplayError, OSError) as e:
         print(f"twin.py: {e}", file=err)
         return 2
@@ -153,7 +158,7 @@ def run(a, opts: Options, stopping: list) -> int:
     progress.done_samples = sum(pieces[i][1] - pieces[i][0] for i in written)
     a.out.parent.mkdir(parents=True, exist_ok=True)
     summary.parent.mkdir(parents=True, exist_ok=True)
-    asm = Assembler(work, len(pieces), [(a.out, sc.header), (summary, summary_header())])
+    asm = Assembler(work, len(pieces), a.out, summary, summary_header())
     try:
         for i in sorted(written):
             asm.add(i)
@@ -172,10 +177,13 @@ def run(a, opts: Options, stopping: list) -> int:
         # (scripts/bench_replay.py).
         took = progress.t_end - progress.t0 + time.monotonic() - t_assemble
         done = progress.done_samples - progress.base
+        busy = progress.machine_busy()
+        cores = "" if busy is None else f"; the machine's {os.cpu_count()} cores {busy:.0%} busy"
         print(
             f"replay: {done} samples computed in {took:.3f} s on {progress.workers} worker(s) "
             f"({done / max(took, 1e-9):.0f} samples/s, result files written; the workers' CPU "
-            f"in the pieces {progress.cpu:.3f} s, the client's {progress.client_cpu:.3f} s)",
+            f"in the pieces {progress.cpu:.3f} s, the client's {progress.client_cpu:.3f} s"
+            f"{cores})",
             file=err,
         )
     shutil.rmtree(work, ignore_errors=True)
@@ -198,8 +206,6 @@ def run(a, opts: Options, stopping: list) -> int:
 def _compute(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
     """Runs the pieces `todo` on Dask and writes each to the work folder as it arrives. None when
     all are written, else the exit code."""
-    from distributed import wait
-
     from ..cluster import WorkerMismatch, prepare_workers
     from ..sweep import SweepError, _client, _close, _quiet_distributed
 
@@ -221,125 +227,214 @@ def _compute(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
         progress.start()
         cpu0 = time.process_time()
         progress.workers = n_workers
-        wopts = worker_options(sc.options)
-        names = ("line", "t", "theta", "speed", "force")
-        lonely = None  # since when the cluster has had no worker
-        # A local cluster's workers write their pieces to the work folder themselves; those of
-        # a cluster that shares no disk send them back as bytes.
-        shared = str(work.resolve()) if a.scheduler is None else None
-        if shared:
-            # A record in the work folder then says a worker wrote that piece in this run: a
-            # stale one (a damaged piece of an earlier run, which resume computes again) goes.
-            for i in todo:
-                _names(work, i)[2].unlink(missing_ok=True)
-            (work / STOP).unlink(missing_ok=True)  # that of a stopped run: this one resumes
-        # Consecutive pieces in groups, one task each: Dask's scheduler (in this process for a
-        # LocalCluster) costs about the same CPU per task whatever its size, which 2 cores cannot
-        # hide (docs/twin.md "Distributed replay", Speed). Two groups per worker keep the
-        # workers evenly busy to the end; a group stays small enough that the arrays sent ahead
-        # stay bounded and a worker killed loses little.
-        size = max(1, min(_GROUP_MAX, -(-len(todo) // (2 * n_workers))))
-        queue = [todo[k : k + size] for k in range(0, len(todo), size)]
-        running: dict = {}  # future -> the group's pieces not yet counted
-        limit = 2 * n_workers
-        # The records of a shared disk are looked at often, so that the (sequential) assembly
-        # follows the pieces as they end rather than their groups.
-        poll = 0.05 if shared else 0.5
-
-        def count(i):
-            asm.add(i)
-            progress.cpu += piece_cpu(work, i)
-            progress.step(pieces[i][1] - pieces[i][0])
-
-        while queue or running:
-            while queue and len(running) < limit:
-                group = queue.pop(0)
-                items = [
-                    (i, pieces[i], tuple(sc.data[n][pieces[i][2] : pieces[i][3]] for n in names))
-                    for i in group
-                ]
-                fut = client.submit(
-                    run_group,
-                    key,
-                    sc.values,
-                    wopts,
-                    sc.half,
-                    sc.cols,
-                    sc.offset,
-                    items,
-                    shared,
-                    pure=False,
-                    key=f"replay-group-{group[0]}-{os.getpid()}",
-                )
-                running[fut] = list(group)
-            if stopping:
-                break
-            try:
-                done, _ = wait(list(running), timeout=poll, return_when="FIRST_COMPLETED")
-            except TimeoutError:  # none ended meanwhile: look at the records and the signals
-                done = ()
-            fetched = 0
-            if shared:
-                # A group's pieces are written in order: each one whose record is there is
-                # counted and assembled now, not when its whole group ends (progress, resume).
-                for left in running.values():
-                    while left and _names(work, left[0])[2].exists():
-                        count(left.pop(0))
-                        fetched += 1
-            for fut in done:
-                if shared and fut.status == "finished":
-                    # The worker wrote its pieces and their records to the work folder: its
-                    # result (None) is not fetched, which saves the client (and the scheduler
-                    # it hosts) a round trip to the worker (docs/twin.md, Speed).
-                    for i in running.pop(fut):
-                        count(i)
-                        fetched += 1
-                    continue
-                try:
-                    got = fut.result(timeout=1.0)
-                except TimeoutError:
-                    continue  # its result went with its worker: Dask computes it again
-                except PieceFailed as e:
-                    print(f"twin.py: {a.input}: {e}", file=err)
-                    return 1
-                for i, (out, rev, n, cpu) in zip(running.pop(fut), got):
-                    write_piece(work, i, out, rev)
-                    asm.add(i)
-                    progress.cpu += cpu
-                    progress.step(n)
-                    fetched += 1
-            # A cluster whose workers are all gone would wait for ever: bounded.
-            if fetched or client.scheduler_info().get("workers"):
-                lonely = None
-            elif lonely is None:
-                lonely = time.monotonic()
-            elif time.monotonic() - lonely > max(a.connect_timeout, 30.0):
-                print(
-                    f"twin.py: no worker on the cluster for {max(a.connect_timeout, 30.0):g} s; "
-                    f"{progress.done} of {progress.total} pieces are in {work}: run the same "
-                    "command again to resume",
-                    file=err,
-                )
-                return 1
-            if stopping:
-                break
-        progress.t_end = time.monotonic()
-        progress.client_cpu = time.process_time() - cpu0
-        if stopping:
-            if shared:
-                (work / STOP).touch()  # the groups running end at their next piece
-            for fut in running:
-                fut.cancel()
+        job = _Job(a, sc, pieces, work, progress, stopping, asm, client, key, n_workers)
+        # A local cluster's workers share this disk: they map the input and write their pieces
+        # to the work folder themselves. Those of a cluster that shares no disk receive their
+        # pieces' samples with the task and send the pieces back as bytes.
+        code = job.shared(todo) if a.scheduler is None else job.remote(todo)
+        progress.stop(time.process_time() - cpu0)
+        if code is None and stopping:
             print(
                 f"twin.py: stopped with {progress.done} of {progress.total} pieces written to "
                 f"{work}; run the same command again to resume",
                 file=err,
             )
             return 128 + stopping[0]
-        return None
+        return code
     except (ReplayError, CheckpointError) as e:
         print(f"twin.py: {e}", file=err)
         return 2
     finally:
         with _quiet_distributed():
             _close(client, cluster)
+
+
+class _Job:
+    """The client's side of one distributed replay on a started cluster: submits the pieces,
+    counts and assembles them as they are written, and watches for a cluster left without
+    workers. `shared` and `remote` return None when every piece is written or the run was
+    stopped (`stopping`), else the exit code."""
+
+    def __init__(self, a, sc, pieces, work, progress, stopping, asm, client, key, n_workers):
+        self.a, self.sc, self.pieces, self.work = a, sc, pieces, work
+        self.progress, self.stopping, self.asm = progress, stopping, asm
+        self.client, self.key, self.n_workers = client, key, n_workers
+        self.wopts = worker_options(sc.options)
+        self.lonely = None  # since when the cluster has had no worker
+
+    def count(self, i: int, cpu: float | None = None, n: int | None = None) -> None:
+        self.asm.add(i)
+        self.progress.cpu += piece_cpu(self.work, i) if cpu is None else cpu
+        p = self.pieces[i]
+        self.progress.step(p[1] - p[0] if n is None else n)
+
+    def _common(self) -> tuple:
+        sc = self.sc
+        return (self.key, sc.values, self.wopts, sc.half, sc.cols, sc.offset)
+
+    def abandoned(self, fetched: int) -> int | None:
+        """1 (with its message) when the cluster has had no worker for the connect timeout
+        (30 s at least) and nothing arrived meanwhile: a wait for ever, bounded."""
+        a = self.a
+        if fetched or self.client.scheduler_info().get("workers"):
+            self.lonely = None
+        elif self.lonely is None:
+            self.lonely = time.monotonic()
+        elif time.monotonic() - self.lonely > max(a.connect_timeout, 30.0):
+            print(
+                f"twin.py: no worker on the cluster for {max(a.connect_timeout, 30.0):g} s; "
+                f"{self.progress.done} of {self.progress.total} pieces are in {self.work}: run "
+                "the same command again to resume",
+                file=sys.stderr,
+            )
+            return 1
+        return None
+
+    def failed(self, fut) -> int | None:
+        """The exit code of a task that ended in error: 1 for bad data or an FMU error in a
+        piece (its message names the line); other errors (a worker lost too often) go up."""
+        try:
+            fut.result(timeout=1.0)
+        except TimeoutError:
+            return None  # its result went with its worker: Dask computes it again
+        except PieceFailed as e:
+            print(f"twin.py: {self.a.input}: {e}", file=sys.stderr)
+            return 1
+        return None
+
+    def shared(self, todo: list) -> int | None:
+        """A LocalCluster: the input mapped from the work folder, one task per worker over the
+        whole list, each claiming the next piece no worker has taken (replay.run_claimed), the
+        pieces counted and assembled from their records as they appear. Pieces a lost worker
+        had claimed are computed in another round."""
+        from distributed import wait
+
+        work, client = self.work, self.client
+        # A record in the work folder says a worker wrote that piece in this run: a stale one
+        # (a damaged piece of an earlier run, which resume computes again) goes, and so do the
+        # claims and the stop file of an earlier run.
+        for i in todo:
+            _names(work, i)[2].unlink(missing_ok=True)
+        (work / STOP).unlink(missing_ok=True)
+        save_inputs(work, self.sc.data)
+        folder = str(work.resolve())
+        first = len(header_bytes(self.sc.header))  # the rows file's header
+        left = list(todo)  # not yet counted, in order
+        rounds = 0
+        while left:
+            if rounds and not self.a.quiet:
+                print(
+                    f"replay: {len(left)} piece(s) claimed by a worker that was lost are computed "
+                    "again",
+                    file=sys.stderr,
+                    flush=True,
+                )
+            clear_claims(work, left)
+            items = [(i, self.pieces[i]) for i in left]
+            futs = [
+                client.submit(
+                    run_claimed, *self._common(), items, folder, first, pure=False,
+                    key=f"replay-claims-{rounds}-{k}-{os.getpid()}",
+                )
+                for k in range(self.n_workers)
+            ]  # fmt: skip
+            rounds += 1
+            before = len(left)
+            pending = set(futs)
+            while pending:
+                if self.stopping:
+                    (work / STOP).touch()  # the tasks end at their next piece
+                    for fut in pending:
+                        fut.cancel()
+                    return None
+                try:
+                    done, _ = wait(list(pending), timeout=0.05, return_when="FIRST_COMPLETED")
+                except TimeoutError:
+                    done = ()
+                fetched = self._collect(left)
+                for fut in done:
+                    pending.discard(fut)
+                    if fut.status != "finished":
+                        code = self.failed(fut)
+                        if code is not None:
+                            return code
+                code = self.abandoned(fetched)
+                if code is not None:
+                    return code
+            self._collect(left, everything=True)
+            if len(left) == before:
+                raise ReplayError(
+                    f"{len(left)} pieces were claimed but not written by the workers; run the "
+                    "same command again to resume"
+                )
+        return None
+
+    def _collect(self, left: list, everything: bool = False) -> int:
+        """Counts the pieces of `left` whose record is written (removing them from it): the
+        first few only while the tasks run (pieces end nearly in order; each look is a stat),
+        all of them at the end of a round. Returns how many were counted."""
+        work, got, missing = self.work, [], 0
+        for i in left:
+            if _names(work, i)[2].exists():
+                got.append(i)
+            else:
+                missing += 1
+                if not everything and missing > 2 * self.n_workers:
+                    break
+        for i in got:
+            left.remove(i)
+            self.count(i)
+        return len(got)
+
+    def remote(self, todo: list) -> int | None:
+        """A cluster that shares no disk: consecutive pieces in groups, one task each, their
+        samples sent with the task and the pieces sent back as bytes. Dask's scheduler costs
+        about the same CPU per task whatever its size (docs/twin.md "Distributed replay",
+        Speed); two groups per worker keep the workers evenly busy to the end, and a group stays
+        small enough that the arrays sent ahead stay bounded and a worker killed loses little."""
+        from distributed import wait
+
+        work, client, sc = self.work, self.client, self.sc
+        n_workers = self.n_workers
+        size = max(1, min(_GROUP_MAX, -(-len(todo) // (2 * n_workers))))
+        queue = [todo[k : k + size] for k in range(0, len(todo), size)]
+        running: dict = {}  # future -> the group's pieces
+        limit = 2 * n_workers
+        while queue or running:
+            while queue and len(running) < limit:
+                group = queue.pop(0)
+                items = [
+                    (i, self.pieces[i], tuple(sc.data[n][self.pieces[i][2] : self.pieces[i][3]]
+                                              for n in INPUT_NAMES))
+                    for i in group
+                ]  # fmt: skip
+                fut = client.submit(
+                    run_group, *self._common(), items, pure=False,
+                    key=f"replay-group-{group[0]}-{os.getpid()}",
+                )  # fmt: skip
+                running[fut] = list(group)
+            if self.stopping:
+                for fut in running:
+                    fut.cancel()
+                return None
+            try:
+                done, _ = wait(list(running), timeout=0.5, return_when="FIRST_COMPLETED")
+            except TimeoutError:  # none ended meanwhile: look at the signals and the workers
+                done = ()
+            fetched = 0
+            for fut in done:
+                try:
+                    got = fut.result(timeout=1.0)
+                except TimeoutError:
+                    continue  # its result went with its worker: Dask computes it again
+                except PieceFailed as e:
+                    print(f"twin.py: {self.a.input}: {e}", file=sys.stderr)
+                    return 1
+                for i, (out, rev, n, cpu) in zip(running.pop(fut), got):
+                    write_piece(work, i, out, rev)
+                    self.count(i, cpu, n)
+                    fetched += 1
+            code = self.abandoned(fetched)
+            if code is not None:
+                return code
+        return None
