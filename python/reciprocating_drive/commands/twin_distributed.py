@@ -135,6 +135,10 @@ def run(a, opts: Options, stopping: list) -> int:
     manifest = manifest_of(sc, machine, pieces, extra)
     try:
         written = open_work(work, manifest, header_bytes(sc.header))
+        if a.scheduler is None and len(written) < len(pieces):
+            # A local cluster's workers map the scanned samples from the work folder: written
+            # now, part of the scan, while nothing waits for it.
+            save_inputs(work, sc.data)
     except (ReplayError, OSError) as e:
         print(f"twin.py: {e}", file=err)
         return 2
@@ -307,8 +311,6 @@ class _Job:
         whole list, each claiming the next piece no worker has taken (replay.run_claimed), the
         pieces counted and assembled from their records as they appear. Pieces a lost worker
         had claimed are computed in another round."""
-        from distributed import wait
-
         work, client = self.work, self.client
         # A record in the work folder says a worker wrote that piece in this run: a stale one
         # (a damaged piece of an earlier run, which resume computes again) goes, and so do the
@@ -316,7 +318,6 @@ class _Job:
         for i in todo:
             _names(work, i)[2].unlink(missing_ok=True)
         (work / STOP).unlink(missing_ok=True)
-        save_inputs(work, self.sc.data)
         folder = str(work.resolve())
         first = len(header_bytes(self.sc.header))  # the rows file's header
         left = list(todo)  # not yet counted, in order
@@ -340,27 +341,28 @@ class _Job:
             ]  # fmt: skip
             rounds += 1
             before = len(left)
-            pending = set(futs)
-            while pending:
+            # The records say when the pieces are written: the client looks every 5 ms (a stat
+            # or a few each time) and goes on to the assembly's end as soon as the last one is
+            # there, without the round trip of the tasks' end through the scheduler (Speed).
+            t_workers = time.monotonic()
+            while left and not all(f.done() for f in futs):
                 if self.stopping:
                     (work / STOP).touch()  # the tasks end at their next piece
-                    for fut in pending:
+                    for fut in futs:
                         fut.cancel()
                     return None
-                try:
-                    done, _ = wait(list(pending), timeout=0.05, return_when="FIRST_COMPLETED")
-                except TimeoutError:
-                    done = ()
+                time.sleep(0.005)
                 fetched = self._collect(left)
-                for fut in done:
-                    pending.discard(fut)
-                    if fut.status != "finished":
+                for fut in futs:
+                    if fut.status == "error":
                         code = self.failed(fut)
                         if code is not None:
                             return code
-                code = self.abandoned(fetched)
-                if code is not None:
-                    return code
+                if fetched or time.monotonic() - t_workers > 0.5:
+                    t_workers = time.monotonic()
+                    code = self.abandoned(fetched)
+                    if code is not None:
+                        return code
             self._collect(left, everything=True)
             if len(left) == before:
                 raise ReplayError(
