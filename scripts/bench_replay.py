@@ -101,7 +101,7 @@ def sequential(src, out) -> tuple[float, float]:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--repeat", type=int, default=3, help="the best of N runs (default 3)")
+    ap.add_argument("--repeat", type=int, default=10, help="the best of N runs (default 10)")
     ap.add_argument("--times", type=int, default=10, help="copies of the sample (default 10)")
     ap.add_argument("--revolutions-per-piece", type=int, default=10)
     a = ap.parse_args(argv)

@@ -254,7 +254,7 @@ def main(argv=None) -> int:
     ap.add_argument("--fmu", default=str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu"))
     ap.add_argument("--study", action="append", help="a study of studies/ (default: all three)")
     ap.add_argument("--repeat", type=int, default=5, help="repetitions of (a) and (b); min taken")
-    ap.add_argument("--dask-repeat", type=int, default=2, help="repetitions of (c); min taken")
+    ap.add_argument("--dask-repeat", type=int, default=4, help="repetitions of (c); min taken")
     ap.add_argument(
         "--seconds", type=float, default=0.5, help="floor seconds of the cases of (a) and (b)"
     )
