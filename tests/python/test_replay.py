@@ -8,8 +8,8 @@ on 127.0.0.1, and the resume test kills the replay with a real signal."""
 from __future__ import annotations
 
 import contextlib
-import math
 import json
+import math
 import os
 import signal
 import socket
@@ -160,15 +160,8 @@ def test_a_local_worker_killed_its_claimed_piece_is_computed_again(fmu_path, tmp
     work = tmp_path / "d.csv.parts"
     args = [inp, *COUNTS, "--out", out, "--distributed", "--workers", "2"]
     args += ["--revolutions-per-piece", "5", "--fmu", fmu_path]
-    run = subprocess.Popen(
-        [*TWIN, *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-    )
-    try:
-        deadline = time.monotonic() + 120
-        while len(list(work.glob("piece-*.json"))) < 2:
-            assert run.poll() is None, run.communicate()
-            assert time.monotonic() < deadline, "no piece written within 120 s"
-            time.sleep(0.01)
+
+    def kill_a_worker(run):
         # The worker processes: the replay's children that run multiprocessing's spawn.
         workers = [
             c
@@ -177,12 +170,9 @@ def test_a_local_worker_killed_its_claimed_piece_is_computed_again(fmu_path, tmp
         ]
         assert len(workers) == 2, [c.cmdline() for c in workers]
         workers[0].kill()
-        _, err = run.communicate(timeout=300)
-    finally:
-        if run.poll() is None:
-            run.kill()
-            run.wait(10)
-    assert run.returncode == 0, err
+
+    code, err = interrupted(args, work, 2, kill_a_worker)
+    assert code == 0, err
     # Killed mid-piece (a piece takes about 30 ms, the step between two a fraction of one).
     assert "claimed by a worker that was lost are computed again" in err, err
     assert (out.read_bytes(), (tmp_path / "d-revolutions.csv").read_bytes()) == seq
@@ -274,22 +264,8 @@ def test_killed_replay_resumes_bit_identical(fmu_path, tmp_path, sig):
     work = tmp_path / "d.csv.parts"
     args = [inp, *COUNTS, "--out", out, "--distributed", "--workers", "1"]
     args += ["--revolutions-per-piece", "2", "--fmu", fmu_path]
-    proc = subprocess.Popen(
-        [*TWIN, *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-    )
-    try:
-        deadline = time.monotonic() + 120
-        while len(list(work.glob("piece-*.json"))) < 3:
-            assert proc.poll() is None, proc.communicate()
-            assert time.monotonic() < deadline, "no piece written within 120 s"
-            time.sleep(0.05)
-        proc.send_signal(sig)
-        _, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(10)
-    assert proc.returncode == 128 + sig, err
+    code, err = interrupted(args, work, 3, lambda p: p.send_signal(sig), timeout=60)
+    assert code == 128 + sig, err
     assert "run the same command again to resume" in err and "Traceback" not in err
     assert not out.exists() and not list(tmp_path.glob("*.tmp"))  # nothing half-assembled
     done = sorted(work.glob("piece-*.json"))
@@ -413,25 +389,32 @@ def scheduler_and_workers(where, n_workers):
                 p.wait(timeout=10)
 
 
-def start_and_kill_a_worker(args, work, worker, timeout=300):
-    """Runs the replay, kills `worker` once two pieces are written; (exit code, stderr)."""
+def interrupted(args, work, pieces, act, timeout=300):
+    """Runs the replay and calls act(process) once `pieces` pieces are written to `work`;
+    (exit code, stderr). The replay is killed if it is still running at the end."""
     run = subprocess.Popen(
         [*TWIN, *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
     )
     try:
         deadline = time.monotonic() + 120
-        while len(list(work.glob("piece-*.json"))) < 2:
+        while len(list(work.glob("piece-*.json"))) < pieces:
             assert run.poll() is None, run.communicate()
             assert time.monotonic() < deadline, "no piece written within 120 s"
-            time.sleep(0.02)
-        worker.kill()
+            time.sleep(0.01)
+        act(run)
         _, err = run.communicate(timeout=timeout)
     finally:
         if run.poll() is None:
             run.kill()
             run.wait(10)
-    assert worker.wait(10) != 0  # it was killed, not done
     return run.returncode, err
+
+
+def start_and_kill_a_worker(args, work, worker, timeout=300):
+    """Runs the replay, kills `worker` once two pieces are written; (exit code, stderr)."""
+    code, err = interrupted(args, work, 2, lambda _: worker.kill(), timeout)
+    assert worker.wait(10) != 0  # it was killed, not done
+    return code, err
 
 
 def test_a_cluster_without_shared_disk_and_a_worker_killed(fmu_path, tmp_path):
