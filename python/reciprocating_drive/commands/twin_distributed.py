@@ -341,9 +341,10 @@ class _Job:
             ]  # fmt: skip
             rounds += 1
             before = len(left)
-            # The records say when the pieces are written: the client looks every 5 ms (a stat
-            # or a few each time) and goes on to the assembly's end as soon as the last one is
-            # there, without the round trip of the tasks' end through the scheduler (Speed).
+            # The records say when the pieces are written: the client looks for them (a stat or
+            # a few each time) every 20 ms, every 3 ms once the last pieces run, and goes on to
+            # the assembly's end as soon as the last one is there, without the round trip of the
+            # tasks' end through the scheduler (docs/twin.md "Distributed replay", Speed).
             t_workers = time.monotonic()
             while left and not all(f.done() for f in futs):
                 if self.stopping:
@@ -351,7 +352,7 @@ class _Job:
                     for fut in futs:
                         fut.cancel()
                     return None
-                time.sleep(0.005)
+                time.sleep(0.003 if len(left) <= 2 * self.n_workers else 0.02)
                 fetched = self._collect(left)
                 for fut in futs:
                     if fut.status == "error":
