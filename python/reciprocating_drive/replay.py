@@ -552,8 +552,8 @@ def run_claimed(fmu_key_or_path, values, options, half, cols, offset, items, wor
     (`save_inputs`) and writes its rows straight into the rows file of the work folder at their
     place (`first` is the header's length). Every worker runs one such task over the same
     list, so the pieces are dealt out as the workers free up and end nearly in order; Dask sees
-    one task per worker, and the client copies no text (docs/twin.md "Distributed replay",
-    Speed). A piece whose place is not known yet (an earlier one still computing on another
+    one task per worker, and the client copies almost no text (docs/twin.md "Distributed
+    replay", Speed). A piece whose place is not known yet (an earlier one still computing on another
     worker) waits in memory and is placed after this worker's next piece; at the end of the
     list one still waiting is written to its own file, which the client places. Returns the
     number of pieces this task computed. A piece claimed by a worker that died is computed in
