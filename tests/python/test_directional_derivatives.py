@@ -884,6 +884,57 @@ def test_drive_train_model_exchange_2_and_3_are_bit_identical(fmu_path, tmp_path
 
 
 @pytest.mark.parametrize("kind", ["me2", "me3"])
+@pytest.mark.parametrize("machine", ["kvo630", "thin rod"])
+def test_pump_derivative_dependencies_omit_only_what_the_derivative_leaves_alone(
+    fmu_path, tmp_path, machine, kind
+):
+    """The pump's <Derivatives> (2.0) and ContinuousStateDerivative (3.0) list their knowns: for
+    an elastic rod, every known a derivative omits has a partial exactly 0 and leaves the
+    derivative bit for bit unchanged when moved, and every listed one is non-zero at some
+    random point (dϑ/dt = ϑ̇ only; ϑ̈ from the crank's inputs, the force, ϑ and ϑ̇)."""
+    values = machine_values(("kvo630", THIN_ROD) if machine == "thin rod" else machine)
+    path = fmu_path if kind == "me2" else sibling(fmu_path, "ReciprocatingDrive-fmi3.fmu")
+    me = Probe(path, kind, values, tmp_path, "dd")
+    try:
+        deps = {d.variable.name: {x.name for x in d.dependencies} for d in me.md.derivatives}
+        assert sorted(deps) == CAGE_DERIVATIVES
+        assert deps["der(rod.cage_angle)"] == {"rod.cage_rate"}
+        knowns = INPUTS + CAGE_STATES
+        nominal = float(values.get("crank.speed", me.var["crank.speed"].start))
+        rng = random.Random(31)
+        seen = set()
+        for x0 in random_points(rng, nominal, 5.0, 4):
+            me.set(INPUTS, x0)
+            x = [rng.uniform(-2e-3, 2e-3), rng.uniform(-0.05, 0.05)]
+            me.states(x)
+            base = me.derivatives()
+            for k in knowns:
+                for u, v in zip(CAGE_DERIVATIVES, me.dd(CAGE_DERIVATIVES, [k], [1.0])):
+                    if k not in deps[u]:
+                        assert v == 0.0, f"∂{u}/∂{k} = {v!r}, but the ModelStructure omits it"
+                    elif v != 0.0:
+                        seen.add((u, k))
+            # Moving an input or a state: the derivatives that omit it stay bit for bit.
+            for j, k in enumerate(knowns):
+                if k in INPUTS:
+                    y0 = list(x0)
+                    y0[j] += 1e-3 * (1.0 + abs(y0[j]))
+                    me.set(INPUTS, y0)
+                else:
+                    y = list(x)
+                    y[j - len(INPUTS)] += 1e-4 * (1.0 + abs(y[j - len(INPUTS)]))
+                    me.states(y)
+                for u, a, b in zip(CAGE_DERIVATIVES, base, me.derivatives()):
+                    if k not in deps[u]:
+                        assert a == b, f"{u} moved with {k} ({a!r} -> {b!r}), not listed"
+                me.set(INPUTS, x0)
+                me.states(x)
+        assert seen == {(u, k) for u in deps for k in deps[u]}, sorted(seen)
+    finally:
+        me.close()
+
+
+@pytest.mark.parametrize("kind", ["me2", "me3"])
 @pytest.mark.parametrize("machine", ["kvo630", "thin rod", "default"])
 def test_pump_state_dependencies_omit_only_what_the_state_leaves_alone(
     fmu_path, tmp_path, machine, kind

@@ -229,6 +229,22 @@ impl FmuModel for ReciprocatingDrive {
         ("rod.axial_deflection", &[0]),
     ];
 
+    /// dϑ/dt = ϑ̇; dϑ̇/dt = ϑ̈ from the cage equation (docs/model.md §6), whose clamp loads
+    /// follow the crank's angle, speed and acceleration and the process force, as `rod.force`
+    /// does. A rigid mechanism's derivatives are 0: these lists hold for every machine.
+    const DERIVATIVE_DEPENDENCIES: &'static [(&'static [InputSlot], &'static [usize])] = &[
+        (&[], &[1]),
+        (
+            &[
+                InputSlot::CrankAngle,
+                InputSlot::CrankSpeed,
+                InputSlot::CrankAcceleration,
+                InputSlot::ExternalForce,
+            ],
+            &[0, 1],
+        ),
+    ];
+
     fn continuous_states(state: &State, x: &mut [f64]) {
         x[0] = state.rod.cage.theta;
         x[1] = state.rod.cage.rate;
