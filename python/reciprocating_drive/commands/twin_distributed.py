@@ -4,6 +4,7 @@ byte for a rigid rod, within 1e-8 rad of rod.angle for an elastic rod."""
 
 from __future__ import annotations
 
+import gc
 import os
 import pathlib
 import shutil
@@ -210,13 +211,28 @@ def run(a, opts: Options, stopping: list) -> int:
 def _compute(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
     """Runs the pieces `todo` on Dask and writes each to the work folder as it arrives. None when
     all are written, else the exit code."""
+    from ..sweep import _quiet_distributed
+
+    # distributed's own log lines stay out of the replay's messages for the whole run, not only
+    # while the cluster starts and stops: a worker lost with a result it held makes the client
+    # log that it reschedules it, and asyncio a task's traceback ("exception was never
+    # retrieved") for the fetch given up; the replay says what matters in its own line.
+    with _quiet_distributed():
+        try:
+            return _compute_quietly(a, sc, pieces, todo, work, progress, stopping, asm)
+        finally:
+            # The closed client's abandoned tasks go now, while their log lines are muted,
+            # rather than whenever the collector would have found them.
+            gc.collect()
+
+
+def _compute_quietly(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
     from ..cluster import WorkerMismatch, prepare_workers
-    from ..sweep import SweepError, _client, _close, _quiet_distributed
+    from ..sweep import SweepError, _client, _close
 
     err = sys.stderr
     try:
-        with _quiet_distributed():
-            client, cluster = _client(a.scheduler, a.workers, a.connect_timeout)
+        client, cluster = _client(a.scheduler, a.workers, a.connect_timeout)
     except SweepError as e:
         print(f"twin.py: {e}", file=err)
         return 2
@@ -249,8 +265,7 @@ def _compute(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
         print(f"twin.py: {e}", file=err)
         return 2
     finally:
-        with _quiet_distributed():
-            _close(client, cluster)
+        _close(client, cluster)
 
 
 class _Job:
