@@ -69,24 +69,8 @@ impl Model {
         };
         let velocity = k.velocity(w);
         let acceleration = k.acceleration(w, eps);
-        let p = &self.params;
-        // The same loads as `Model::loads_at` (§4, §7), in dual numbers.
-        let inertia_force = acceleration * -p.mass;
-        let f_ext = dual(inputs.external_force, seed.external_force)
-            + loads::process_force_profile_of(
-                p.load_profile,
-                p.load_mean,
-                p.load_amplitude,
-                p.load_phase,
-                theta,
-                velocity,
-                p.velocity_scale,
-            );
-        let balancer_force = match &self.balancer {
-            Some(b) => (k.s - b.neutral_position) * -b.stiffness,
-            None => Dual64::from(0.0),
-        };
-        let p_base = f_ext + inertia_force + balancer_force;
+        let (inertia_force, balancer_force, p_base) =
+            self.dual_loads(theta, k.s, velocity, acceleration, inputs, seed);
         let guide = match &self.guide {
             Some(g) => g.solve_rigid_tangent(k.s, velocity, p_base, side_slope, &value.guide)?,
             None => GuideOutputs { rod_force: p_base.eps, ..GuideOutputs::default() },
@@ -208,7 +192,9 @@ impl Model {
         Ok((value, tangent, cage_acceleration.eps))
     }
 
-    /// The loads of `Model::loads_at` (§4, §7) in dual numbers: (Φ, F_bal, p_base).
+    /// The loads of `Model::loads_at` (§4, §7) in dual numbers: (Φ, F_bal, p_base). Inlined in
+    /// both callers (out of line it cost the rigid mechanisms' derivative 14 instructions).
+    #[inline(always)]
     fn dual_loads(
         &self,
         theta: Dual64,

@@ -62,7 +62,6 @@ impl Guide {
         // The change of each support's reactions at fixed P (A_x) and per newton of P (slope_x).
         let mut fixed_p = [ForceMoment::default(); 3];
         let mut slope = [ForceMoment::default(); 3];
-        let (mut g_sum, mut a_sum, mut k_sum) = (0.0, 0.0, 0.0);
         for x in 0..3 {
             slope[x] = ForceMoment { r: dq_dp * per_q[x].r, m: dq_dp * per_q[x].m };
             let dslope = ForceMoment {
@@ -74,12 +73,31 @@ impl Guide {
                 r: dbase[x].r * s.eps + p * dslope.r,
                 m: dbase[x].m * s.eps + p * dslope.m,
             };
+        }
+        // Uniqueness (checked by solve_rigid: |tanh|·K < 1) keeps the factor away from 0.
+        Ok(self.implicit_tangent(&at_p, &fixed_p, &slope, p_base.eps, sign, dsign))
+    }
+
+    /// The tangent of the outputs from the fixed point P = p_base + F_fr differentiated on its
+    /// piece (the module's formula): `at_p` the supports' reactions at the solution, `fixed_p`
+    /// their change at fixed P (A_x), `slope` their change per newton of P; `sign` the
+    /// regularized sign tanh(v/v_ε) and `dsign` its change.
+    fn implicit_tangent(
+        &self,
+        at_p: &[ForceMoment; 3],
+        fixed_p: &[ForceMoment; 3],
+        slope: &[ForceMoment; 3],
+        dp_base: f64,
+        sign: f64,
+        dsign: f64,
+    ) -> GuideOutputs {
+        let (mut g_sum, mut a_sum, mut k_sum) = (0.0, 0.0, 0.0);
+        for x in 0..3 {
             g_sum += self.laws[x].magnitude(at_p[x]);
             a_sum += rate(&self.laws[x], at_p[x], fixed_p[x]);
             k_sum += rate(&self.laws[x], at_p[x], slope[x]);
         }
-        // Uniqueness (checked by solve_rigid: |tanh|·K < 1) keeps the factor away from 0.
-        let dp = (p_base.eps - dsign * g_sum - sign * a_sum) / (1.0 + sign * k_sum);
+        let dp = (dp_base - dsign * g_sum - sign * a_sum) / (1.0 + sign * k_sum);
         let mut fr = [0.0; 3];
         let mut dfm = [ForceMoment::default(); 3];
         for x in 0..3 {
@@ -88,7 +106,7 @@ impl Guide {
                 - sign * rate(&self.laws[x], at_p[x], dfm[x]);
         }
         let (n1, n2) = friction::edge_forces(self.kinds[1], self.lengths[1], dfm[1]);
-        let tangent = GuideOutputs {
+        GuideOutputs {
             rod_force: dp,
             friction_b: fr[1],
             reaction_b: dfm[1].r,
@@ -98,8 +116,7 @@ impl Guide {
             reaction_a: dfm[0].r,
             reaction_c: dfm[2].r,
             friction_total: fr[0] + fr[1] + fr[2],
-        };
-        Ok(tangent)
+        }
     }
 }
 
@@ -144,7 +161,6 @@ impl Guide {
         let mut at_p = [ForceMoment::default(); 3];
         let mut fixed_p = [ForceMoment::default(); 3];
         let mut slope = [ForceMoment::default(); 3];
-        let (mut g_sum, mut a_sum, mut k_sum) = (0.0, 0.0, 0.0);
         for x in 0..3 {
             at_p[x] = infl.base[x]
                 .plus_scaled(m0_fixed.re, infl.per_m0[x])
@@ -155,30 +171,8 @@ impl Guide {
             slope[x] = ForceMoment::default()
                 .plus_scaled(m0_per_p.eps, infl.per_m0[x])
                 .plus_scaled(v_per_p.eps, infl.per_v[x]);
-            g_sum += self.laws[x].magnitude(at_p[x]);
-            a_sum += rate(&self.laws[x], at_p[x], fixed_p[x]);
-            k_sum += rate(&self.laws[x], at_p[x], slope[x]);
         }
         // The solve converged by contraction (|tanh|·K < 1), which keeps the factor from 0.
-        let dp = (p_base.eps - dsign * g_sum - sign * a_sum) / (1.0 + sign * k_sum);
-        let mut fr = [0.0; 3];
-        let mut dfm = [ForceMoment::default(); 3];
-        for x in 0..3 {
-            dfm[x] = fixed_p[x].plus_scaled(dp, slope[x]);
-            fr[x] = -dsign * self.laws[x].magnitude(at_p[x])
-                - sign * rate(&self.laws[x], at_p[x], dfm[x]);
-        }
-        let (n1, n2) = friction::edge_forces(self.kinds[1], self.lengths[1], dfm[1]);
-        Ok(GuideOutputs {
-            rod_force: dp,
-            friction_b: fr[1],
-            reaction_b: dfm[1].r,
-            moment_b: dfm[1].m,
-            edge_force_1: n1,
-            edge_force_2: n2,
-            reaction_a: dfm[0].r,
-            reaction_c: dfm[2].r,
-            friction_total: fr[0] + fr[1] + fr[2],
-        })
+        Ok(self.implicit_tangent(&at_p, &fixed_p, &slope, p_base.eps, sign, dsign))
     }
 }
