@@ -173,6 +173,15 @@ def is_sqlite(path) -> bool:
         return False
 
 
+def _csv_lines(rows) -> list[str]:
+    """A database's rows as the lines of a CSV file: a REAL as repr writes it (the same double
+    back), NULL as an empty field (refused by the twin like an empty CSV field)."""
+    return [
+        ",".join("" if v is None else repr(v) if isinstance(v, float) else str(v) for v in r)
+        for r in rows
+    ]
+
+
 def sqlite_lines(path, table: str, stop=None, rows: int = 1 << 15):
     """The table's samples as the lines of a CSV file: a header naming its columns among
     COLUMNS, then one line per row in rowid order, each REAL written as repr writes it (the
@@ -201,12 +210,7 @@ def sqlite_lines(path, table: str, stop=None, rows: int = 1 << 15):
             got = cur.fetchmany(rows)
             if not got:
                 break
-            yield [
-                ",".join(
-                    "" if v is None else repr(v) if isinstance(v, float) else str(v) for v in r
-                )
-                for r in got
-            ]
+            yield _csv_lines(got)
     except sqlite3.Error as e:
         raise ReplayError(f"{path}: table {table!r} cannot be read ({e})") from None
     finally:
@@ -271,12 +275,7 @@ def postgres_lines(uri: str, table: str, stop=None, rows: int = 1 << 15):
                 got = cur.fetchmany(rows)
                 if not got:
                     break
-                yield [
-                    ",".join(
-                        "" if v is None else repr(v) if isinstance(v, float) else str(v) for v in r
-                    )
-                    for r in got
-                ]
+                yield _csv_lines(got)
     except psycopg.Error as e:
         first = " ".join(str(e).split())[:200]
         raise ReplayError(f"{where}: table {table!r} cannot be read ({first})") from None
