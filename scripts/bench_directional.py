@@ -15,13 +15,18 @@ from __future__ import annotations
 
 import argparse
 import pathlib
-import re
 import subprocess
 import sys
-import tempfile
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from bench_ratio import NO_SUPPORTS, ROOT, fmi_headers, model_description, preset  # noqa: E402
+from bench_ratio import (  # noqa: E402
+    NO_SUPPORTS,
+    ROOT,
+    callgrind_inclusive,
+    fmi_headers,
+    model_description,
+    preset,
+)
 
 OUT = ROOT / "target" / "bench-c"
 
@@ -52,21 +57,7 @@ def build() -> pathlib.Path:
 
 def per_call(cmd: list[str], function: str, calls: int) -> float:
     """Inclusive instructions of `function` per call in one callgrind run of `cmd`."""
-    with tempfile.TemporaryDirectory() as d:
-        out = pathlib.Path(d) / "callgrind.out"
-        subprocess.run(
-            ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *cmd],
-            check=True,
-            capture_output=True,
-        )
-        text = subprocess.run(
-            ["callgrind_annotate", "--inclusive=yes", "--threshold=100", str(out)],
-            check=True,
-            capture_output=True,
-            text=True,
-        ).stdout
-    pat = re.compile(r"^\s*([\d,]+)\s.*:" + function + r"( \[|$)", re.M)
-    return sum(int(m.group(1).replace(",", "")) for m in pat.finditer(text)) / calls
+    return callgrind_inclusive(cmd, (function,))[function] / calls
 
 
 def main(argv=None) -> int:

@@ -23,13 +23,20 @@ from __future__ import annotations
 import argparse
 import os
 import pathlib
-import re
 import subprocess
 import sys
-import tempfile
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from bench_ratio import EIGHT, NO_SUPPORTS, OUT, ROOT, fmi_headers, model_description, preset  # noqa: E402
+from bench_ratio import (  # noqa: E402
+    EIGHT,
+    NO_SUPPORTS,
+    OUT,
+    ROOT,
+    callgrind_inclusive,
+    fmi_headers,
+    model_description,
+    preset,
+)
 
 # (name, preset or None, overrides); the rigid mechanisms of scripts/bench_ratio.py.
 SCENARIOS = [
@@ -66,25 +73,8 @@ FUNCTIONS = (
 def instructions(cmd: list[str], mode: str, steps: int) -> float:
     """Instructions per time point of the FMU's functions in one callgrind run of `mode` alone
     (steps/10 warm-up time points and one round of `steps`)."""
-    with tempfile.TemporaryDirectory() as d:
-        out = pathlib.Path(d) / "callgrind.out"
-        subprocess.run(
-            ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *cmd],
-            check=True,
-            capture_output=True,
-            env=dict(os.environ, ME_EVAL_ONLY=mode),
-        )
-        text = subprocess.run(
-            ["callgrind_annotate", "--inclusive=yes", "--threshold=100", str(out)],
-            check=True,
-            capture_output=True,
-            text=True,
-        ).stdout
-    total = 0
-    for f in FUNCTIONS:
-        pat = re.compile(r"^\s*([\d,]+)\s.*:" + f + r"( \[|$)", re.M)
-        total += sum(int(m.group(1).replace(",", "")) for m in pat.finditer(text))
-    return total / (steps + steps // 10)
+    count = callgrind_inclusive(cmd, FUNCTIONS, dict(os.environ, ME_EVAL_ONLY=mode))
+    return sum(count.values()) / (steps + steps // 10)
 
 
 def main(argv=None) -> int:

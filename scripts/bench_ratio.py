@@ -123,9 +123,10 @@ def preset(name: str) -> dict:
     return out
 
 
-def _fmi_instructions(cmd: list[str], env: dict) -> dict:
-    """Inclusive instructions of fmi2SetReal, fmi2DoStep and fmi2GetReal in one callgrind run of
-    the host (callgrind_annotate adds up same-named functions of both libraries)."""
+def callgrind_inclusive(cmd: list[str], functions, env: dict | None = None) -> dict:
+    """Inclusive instructions of each of `functions` in one callgrind run of `cmd`
+    (callgrind_annotate adds up same-named functions of all the libraries loaded); the driver
+    of every instruction benchmark here (bench_me.py, bench_directional.py)."""
     with tempfile.TemporaryDirectory() as d:
         out = pathlib.Path(d) / "callgrind.out"
         subprocess.run(
@@ -141,10 +142,16 @@ def _fmi_instructions(cmd: list[str], env: dict) -> dict:
             text=True,
         ).stdout
     count = {}
-    for f in ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal"):
+    for f in functions:
         pat = re.compile(r"^\s*([\d,]+)\s.*:" + f + r"( \[|$)", re.M)
         count[f] = sum(int(m.group(1).replace(",", "")) for m in pat.finditer(text))
     return count
+
+
+def _fmi_instructions(cmd: list[str], env: dict) -> dict:
+    """Inclusive instructions of fmi2SetReal, fmi2DoStep and fmi2GetReal in one callgrind run of
+    the host."""
+    return callgrind_inclusive(cmd, ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal"), env)
 
 
 def instructions(
