@@ -21,6 +21,7 @@ import ctypes
 import pathlib
 import shutil
 import tempfile
+import weakref
 from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -126,6 +127,10 @@ class Fmu:
         self.outputs = [v.name for v in md.modelVariables if v.causality == "output"]
         self.inputs = [v.name for v in md.modelVariables if v.causality == "input"]
         self._tmp = tempfile.mkdtemp(prefix="rdfmu-")
+        # The extracted FMU (4 MB) goes with the object or, at the latest, when the process
+        # exits normally: instances kept for a process's life (a Dask worker's, a command's)
+        # are never closed, and each left its copy in the temporary folder.
+        self._remove_tmp = weakref.finalize(self, shutil.rmtree, self._tmp, True)
         unzipdir = extract(str(self.path), unzipdir=self._tmp)
         self._log = _Log(echo_log)
         ident = md.coSimulation.modelIdentifier
@@ -212,7 +217,7 @@ class Fmu:
             finally:
                 self._component = None
                 self._slave.freeLibrary()
-        shutil.rmtree(self._tmp, ignore_errors=True)
+        self._remove_tmp()
 
     def __enter__(self) -> Fmu:
         return self

@@ -47,3 +47,32 @@ def test_channel_equals_get_by_name(fmu_path):
         f.start({"crank.speed": W})
         rows = run(f, 7)
         assert list(rows[-1]) == f.get(OUTS)
+
+
+def test_the_extracted_fmu_is_removed_without_close(fmu_path, tmp_path):
+    """An Fmu kept for a process's life (a Dask worker's, a command's) is never closed: its
+    extracted copy in the temporary folder goes when the process exits normally, and one that is
+    closed or collected goes at once."""
+    import os
+    import subprocess
+    import sys
+
+    script = (
+        "import gc, os, sys\n"
+        "from reciprocating_drive import Fmu\n"
+        "kept = Fmu(sys.argv[1]); kept.start({})\n"
+        "Fmu(sys.argv[1]).close()\n"
+        "Fmu(sys.argv[1]); gc.collect()\n"
+        "print(len(os.listdir(os.environ['TMPDIR'])))\n"
+    )
+    env = dict(os.environ, TMPDIR=str(tmp_path))
+    p = subprocess.run(
+        [sys.executable, "-c", script, fmu_path],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.split() == ["1"]  # only the kept instance's copy while the process runs
+    assert os.listdir(tmp_path) == []  # and none once it has exited
