@@ -272,8 +272,9 @@ impl FmuModel for ReciprocatingDrive {
         Ok(())
     }
 
-    /// Exact directional derivatives of the outputs with respect to the inputs at the current
-    /// state (docs/fmi-interface.md "Directional derivatives"), rigid and elastic rods.
+    /// Exact directional derivatives of the outputs and state derivatives with respect to the
+    /// inputs and the cage states (docs/fmi-interface.md "Directional derivatives"), rigid and
+    /// elastic rods.
     const DIRECTIONAL_DERIVATIVES: bool = true;
 
     fn tangent(
@@ -285,8 +286,9 @@ impl FmuModel for ReciprocatingDrive {
         tangent: &mut Outputs,
         d_derivatives: &mut [f64],
     ) -> Result<(), ModelError> {
-        // d_states is zeros outside Model Exchange; a rigid mechanism's outputs do not depend on
-        // the cage states and its derivatives are 0 (`Model::state_tangent`).
+        // The cage states are knowns in both interfaces (co-simulation: the state it holds); a
+        // rigid mechanism's outputs do not depend on them and its derivatives are 0
+        // (`Model::state_tangent`).
         let seed = Seed {
             angle: d_values[input_vr(InputSlot::CrankAngle)],
             speed: d_values[input_vr(InputSlot::CrankSpeed)],
