@@ -1158,13 +1158,7 @@ pub unsafe fn fmi3CompletedIntegratorStep<M: FmuModel>(
 
 pub unsafe fn fmi3SetTime<M: FmuModel>(c: fmi3Instance, time: fmi3Float64) -> fmi3Status {
     me::<M>(c, "fmi3SetTime", |inst| {
-        if !time.is_finite() {
-            return Err(Failure::error(format!(
-                "fmi3SetTime: time = {time}; allowed: a finite number"
-            )));
-        }
-        inst.me_update(|t, _| *t = time);
-        Ok(())
+        crate::fmi2::model_exchange::set_time(inst, "fmi3SetTime", time)
     })
 }
 

@@ -184,6 +184,19 @@ impl FmuModel for ReciprocatingDrive {
         true
     }
 
+    /// Model Exchange: the crank carried forward to the new time with constant acceleration, as a
+    /// co-simulation step carries it (docs/model.md §2), so that a crank driven by its speed
+    /// alone turns; the inputs the importer sets after fmi2SetTime replace their carried values.
+    #[inline]
+    fn time_moved(state: &mut State, dt: f64) -> bool {
+        let crank = state.crank.extrapolate(dt);
+        if !(crank.angle + crank.speed + crank.acceleration).is_finite() {
+            return false;
+        }
+        state.crank = crank;
+        true
+    }
+
     /// Model Exchange (FMI 2.0 and 3.0, docs/fmi-interface.md "Model Exchange (FMI 2.0)"): the
     /// two states of the elastic rod's cage (docs/model.md §6), ϑ and ϑ̇, in every machine, so
     /// that their number does not depend on the parameters; a rigid mechanism has no cage and
