@@ -369,3 +369,70 @@ fn the_smallest_tolerance_accepted_works() {
     let (a, b) = (run(1e-13), run(1e-10));
     assert!((a - b).abs() <= 1e-7 * a.abs().max(1e-6), "{a} vs {b}");
 }
+
+/// FMI 3.0: an instance freed by fmi3FreeInstance is recognised (docs/fmi-interface.md "A freed
+/// instance"): a second free and calls on it return fmi3Error without reading freed memory
+/// (under valgrind, scripts/valgrind.sh, a read of freed memory is an error), and the handle the
+/// importer held is not reused by the next instance.
+#[test]
+fn a_freed_fmi3_instance_is_refused_without_touching_freed_memory() {
+    use fmi_sys::fmi3::*;
+    use std::ffi::CString;
+    let lib = unsafe { libloading::Library::new(library_path()) }.expect("load the FMU library");
+    macro_rules! sym {
+        ($name:ident: $ty:ident) => {
+            *unsafe { lib.get::<<$ty as OptionFn>::F>(concat!(stringify!($name), "\0").as_bytes()) }
+                .expect(stringify!($name))
+        };
+    }
+    let instantiate = sym!(fmi3InstantiateCoSimulation: fmi3InstantiateCoSimulationTYPE);
+    let free = sym!(fmi3FreeInstance: fmi3FreeInstanceTYPE);
+    let enter = sym!(fmi3EnterInitializationMode: fmi3EnterInitializationModeTYPE);
+    let exit = sym!(fmi3ExitInitializationMode: fmi3ExitInitializationModeTYPE);
+    let do_step = sym!(fmi3DoStep: fmi3DoStepTYPE);
+    let get = sym!(fmi3GetFloat64: fmi3GetFloat64TYPE);
+    let set = sym!(fmi3SetFloat64: fmi3SetFloat64TYPE);
+    let name = CString::new("freed").unwrap();
+    let token =
+        CString::new(reciprocating_drive::fmi3::model_description::token::<ReciprocatingDrive>())
+            .unwrap();
+    let make = || unsafe {
+        instantiate(
+            name.as_ptr(),
+            token.as_ptr(),
+            std::ptr::null(),
+            false,
+            false,
+            false,
+            false,
+            std::ptr::null(),
+            0,
+            std::ptr::null_mut(),
+            None,
+            None,
+        )
+    };
+    const ERR: fmi3Status = fmi3Status_fmi3Error;
+    let c = make();
+    assert!(!c.is_null());
+    unsafe {
+        assert_eq!(enter(c, false, 0.0, 0.0, false, 0.0), fmi3Status_fmi3OK);
+        assert_eq!(exit(c), fmi3Status_fmi3OK);
+        free(c);
+        free(c);
+        let (mut a, mut b, mut e, mut t) = (false, false, false, 0.0);
+        assert_eq!(do_step(c, 0.0, 1e-3, false, &mut a, &mut b, &mut e, &mut t), ERR);
+        let output = [vr("crank.torque")];
+        let mut out = [0.0];
+        assert_eq!(get(c, output.as_ptr(), 1, out.as_mut_ptr(), 1), ERR);
+        let input = [vr("crank.speed")];
+        assert_eq!(set(c, input.as_ptr(), 1, [1.0].as_ptr(), 1), ERR);
+        assert_eq!(enter(c, false, 0.0, 0.0, false, 0.0), ERR);
+        // A new instance gets a handle of its own: the freed one stays refused.
+        let d = make();
+        assert!(!d.is_null() && d != c);
+        assert_eq!(exit(c), ERR);
+        assert_eq!(enter(d, false, 0.0, 0.0, false, 0.0), fmi3Status_fmi3OK);
+        free(d);
+    }
+}

@@ -3,7 +3,13 @@
 //! resolved and checked, the model's exact tangent ([`FmuModel::tangent`]) evaluated once for
 //! the whole seed, the unknowns read from it. The standard's meaning: `dvUnknown = J·dvKnown`,
 //! J the partial derivatives of the unknowns with respect to the knowns at the current inputs
-//! and state, the state held (co-simulation) or a known (Model Exchange).
+//! and continuous states. The states are knowns (and their derivatives unknowns) in both
+//! interfaces: the one `<ModelStructure>` of an FMI 2.0 file (and of an FMI 3.0 one) lists them
+//! among the outputs' dependencies, and the knowns at a communication point are "inputs,
+//! continuous states and independent variable" (FMI 2.0 schema, fmi2VariableDependency); a loop
+//! solver such as OMSimulator's passes every listed dependency as a known, seeding the one it
+//! wants (docs/closed-loop.md "In OMSimulator"). In co-simulation the state is the one the
+//! instance holds at its communication point.
 
 use crate::fmi2::instance::{Failure, Instance, Mode};
 use crate::fmi2::model::FmuModel;
@@ -20,9 +26,6 @@ pub struct StateRefs<'a> {
     pub derivative: &'a dyn Fn(u32) -> Option<usize>,
 }
 
-/// No continuous state is addressable (co-simulation: the state is held).
-pub const NO_STATES: StateRefs<'static> = StateRefs { state: &|_| None, derivative: &|_| None };
-
 /// The index of the continuous state whose variable has value reference `vr`: the same number
 /// in the FMI 2.0 and the FMI 3.0 model description (`crate::fmi3::model_description`).
 fn state_of<M: FmuModel>(vr: u32) -> Option<usize> {
@@ -38,9 +41,8 @@ fn derivative_of<M: FmuModel>(vr: u32) -> Option<usize> {
 }
 
 /// The continuous states and their derivatives as knowns and unknowns: both standards number
-/// them alike, so `fmi2GetDirectionalDerivative` and `fmi3GetDirectionalDerivative` of a Model
-/// Exchange instance address the same partials (a co-simulation instance refuses them:
-/// [`directional_derivative`] takes states only from a Model Exchange instance).
+/// them alike, so `fmi2GetDirectionalDerivative` and `fmi3GetDirectionalDerivative` address the
+/// same partials, in co-simulation and in Model Exchange.
 pub fn model_exchange_refs<M: FmuModel>() -> StateRefs<'static> {
     StateRefs { state: &state_of::<M>, derivative: &derivative_of::<M> }
 }
@@ -76,9 +78,9 @@ pub fn directional_derivative<M: FmuModel>(
         return Err(Failure::illegal(function, Mode::Fatal));
     }
     let n_states = M::CONTINUOUS_STATES.len();
-    let states_known = inst.model_exchange;
-    let what_known =
-        if states_known && n_states > 0 { "an input or a continuous state" } else { "an input" };
+    // Model Exchange and co-simulation alike (module doc).
+    let states_known = n_states > 0;
+    let what_known = if states_known { "an input or a continuous state" } else { "an input" };
     let table = M::table();
     let info = table.info();
     let Some((built, values, state)) = inst.me_parts() else {
@@ -132,13 +134,15 @@ pub fn directional_derivative<M: FmuModel>(
             return Err(Failure::error(format!(
                 "{function}: unknown[{i}] = value reference {} is not an output{}",
                 name::<M>(vr),
-                if states_known && n_states > 0 { " or a state derivative" } else { "" }
+                if states_known { " or a state derivative" } else { "" }
             )));
         }
     }
     // A machine without exact state partials refuses any call that needs one.
-    let needs_states = knowns.iter().any(|&vr| (refs.state)(vr).is_some())
-        || unknowns.iter().any(|&vr| (refs.derivative)(vr).is_some());
+    // A state listed with seed 0 (a loop solver passes every dependency) needs no state partial.
+    let needs_states =
+        knowns.iter().zip(seed).any(|(&vr, &dv)| dv != 0.0 && (refs.state)(vr).is_some())
+            || unknowns.iter().any(|&vr| (refs.derivative)(vr).is_some());
     if let Some(why) = M::state_partials_refusal(built).filter(|_| states_known && needs_states) {
         return Err(Failure::error(format!("{function}: {why}")));
     }

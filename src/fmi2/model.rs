@@ -166,6 +166,15 @@ pub trait FmuModel: Sized + 'static {
         false
     }
 
+    /// Model Exchange: the importer moved the time by `dt` (fmi2SetTime, fmi3SetTime). Carries
+    /// forward what a co-simulation step carries without integrating (the pump's crank inputs
+    /// between the points where they are set, docs/model.md §2), so that an input the importer
+    /// does not set behaves as in co-simulation; an input set afterwards replaces its carried
+    /// value. false, with the state unchanged: what it carries would overflow.
+    fn time_moved(_state: &mut Self::State, _dt: f64) -> bool {
+        true
+    }
+
     /// The integrator tolerance when fmi2SetupExperiment gives none.
     fn default_tolerance(built: &Self::Built) -> f64;
 

@@ -244,15 +244,36 @@ pub unsafe fn fmi2CompletedIntegratorStep<M: FmuModel>(
 }
 
 pub unsafe fn fmi2SetTime<M: FmuModel>(c: fmi2Component, time: fmi2Real) -> fmi2Status {
-    me::<M>(c, "fmi2SetTime", Allowed::Both, |inst| {
-        if !time.is_finite() {
-            return Err(Failure::error(format!(
-                "fmi2SetTime: time = {time}; allowed: a finite number"
-            )));
+    me::<M>(c, "fmi2SetTime", Allowed::Both, |inst| set_time(inst, "fmi2SetTime", time))
+}
+
+/// fmi2SetTime and fmi3SetTime: the new time, and what the model carries forward to it
+/// ([`FmuModel::time_moved`]: the pump's crank, as between co-simulation steps).
+pub fn set_time<M: FmuModel>(
+    inst: &mut Instance<M>,
+    function: &str,
+    time: f64,
+) -> Result<(), Failure> {
+    if !time.is_finite() {
+        return Err(Failure::error(format!("{function}: time = {time}; allowed: a finite number")));
+    }
+    let from = inst.time();
+    let mut carried = true;
+    inst.me_update(|t, state| {
+        carried = M::time_moved(state, time - *t);
+        if carried {
+            *t = time;
         }
-        inst.me_update(|t, _| *t = time);
-        Ok(())
-    })
+    });
+    if !carried {
+        return Err(Failure::error(format!(
+            "{function}: time = {}: the crank inputs carried forward from t = {} overflow there; \
+             set them at the new time",
+            crate::model::error::given(time),
+            crate::model::error::num(from)
+        )));
+    }
+    Ok(())
 }
 
 pub unsafe fn fmi2SetContinuousStates<M: FmuModel>(

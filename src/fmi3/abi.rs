@@ -16,9 +16,12 @@
 #![allow(clippy::too_many_arguments)]
 
 use std::borrow::Cow;
-use std::ffi::{c_char, CStr};
+use std::ffi::{c_char, c_void, CStr};
+use std::io::Write;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::ptr;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Mutex;
 
 use fmi_sys::fmi3::*;
 
@@ -78,17 +81,75 @@ fn status_of(s: Severity) -> fmi3Status {
     }
 }
 
-/// Runs `f` on the instance behind `c`: NULL check, panic barrier, status and logging (the
-/// logger translates the core's FMI 2.0 names, [`dialect`]).
+// ------------------------------------------------------------------------------ the handle
+
+/// What an `fmi3Instance` points to: a handle to the instance, not the instance itself, so that
+/// an instance freed by fmi3FreeInstance is recognised (docs/fmi-interface.md "FMI 3.0", "A freed
+/// instance"): the handle outlives its instance, its pointer set to NULL, and a second
+/// fmi3FreeInstance or any call on it returns fmi3Error instead of reading freed memory. A
+/// handle is never freed nor reused (a reused one would let a stale pointer reach another
+/// importer's instance): 16 bytes per instance made (41 with the allocator's overhead and
+/// the entry in [`HANDLES`]) stay for the life of the process, kept in [`HANDLES`] so that leak
+/// checkers see them as reachable.
+struct Handle {
+    /// The `Instance<M>`; NULL once freed.
+    inst: *mut c_void,
+    /// Whether a call on the freed instance was reported already (once per handle).
+    reported: AtomicBool,
+}
+
+/// Every handle made in this process (see [`Handle`]).
+static HANDLES: Mutex<Vec<usize>> = Mutex::new(Vec::new());
+
+fn new_handle(inst: *mut c_void) -> fmi3Instance {
+    let h = Box::into_raw(Box::new(Handle { inst, reported: AtomicBool::new(false) }));
+    HANDLES.lock().unwrap_or_else(|e| e.into_inner()).push(h as usize);
+    h as fmi3Instance
+}
+
+/// The live instance behind `c`: None for NULL and for an instance already freed (quietly: the
+/// caller reports it, or falls back to a path that does).
+#[inline(always)]
+unsafe fn live<M: FmuModel>(c: fmi3Instance) -> Option<*mut Instance<M>> {
+    if c.is_null() {
+        return None;
+    }
+    let inst = (*(c as *const Handle)).inst;
+    (!inst.is_null()).then_some(inst as *mut Instance<M>)
+}
+
+/// A call on an instance fmi3FreeInstance freed: its logger went with it (the importer may have
+/// released the callback's environment), so one line goes to standard error instead, the first
+/// time per instance; the call returns fmi3Error.
+#[cold]
+#[inline(never)]
+unsafe fn report_freed<M: FmuModel>(c: fmi3Instance, function: &str) {
+    let h = &*(c as *const Handle);
+    if !h.reported.swap(true, Ordering::Relaxed) {
+        let _ = catch_unwind(|| {
+            let _ = writeln!(
+                std::io::stderr(),
+                "{}: {function}: instance {c:p} was freed by fmi3FreeInstance; no call is \
+                 allowed on it (fmi3Error); instantiate a new one",
+                M::info().model_identifier
+            );
+        });
+    }
+}
+
+/// Runs `f` on the instance behind `c`: NULL and freed-instance check, panic barrier, status and
+/// logging (the logger translates the core's FMI 2.0 names, [`dialect`]).
 unsafe fn call<M: FmuModel>(
     c: fmi3Instance,
     function: &str,
     f: impl FnOnce(&mut Instance<M>) -> Result<(), Failure>,
 ) -> fmi3Status {
-    if c.is_null() {
+    let Some(inst) = live::<M>(c) else {
+        if !c.is_null() {
+            report_freed::<M>(c, function);
+        }
         return fmi3Status_fmi3Error;
-    }
-    let inst = c as *mut Instance<M>;
+    };
     match catch_unwind(AssertUnwindSafe(|| f(&mut *inst))) {
         Ok(Ok(())) => {
             (*inst).log(fmi3Status_fmi3OK, Category::Calls, function);
@@ -225,7 +286,7 @@ unsafe fn instantiate<M: FmuModel>(
             Category::Events,
             &format!("instantiated; resources: {:?}", inst.resource_dir),
         );
-        Box::into_raw(inst) as fmi3Instance
+        new_handle(Box::into_raw(inst) as *mut c_void)
     }));
     result.unwrap_or(ptr::null_mut())
 }
@@ -315,19 +376,27 @@ pub unsafe fn fmi3InstantiateScheduledExecution<M: FmuModel>(
     )
 }
 
+/// Frees the instance and keeps its handle, its pointer NULL ([`Handle`]): a second call is
+/// reported and does nothing.
 pub unsafe fn fmi3FreeInstance<M: FmuModel>(c: fmi3Instance) {
-    if !c.is_null() {
-        let _ = catch_unwind(AssertUnwindSafe(|| {
-            let mut inst = Box::from_raw(c as *mut Instance<M>);
-            // The states the importer did not free belong to the instance.
-            for p in inst.states.drain(..) {
-                let s = p as *mut Snapshot<M>;
-                (*s).magic = 0;
-                drop(Box::from_raw(s));
-            }
-            drop(inst);
-        }));
+    if c.is_null() {
+        return;
     }
+    let Some(inst) = live::<M>(c) else {
+        report_freed::<M>(c, "fmi3FreeInstance");
+        return;
+    };
+    (*(c as *mut Handle)).inst = ptr::null_mut();
+    let _ = catch_unwind(AssertUnwindSafe(|| {
+        let mut inst = Box::from_raw(inst);
+        // The states the importer did not free belong to the instance.
+        for p in inst.states.drain(..) {
+            let s = p as *mut Snapshot<M>;
+            (*s).magic = 0;
+            drop(Box::from_raw(s));
+        }
+        drop(inst);
+    }));
 }
 
 /// FMI 3.0 merges fmi2SetupExperiment into fmi3EnterInitializationMode: both run, and a failure
@@ -462,10 +531,9 @@ pub unsafe fn fmi3GetFloat64<M: FmuModel>(
     nValues: usize,
 ) -> fmi3Status {
     // The fast path of the core (as for fmi2GetReal), behind the panic barrier.
-    if let (false, Some(vrs), false, true) =
-        (c.is_null(), slice(vr, nvr), nvr > 0 && value.is_null(), nValues == nvr)
+    if let (Some(inst), Some(vrs), false, true) =
+        (live::<M>(c), slice(vr, nvr), nvr > 0 && value.is_null(), nValues == nvr)
     {
-        let inst = c as *mut Instance<M>;
         let out: &mut [fmi3Float64] =
             if nvr == 0 { &mut [] } else { std::slice::from_raw_parts_mut(value, nvr) };
         match catch_unwind(AssertUnwindSafe(|| (*inst).quick_get_real(vrs, out))) {
@@ -539,10 +607,10 @@ pub unsafe fn fmi3SetFloat64<M: FmuModel>(
     value: *const fmi3Float64,
     nValues: usize,
 ) -> fmi3Status {
-    if let (false, Some(vrs), Some(vals), true) =
-        (c.is_null(), slice(vr, nvr), slice(value, nvr), nValues == nvr)
+    if let (Some(inst), Some(vrs), Some(vals), true) =
+        (live::<M>(c), slice(vr, nvr), slice(value, nvr), nValues == nvr)
     {
-        if (*(c as *mut Instance<M>)).quick_set_real::<3>(vrs, vals) {
+        if (*inst).quick_set_real::<3>(vrs, vals) {
             return fmi3Status_fmi3OK;
         }
     }
@@ -1091,13 +1159,7 @@ pub unsafe fn fmi3CompletedIntegratorStep<M: FmuModel>(
 
 pub unsafe fn fmi3SetTime<M: FmuModel>(c: fmi3Instance, time: fmi3Float64) -> fmi3Status {
     me::<M>(c, "fmi3SetTime", |inst| {
-        if !time.is_finite() {
-            return Err(Failure::error(format!(
-                "fmi3SetTime: time = {time}; allowed: a finite number"
-            )));
-        }
-        inst.me_update(|t, _| *t = time);
-        Ok(())
+        crate::fmi2::model_exchange::set_time(inst, "fmi3SetTime", time)
     })
 }
 
@@ -1245,8 +1307,8 @@ pub unsafe fn fmi3DoStep<M: FmuModel>(
         && !lastSuccessfulTime.is_null();
     // A rigid mechanism's ordinary step takes the core's fast path (as fmi2DoStep).
     let done = outs_ok
-        && !c.is_null()
-        && (*(c as *mut Instance<M>)).quick_step(currentCommunicationPoint, communicationStepSize);
+        && live::<M>(c)
+            .is_some_and(|i| (*i).quick_step(currentCommunicationPoint, communicationStepSize));
     let status = if done {
         fmi3Status_fmi3OK
     } else {
@@ -1266,12 +1328,12 @@ pub unsafe fn fmi3DoStep<M: FmuModel>(
             inst.do_step(currentCommunicationPoint, communicationStepSize)
         })
     };
-    if outs_ok && !c.is_null() {
+    if let (true, Some(inst)) = (outs_ok, live::<M>(c)) {
         // No events, no request to stop, never early: a failed step leaves the time as it was.
         *eventHandlingNeeded = false;
         *terminateSimulation = false;
         *earlyReturn = false;
-        *lastSuccessfulTime = (*(c as *mut Instance<M>)).time();
+        *lastSuccessfulTime = (*inst).time();
     }
     status
 }

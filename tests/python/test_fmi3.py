@@ -787,3 +787,102 @@ def test_hostile_calls_are_refused_with_one_line_naming_the_function(fmu_path, t
     s.freeInstance()
     # fmpy's error messages never carry FMI 2.0 names.
     assert not any("fmi2" in m for m in messages), messages
+
+
+# A freed instance, driven in a child process: on a binary that reads the freed instance the child
+# dies (SIGSEGV) or returns what the freed memory happens to hold, and the test fails either way.
+_FREED_CHILD = r"""
+import ctypes as C, json, re, sys
+
+so, header, token, kind = sys.argv[1:5]
+lib = C.CDLL(so)
+# Every function of the standard's header (fmpy ships the official fmi3Functions.h).
+names = re.findall(r"FMI3_Export\s+fmi3\w+TYPE\s+(fmi3\w+)\s*;", open(header).read())
+LOG = C.CFUNCTYPE(None, C.c_void_p, C.c_int, C.c_char_p, C.c_char_p)
+messages = []
+logger = LOG(lambda env, status, category, message: messages.append(message.decode()))
+V = C.c_void_p
+
+
+def instantiate(name):
+    if kind == "me":
+        f = lib.fmi3InstantiateModelExchange
+        f.restype = V
+        return f(name, token.encode(), None, False, True, None, logger)
+    f = lib.fmi3InstantiateCoSimulation
+    f.restype = V
+    return f(name, token.encode(), None, False, True, False, False, None, C.c_size_t(0), None,
+             logger, None)
+
+
+inst = instantiate(b"freed")
+assert inst, messages
+lib.fmi3FreeInstance.restype = None
+lib.fmi3FreeInstance(V(inst))
+logged = len(messages)
+status = {}
+for n in names:
+    if n == "fmi3GetVersion" or n.startswith("fmi3Instantiate"):
+        continue  # no instance argument
+    f = getattr(lib, n)
+    if n == "fmi3FreeInstance":
+        f(V(inst))  # a second free: void, it must simply return
+        status[n] = None
+        continue
+    f.restype = C.c_int
+    # The instance, then NULL for every other argument: a freed instance is refused first.
+    status[n] = f(V(inst), *[V(None)] * 9)
+# The freed instance's logger is not called any more (the importer may have released it).
+after = messages[logged:]
+# Another instance is unharmed by all this.
+live = instantiate(b"live")
+lib.fmi3EnterInitializationMode.restype = C.c_int
+lib.fmi3ExitInitializationMode.restype = C.c_int
+ok = [lib.fmi3EnterInitializationMode(V(live), False, C.c_double(0.0), C.c_double(0.0), False,
+                                      C.c_double(0.0)),
+      lib.fmi3ExitInitializationMode(V(live))]
+lib.fmi3FreeInstance(V(live))
+print(json.dumps({"names": names, "status": status, "after": after, "ok": ok}))
+"""
+
+
+@pytest.mark.parametrize("kind", ["cs", "me"])
+@pytest.mark.parametrize("model", MODELS)
+def test_a_freed_instance_is_refused_by_every_function(fmu_path, tmp_path, model, kind):
+    """After fmi3FreeInstance, a second fmi3FreeInstance and every other function of the standard's
+    fmi3Functions.h that takes an instance return (fmi3Error, 3) without touching freed memory:
+    the process lives on, another instance still works, the freed instance's logger is not
+    called again, and one line on standard error names the first function called on it."""
+    import json
+
+    from fmpy import read_model_description
+
+    path = fmu3(fmu_path, model)
+    md = read_model_description(str(path))
+    so = tmp_path / f"{model}.so"
+    with zipfile.ZipFile(path) as z:
+        so.write_bytes(z.read(f"binaries/x86_64-linux/{model}.so"))
+    import fmpy
+
+    header = pathlib.Path(fmpy.__file__).parent / "c-code" / "fmi3Functions.h"
+    p = subprocess.run(
+        [sys.executable, "-c", _FREED_CHILD, str(so), str(header), md.guid, kind],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert p.returncode == 0, f"exit {p.returncode}: {p.stderr[-2000:]}"
+    r = json.loads(p.stdout)
+    assert len(r["names"]) == 75, len(r["names"])  # FMI 3.0: 75 functions
+    refused = {n: s for n, s in r["status"].items() if s is not None}
+    assert len(refused) == 70 and all(s == 3 for s in refused.values()), {
+        n: s for n, s in refused.items() if s != 3
+    }
+    assert r["after"] == [] and r["ok"] == [0, 0], r
+    lines = p.stderr.strip().splitlines()
+    first = next(n for n in r["status"])
+    assert len(lines) == 1, lines
+    assert (
+        lines[0].startswith(f"{model}: {first}: instance ")
+        and "was freed by fmi3FreeInstance" in lines[0]
+    ), lines

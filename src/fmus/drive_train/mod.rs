@@ -147,7 +147,8 @@ impl FmuModel for DriveTrainFmu {
     }
 
     /// Exact directional derivatives (docs/fmi-interface.md "Directional derivatives"): of the
-    /// outputs and d/dt (θ, ω) with respect to load.torque and, in Model Exchange, the states.
+    /// outputs and d/dt (θ, ω) with respect to load.torque and the states (in co-simulation the
+    /// state the instance holds).
     const DIRECTIONAL_DERIVATIVES: bool = true;
 
     fn tangent(

@@ -184,6 +184,19 @@ impl FmuModel for ReciprocatingDrive {
         true
     }
 
+    /// Model Exchange: the crank carried forward to the new time with constant acceleration, as a
+    /// co-simulation step carries it (docs/model.md §2), so that a crank driven by its speed
+    /// alone turns; the inputs the importer sets after fmi2SetTime replace their carried values.
+    #[inline]
+    fn time_moved(state: &mut State, dt: f64) -> bool {
+        let crank = state.crank.extrapolate(dt);
+        if !(crank.angle + crank.speed + crank.acceleration).is_finite() {
+            return false;
+        }
+        state.crank = crank;
+        true
+    }
+
     /// Model Exchange (FMI 2.0 and 3.0, docs/fmi-interface.md "Model Exchange (FMI 2.0)"): the
     /// two states of the elastic rod's cage (docs/model.md §6), ϑ and ϑ̇, in every machine, so
     /// that their number does not depend on the parameters; a rigid mechanism has no cage and
@@ -272,8 +285,9 @@ impl FmuModel for ReciprocatingDrive {
         Ok(())
     }
 
-    /// Exact directional derivatives of the outputs with respect to the inputs at the current
-    /// state (docs/fmi-interface.md "Directional derivatives"), rigid and elastic rods.
+    /// Exact directional derivatives of the outputs and state derivatives with respect to the
+    /// inputs and the cage states (docs/fmi-interface.md "Directional derivatives"), rigid and
+    /// elastic rods.
     const DIRECTIONAL_DERIVATIVES: bool = true;
 
     fn tangent(
@@ -285,8 +299,9 @@ impl FmuModel for ReciprocatingDrive {
         tangent: &mut Outputs,
         d_derivatives: &mut [f64],
     ) -> Result<(), ModelError> {
-        // d_states is zeros outside Model Exchange; a rigid mechanism's outputs do not depend on
-        // the cage states and its derivatives are 0 (`Model::state_tangent`).
+        // The cage states are knowns in both interfaces (co-simulation: the state it holds); a
+        // rigid mechanism's outputs do not depend on them and its derivatives are 0
+        // (`Model::state_tangent`).
         let seed = Seed {
             angle: d_values[input_vr(InputSlot::CrankAngle)],
             speed: d_values[input_vr(InputSlot::CrankSpeed)],
