@@ -146,6 +146,7 @@ FIXED = (
     ("--gap-limit", "gap_limit", "gap_limit"),
     ("--max-speed", "max_speed", "max_speed"),
     ("--separator", "separator", "separator"),
+    ("--timezone", "timezone", "timezone"),
     ("--speed-check", "speed_check", "speed_check"),
     ("--speed-tolerance", "speed_tolerance", "speed_tolerance"),
 )
@@ -225,6 +226,13 @@ def main(argv=None, prog: str | None = None) -> int:
         choices=("auto", ",", ";"),
         default=None,
         help="field separator; ';' reads decimal commas (default: auto, from the header)",
+    )
+    ap.add_argument(
+        "--timezone",
+        default=None,
+        metavar="ZONE",
+        help="the zone of ISO 8601 timestamps without a UTC offset, an IANA name such as "
+        "Europe/Berlin (timestamps with Z or an offset need none)",
     )
     ap.add_argument(
         "--window",

@@ -203,6 +203,15 @@ def parse(data: dict, path: str = "<config>") -> Config:
         raise ConfigError(
             f'{path}: source.counts_per_rev is missing (angle_unit = "counts" needs it)'
         )
+    if stype in ("csv", "stdin"):
+        # The zone of ISO 8601 timestamps without an offset (docs/twin.md "Timestamps").
+        opts["timezone"] = src.get(
+            "timezone",
+            str,
+            None,
+            "an IANA time zone, e.g. Europe/Berlin",
+            _is_zone,
+        )
     password = None
     if stype == "csv":
         settings = _csv_source_settings(src, path)
@@ -358,6 +367,16 @@ def _distinct_files(path: str, source: dict, sinks: list) -> None:
                     "each file is read or written by one part only"
                 )
             seen[f] = f"sink[{i}].{k}"
+
+
+def _is_zone(name: str) -> bool:
+    from ..timestamps import zone
+
+    try:
+        zone(name)
+    except ValueError:
+        return False
+    return True
 
 
 def _csv_source_settings(src: _Table, path: str) -> dict:
