@@ -5,8 +5,8 @@ and both FMUs, simulates it in libcosim (default)
 or fmpy, prints the per-revolution speed fluctuation δ = (ω_max − ω_min)/ω_mean and writes
 results/closed_loop.png (crank speed, motor torque and power, δ per revolution).
 
-    .venv/bin/python scripts/closed_loop.py [--importer libcosim|fmpy|model-exchange] [--step 1e-3] [--time 10]
-    .venv/bin/python scripts/closed_loop.py --set drivetrain.crank.inertia=80 --set pump.load.mean=2e4
+    rdrive closed-loop [--importer libcosim|fmpy|model-exchange] [--step 1e-3] [--time 10]
+    rdrive closed-loop --set drivetrain.crank.inertia=80 --set pump.load.mean=2e4
 
 Exit codes: 0 done, 1 the loop failed or diverged (the message names docs/closed-loop.md's
 stability condition ρ_eff < 1), 2 a user error, 70 an internal error, 130 stopped.
@@ -27,6 +27,7 @@ from ..cli_errors import (
     ArgumentParser,
     RunFailed,
     UserError,
+    one_line,
     positive_float,
     run_cli,
     show,
@@ -121,6 +122,25 @@ def main(argv=None, prog: str = PROG) -> int:
     )
 
 
+def require_libcosim() -> None:
+    """libcosim is an optional importer (the extra `libcosim` of pyproject.toml): when it is not
+    installed, or its native library does not load, say so, not "check the parameters"."""
+    try:
+        import libcosimpy.CosimExecution  # noqa: F401
+    except ModuleNotFoundError as e:
+        if e.name is None or e.name.split(".")[0] != "libcosimpy":
+            raise
+        raise UserError(
+            "--importer libcosim (the default) needs libcosimpy, which is not installed: "
+            "pip install 'reciprocating-drive[libcosim]', or use --importer fmpy"
+        ) from None
+    except (ImportError, OSError) as e:
+        raise UserError(
+            f"--importer libcosim: libcosimpy is installed but does not load ({one_line(e)}); "
+            "use --importer fmpy"
+        ) from None
+
+
 def _main(argv, prog: str = PROG) -> int:
     a = parser(prog).parse_args(argv)
     h = positive_float("--step", a.step)
@@ -131,6 +151,8 @@ def _main(argv, prog: str = PROG) -> int:
     for fmu in needed:
         if not (a.fmu_dir / fmu).is_file():
             raise UserError(f"--fmu-dir {a.fmu_dir}: no {fmu}; build it with scripts/build-fmu.sh")
+    if a.importer == "libcosim":
+        require_libcosim()
     from ..presets import read_ssv
     from ..system import (
         SSD,

@@ -361,6 +361,14 @@ def _distinct_files(path: str, source: dict, sinks: list) -> None:
             if k not in sk.settings:
                 continue
             f = str(pathlib.Path(sk.settings[k]).resolve())
+            if artifacts.installed() and pathlib.Path(f).is_relative_to(artifacts.PACKAGE):
+                # The shipped configurations write ../../results/ beside themselves: run from
+                # the installation they would write into it (docs/install.md "Examples").
+                raise ConfigError(
+                    f"{path}: sink[{i}].{k} = {sk.settings[k]!r} is inside the installed package "
+                    f"({artifacts.PACKAGE}); copy the examples into a folder of your own with "
+                    "`rdrive examples DIR` and use the configuration there"
+                )
             if f in seen:
                 raise ConfigError(
                     f"{path}: sink[{i}].{k} = {sk.settings[k]!r}: the same file as {seen[f]}; "
