@@ -215,3 +215,41 @@ def test_the_plant_csv_source_keeps_the_origin(fmu_path, tmp_path, utc_case):
     with sqlite3.connect(db) as c:
         (o,) = c.execute("SELECT time_origin FROM runs").fetchone()
     assert o == origin
+
+
+def test_the_page_clock_starts_at_the_origin(fmu_path, tmp_path, utc_case):
+    """The live page of a paced replay of timestamps gets the origin (its clock axis,
+    docs/page.md), read from its state API while the run goes on."""
+    import json
+    import time
+    import urllib.request
+
+    from reciprocating_drive.plant.plc_sim import free_port
+
+    instants, angles, _, origin = utc_case
+    src = tmp_path / "historian.csv"
+    src.write_text(iso_file([stamp(d, "Z") for d in instants], angles))
+    port = free_port()
+    cfg = pu.write_config(
+        tmp_path / "plant.toml",
+        source=pu.csv_source(src, pace=1.0),
+        sinks=pu.sqlite_sink(tmp_path / "t.sqlite") + f"\n[page]\nport = {port}\n",
+        fmu=fmu_path,
+    )
+    proc = pu.start(cfg)
+    try:
+        seen = None
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and proc.poll() is None:
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{port}/api/state", timeout=2) as r:
+                    seen = json.load(r).get("time_origin")
+            except OSError:
+                pass
+            if seen is not None:
+                break
+            time.sleep(0.1)
+        assert seen == origin
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
