@@ -253,3 +253,66 @@ def test_the_page_clock_starts_at_the_origin(fmu_path, tmp_path, utc_case):
     finally:
         proc.terminate()
         proc.wait(timeout=30)
+
+
+def rdrive_twin(fmu_path, *args) -> subprocess.CompletedProcess:
+    p = subprocess.run(
+        [sys.executable, "-m", "reciprocating_drive.cli", "twin", *map(str, args)]
+        + ["--fmu", fmu_path, "--angle-unit", "counts", "--counts-per-rev", "4096"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=pu.env(),
+    )
+    assert p.returncode == 0, p.stderr
+    return p
+
+
+@pytest.fixture(scope="module")
+def berlin_file(tmp_path_factory):
+    """The whole sample as Berlin local times across the 2026-10-25 change (its gap included)."""
+    lines = SAMPLE.read_text().split("\n")[1:]
+    lines = [line for line in lines if line.strip()]
+    start = dt.datetime(2026, 10, 25, 0, 59, 55, tzinfo=UTC)
+    out = ["time,crank_angle"]
+    for line in lines:
+        t, a = line.split(",")
+        d = start + dt.timedelta(microseconds=round(float(t) * 1e6))
+        out.append(f"{stamp(berlin_by_hand(d), '')},{a}")
+    p = tmp_path_factory.mktemp("berlin") / "berlin.csv"
+    p.write_text("\n".join(out) + "\n")
+    return p
+
+
+def test_checkpoint_and_resume_keep_the_clock(fmu_path, tmp_path, berlin_file):
+    """Stopped and resumed twice (once inside the repeated hour): the files of an uninterrupted
+    run, byte for byte (the origin and the last instant are in the checkpoint)."""
+    zone = ["--timezone", "Europe/Berlin"]
+    full = tmp_path / "full.csv"
+    rdrive_twin(fmu_path, berlin_file, "--out", full, *zone)
+    part, cp = tmp_path / "part.csv", tmp_path / "twin.checkpoint"
+    rdrive_twin(
+        fmu_path, berlin_file, "--out", part, "--checkpoint", cp, "--stop-after", 3333, *zone
+    )
+    rdrive_twin(
+        fmu_path, berlin_file, "--out", part, "--checkpoint", cp, "--resume", cp,
+        "--stop-after", 7777, *zone,
+    )  # fmt: skip
+    rdrive_twin(fmu_path, berlin_file, "--out", part, "--resume", cp, *zone)
+    assert part.read_bytes() == full.read_bytes()
+
+
+def test_the_distributed_replay_reads_timestamps(fmu_path, tmp_path, berlin_file):
+    """--distributed on timestamps: the sequential replay's files, byte for byte."""
+    zone = ["--timezone", "Europe/Berlin"]
+    seq = tmp_path / "seq.csv"
+    rdrive_twin(fmu_path, berlin_file, "--out", seq, *zone)
+    dist = tmp_path / "dist.csv"
+    rdrive_twin(
+        fmu_path, berlin_file, "--out", dist, "--distributed", "--workers", 1,
+        "--revolutions-per-piece", 3, "--quiet", *zone,
+    )  # fmt: skip
+    assert dist.read_bytes() == seq.read_bytes()
+    assert (tmp_path / "dist-revolutions.csv").read_bytes() == (
+        tmp_path / "seq-revolutions.csv"
+    ).read_bytes()
