@@ -398,10 +398,10 @@ def closed_loop_figure(out: pathlib.Path) -> None:
     rc = closed_loop.main(["--out-dir", str(out), "--fmu-dir", str(FMU.parent)])
     if rc != 0:
         raise SystemExit(f"make_docs.py: the closed loop's figure failed (exit {rc})")
-    # The script packs the system next to its figure when the FMUs are not the repository's
-    # target/fmu; the docs show only the figure.
-    (out / "ClosedLoop.ssp").unlink(missing_ok=True)
-    (out / "ClosedLoopME.ssp").unlink(missing_ok=True)
+    # The command writes the systems, the series and the summary beside its figure; the docs
+    # show only the figure.
+    for name in ("ClosedLoop.ssp", "ClosedLoopME.ssp", "closed_loop.csv", "closed_loop.json"):
+        (out / name).unlink(missing_ok=True)
 
 
 # Sections of the variable table, in order: (title, which variables). A variable goes to the

@@ -26,9 +26,9 @@ elif [ "$preset" != "default" ] && [ ! -f "resources/presets/$preset.ssv" ]; the
     exit 2
 fi
 
-# Only for this machine: the main job needs no Windows toolchain (scripts/test.sh and
-# scripts/build-wheel.sh build the win64 binaries too).
-RD_WIN64=0 bash scripts/build-fmu.sh
+# Only for this machine: the main job needs no cross toolchain, neither Windows nor aarch64
+# (scripts/test.sh and scripts/build-wheel.sh build those binaries too).
+RD_WIN64=0 RD_AARCH64=0 bash scripts/build-fmu.sh
 source scripts/lib/venv.sh
 ensure_venv
 for p in "${presets[@]}"; do

@@ -6,6 +6,7 @@
     rdrive plc-sim ...           a simulated pump PLC (OPC UA server) for demos and tests
     rdrive sweep STUDY ...       a design sweep on Dask
     rdrive closed-loop ...       the pump and its drive train in one system
+    rdrive examples DIR          copy the examples (data, configurations, studies) into DIR
     rdrive fmu-path [MODEL]      the path of an FMU, for other importers
 
 `rdrive --version`, and `--help` on each. Exit codes (docs/install.md): 0 success, 1 a run that
@@ -30,6 +31,7 @@ COMMANDS = {
     "plc-sim": ("plc_sim", "a simulated pump PLC: an OPC UA server playing crank data"),
     "sweep": ("sweep", "a design sweep on Dask (a local cluster, or --scheduler)"),
     "closed-loop": ("closed_loop", "the pump and its drive train in one SSP system"),
+    "examples": ("examples", "copy the example data, configurations and studies into a folder"),
 }
 
 
@@ -44,7 +46,8 @@ def _fmu_path(argv: list[str]) -> int:
     path = artifacts.fmu(a.model)
     if not path.is_file():
         print(
-            f"rdrive fmu-path: {path} not found: build it with scripts/build-fmu.sh",
+            f"rdrive fmu-path: {path} not found: build it with scripts/build-fmu.sh (in a "
+            "checkout; an installed package carries it)",
             file=sys.stderr,
         )
         return 1
@@ -77,8 +80,10 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
+    from . import commands
     from .commands import load
 
+    commands.RUNNING = f"rdrive {command}"
     module = load(COMMANDS[command][0])
     return int(module.main(rest, prog=f"rdrive {command}") or 0)
 

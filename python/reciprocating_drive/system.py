@@ -201,6 +201,62 @@ def run_fmpy(ssp: pathlib.Path, h: float, t_end: float) -> dict:
     return out
 
 
+def revolution_times(time: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """The times at which the crank angle passes whole multiples of 2π (linear interpolation
+    between the samples on either side), from the first multiple after the start."""
+    k0 = math.floor(angle[0] / (2 * math.pi)) + 1
+    k1 = math.floor(angle[-1] / (2 * math.pi))
+    targets = 2 * math.pi * np.arange(k0, k1 + 1)
+    return np.interp(targets, angle, time)
+
+
+def mean_speed_last(
+    time: np.ndarray, angle: np.ndarray, revolutions: int = 3
+) -> tuple[float, int] | None:
+    """(mean crank speed [rad/s], revolutions) over the last whole revolutions, at most
+    `revolutions` of them: k·2π over the time they took, which is the time average of ω exactly
+    (∫ω dt = Δθ), unlike the speed at one instant, which swings with the load over a revolution.
+    None without a complete revolution."""
+    t = revolution_times(time, angle)
+    k = min(revolutions, len(t) - 1)
+    if k < 1:
+        return None
+    return 2 * math.pi * k / float(t[-1] - t[-1 - k]), k
+
+
+def write_series(path: pathlib.Path, r: dict, units: dict) -> None:
+    """The recorded series as CSV: `time [s]` then RECORD's variables as `component.variable
+    [unit]`, one row per communication point (the same columns for every importer), numbers
+    written with repr (round-trip exact)."""
+    from .twin import with_unit
+
+    names = [f"{c}.{v}" for c, v in RECORD]
+    cols = [np.asarray(r["time"], dtype=float)] + [np.asarray(r[n], dtype=float) for n in names]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as f:
+        f.write(",".join([with_unit("time", "s")] + [with_unit(n, units.get(n)) for n in names]))
+        f.write("\n")
+        for row in zip(*cols):
+            f.write(",".join(repr(float(x)) for x in row) + "\n")
+
+
+def record_units(fmu_dir: pathlib.Path) -> dict:
+    """The unit of each RECORD variable, from the two FMUs' model descriptions."""
+    from fmpy import read_model_description
+
+    out = {}
+    for comp, fmu in (("pump", "ReciprocatingDrive.fmu"), ("drivetrain", "DriveTrain.fmu")):
+        md = read_model_description(str(pathlib.Path(fmu_dir) / fmu), validate=False)
+        units = {
+            v.name: v.unit or (v.declaredType.unit if v.declaredType else None)
+            for v in md.modelVariables
+        }
+        for c, v in RECORD:
+            if c == comp:
+                out[f"{c}.{v}"] = units.get(v)
+    return out
+
+
 def speed_fluctuation(time: np.ndarray, angle: np.ndarray, speed: np.ndarray) -> list[float]:
     """δ = (ω_max − ω_min)/ω_mean of every complete revolution of the crank angle."""
     out = []

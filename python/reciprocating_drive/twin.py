@@ -44,6 +44,8 @@ from .batch import local_cubic, parse_csv
 from .fmu import Fmu, FmuError
 from .presets import available_presets, preset_values
 from .revolution import TWO_PI, revolution_table
+from .timestamps import LOOKS_ISO, Clock, TimestampError
+from .timestamps import zone as time_zone
 
 INPUTS = ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")
 
@@ -96,6 +98,9 @@ class Options:
     # the run (a file); drop leaves its samples out and records them (a live source, where a
     # reconnect can leave a sample or two between two gaps; docs/plant.md "Faults").
     short_segments: str = "refuse"
+    # The zone of ISO 8601 timestamps without a UTC offset (an IANA name, docs/twin.md
+    # "Timestamps"); None: such timestamps are refused.
+    timezone: str | None = None
 
     def to_dict(self) -> dict:
         return dict(self.__dict__)
@@ -125,6 +130,7 @@ class Options:
             if v not in allowed:
                 flag = "--" + name.replace("_", "-")
                 raise ValueError(f"{flag} {v!r}: allowed: {', '.join(allowed)}")
+        time_zone(self.timezone)  # ValueError naming --timezone
         positive = ["window", "gap_limit", "max_speed", "speed_tolerance"]
         if self.angle_unit == "counts" or self.counts_per_rev is not None:
             positive.append("counts_per_rev")
@@ -273,6 +279,11 @@ def parse_line(
         if raw == "":
             raise DataError(f"line {lineno}: {name} is empty (a number is needed)")
         if not _NUMBER.fullmatch(raw):
+            if name == "time" and LOOKS_ISO.match(raw):
+                raise DataError(
+                    f"line {lineno}: time = {raw!r} is an ISO 8601 timestamp, but the first "
+                    "sample's time is a number (seconds): one format per input"
+                )
             raise DataError(f"line {lineno}: {name} = {raw!r} is not a number")
         v = float(raw)
         if not math.isfinite(v):
@@ -430,6 +441,11 @@ class Twin:
         self.channel = None
         self.cols = None
         self.separator = ","  # of the input's fields: ',' or ';' (decimal comma), from the header
+        # The time column's format, from the first sample: "number" (seconds) or "iso" (ISO 8601
+        # timestamps, read by `clock`; docs/twin.md "Timestamps"); None before it.
+        self.time_kind: str | None = None
+        self.clock: Clock | None = None
+        self.iso_line = None  # the line of the first timestamp
         self.half = None
         self.buf = _Segment()
         self.last_raw = None  # previous accepted raw angle (rad), unwrapped angle, time
@@ -486,14 +502,80 @@ class Twin:
         if self.separator == ";" and lines:
             lines = "\n".join(lines).translate(_EUROPEAN).split("\n")
         self.lines_read = first_lineno + len(lines) - 1
+        lines, time_err = self._timestamps(lines, first_lineno)
         if not lines:
-            return self._hand_out(rows, None)
+            return self._hand_out(rows, time_err)
         (ln, t, a, w, f), err = parse_lines(lines, first_lineno, self.cols)
+        err = err or time_err
         try:
             err = self._accept(ln, t, a, w, f, rows) or err
         except (DataError, FmuError) as e:
             err = e
         return self._hand_out(rows, err)
+
+    @property
+    def time_origin(self) -> float | None:
+        """Unix seconds of the twin's time 0 when the input's times are timestamps, else None."""
+        return self.clock.origin if self.clock is not None else None
+
+    def _timestamps(
+        self, lines: list[str], first_lineno: int
+    ) -> tuple[list[str], DataError | None]:
+        """The lines with ISO 8601 time fields replaced by seconds from the origin (the format is
+        detected at the first sample, as the decimal comma is from the header). Returns the lines
+        before the first bad timestamp and its DataError (or None). A line with the wrong number
+        of fields is passed on as it is: the reader reports it."""
+        if self.time_kind == "number" or not lines:
+            return lines, None
+        col, nf = self.cols["time"], n_fields(self.cols)
+        out: list[str] = []
+        for i, line in enumerate(lines):
+            parts = line.split(",")
+            if not line.strip() or len(parts) != nf:
+                out.append(line)
+                continue
+            raw = parts[col]
+            lineno = first_lineno + i
+            if self.time_kind is None:
+                if not LOOKS_ISO.match(raw):
+                    self.time_kind = "number"
+                    if self.o.timezone is not None:
+                        self.messages.append(
+                            f"--timezone {self.o.timezone} is not used: the input's times are "
+                            "numbers (seconds), not timestamps"
+                        )
+                    return out + lines[i:], None
+                self.time_kind, self.clock, self.iso_line = "iso", Clock(self.o.timezone), lineno
+            repeated = self.clock.repeated_hour
+            try:
+                t = self.clock.seconds(raw)
+            except TimestampError as e:
+                what = (
+                    f"time = {raw.strip()!r} is a number, but the input's times are ISO 8601 "
+                    f"timestamps (from line {self.iso_line}): one format per input"
+                    if _NUMBER.fullmatch(raw.strip())
+                    else f"time = {e}"
+                )
+                return out, DataError(f"line {lineno}: {what}")
+            if lineno == self.iso_line:
+                zone_note = (
+                    f"; timestamps without an offset are local times in {self.o.timezone}"
+                    if self.o.timezone
+                    else ""
+                )
+                self.messages.append(
+                    f"the input's times are ISO 8601 timestamps: time is in seconds from "
+                    f"{self.clock.origin_text()} (line {lineno}){zone_note}"
+                )
+            if self.clock.repeated_hour and not repeated:
+                self.messages.append(
+                    f"line {lineno}: {raw.strip()!r} is in the hour that {self.o.timezone} repeats "
+                    "when daylight-saving time ends: read as the first time not before the sample "
+                    "before it"
+                )
+            parts[col] = repr(t)
+            out.append(",".join(parts))
+        return out, None
 
     def _accept(self, ln, t, a, w, f, rows) -> DataError | None:
         """Validates, unwraps and conditions parsed samples; returns the first DataError of the
@@ -844,6 +926,10 @@ class Twin:
             "duplicates": self.duplicates,
             "speed_ignored": self.speed_ignored,
             "separator": self.separator,
+            "time_kind": self.time_kind,
+            "time_clock": None
+            if self.clock is None
+            else [self.clock.origin_us, self.clock.prev_us, self.iso_line],
             "gaps": self.gaps,
             "rev_rows": rev.tolist(),
             "rev_next": self.rev_next,
@@ -895,6 +981,11 @@ class Twin:
         if tw.cols is not None and not isinstance(tw.cols, dict):
             raise TypeError("cols is not a mapping")
         tw.separator = cp.get("separator", ",")
+        tw.time_kind = cp.get("time_kind")
+        if cp.get("time_clock") is not None:
+            origin_us, prev_us, tw.iso_line = cp["time_clock"]
+            tw.clock = Clock(tw.o.timezone, int(origin_us))
+            tw.clock.prev_us = None if prev_us is None else int(prev_us)
         bb = cp["buf"]
         tw.buf = _Segment(
             t=np.array(bb["t"], dtype=float),

@@ -11,12 +11,10 @@ aarch64_enabled() {
 }
 
 source "$(dirname "${BASH_SOURCE[0]}")/apt.sh"
+source "$(dirname "${BASH_SOURCE[0]}")/lock.sh"
 
 ensure_aarch64_build() {
-    if ! rustup target list --installed 2>/dev/null | grep -qx "$AARCH64_TARGET"; then
-        echo "aarch64.sh: adding the rustup target $AARCH64_TARGET" >&2
-        rustup target add "$AARCH64_TARGET" >&2
-    fi
+    rd_rustup_target_add "$AARCH64_TARGET"
     if ! command -v aarch64-linux-gnu-gcc >/dev/null 2>&1; then
         apt_install gcc-aarch64-linux-gnu libc6-dev-arm64-cross
     fi

@@ -7,7 +7,8 @@
 # Idempotent and quick: a stamp file in .venv holds a hash of requirements.txt and of the
 # interpreter; when it matches and the venv's python runs, nothing is done. Works on a fresh
 # Debian machine as root (installs python3-venv and the C++ runtime libcosimpy's binary needs when
-# they are missing), and as a user with sudo.
+# they are missing), and as a user with sudo. Two scripts calling it at once for the same
+# checkout take turns (a lock per .venv, scripts/lib/lock.sh): the second finds the venv ready.
 
 _venv_root() { (cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd); }
 
@@ -38,8 +39,14 @@ _venv_system_libs() {
 }
 
 ensure_venv() {
-    local root venv req py
+    local root
     root="$(_venv_root)"
+    # One lock per venv folder (its path's hash names it), so other checkouts are not held up.
+    rd_with_lock "venv-$(echo "$root/.venv" | sha256sum | cut -c1-16)" _ensure_venv_unlocked "$root"
+}
+
+_ensure_venv_unlocked() {
+    local root="$1" venv req py
     venv="$root/.venv"
     req="$root/requirements.txt"
     py="${PYTHON:-python3}"

@@ -10,16 +10,14 @@ win64_enabled() {
 }
 
 source "$(dirname "${BASH_SOURCE[0]}")/apt.sh"
+source "$(dirname "${BASH_SOURCE[0]}")/lock.sh"
 
 _win64_apt() {
     apt_install "$@"
 }
 
 ensure_win64_build() {
-    if ! rustup target list --installed 2>/dev/null | grep -qx "$WIN64_TARGET"; then
-        echo "win64.sh: adding the rustup target $WIN64_TARGET" >&2
-        rustup target add "$WIN64_TARGET" >&2
-    fi
+    rd_rustup_target_add "$WIN64_TARGET"
     if ! command -v x86_64-w64-mingw32-gcc >/dev/null 2>&1; then
         _win64_apt gcc-mingw-w64-x86-64
     fi

@@ -16,6 +16,15 @@ from __future__ import annotations
 import signal
 import sys
 
+#: What a command's messages start with: `rdrive <command>` when run through rdrive (cli.py sets
+#: it), else the checkout script's file name (`twin.py`).
+RUNNING: str | None = None
+
+
+def prefix(script: str) -> str:
+    """The name a command's messages start with (RUNNING, or `script` in a checkout)."""
+    return RUNNING or script
+
 
 def load(module: str):
     """Imports a command's module. Ctrl-C while the modules load (numpy, fmpy, dask take a while)

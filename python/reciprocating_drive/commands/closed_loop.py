@@ -1,12 +1,15 @@
 #!/usr/bin/env python3
-"""The pump and its drive train in a closed loop (docs/closed-loop.md): builds
-target/fmu/ClosedLoop.ssp (and its Model Exchange variant ClosedLoopME.ssp) from ssp/ClosedLoop/
-and both FMUs, simulates it in libcosim (default)
-or fmpy, prints the per-revolution speed fluctuation δ = (ω_max − ω_min)/ω_mean and writes
-results/closed_loop.png (crank speed, motor torque and power, δ per revolution).
+"""The pump and its drive train in a closed loop (docs/closed-loop.md): builds the SSP system
+ClosedLoop.ssp (and its Model Exchange variant ClosedLoopME.ssp) from the shipped system and both
+FMUs, simulates it in libcosim (default) or fmpy, or solves the loop exactly as one Model Exchange
+ODE (--importer model-exchange), prints the mean crank speed over the last whole revolutions and
+the per-revolution speed fluctuation δ = (ω_max − ω_min)/ω_mean, and writes into --out-dir
+(default results/): the two SSPs, closed_loop.csv (time and the recorded variables, the same
+columns for every importer), closed_loop.json (the summary) and closed_loop.png (crank speed, motor
+torque and power, δ per revolution).
 
-    .venv/bin/python scripts/closed_loop.py [--importer libcosim|fmpy|model-exchange] [--step 1e-3] [--time 10]
-    .venv/bin/python scripts/closed_loop.py --set drivetrain.crank.inertia=80 --set pump.load.mean=2e4
+    rdrive closed-loop [--importer libcosim|fmpy|model-exchange] [--step 1e-3] [--time 10]
+    rdrive closed-loop --set drivetrain.crank.inertia=80 --set pump.load.mean=2e4
 
 Exit codes: 0 done, 1 the loop failed or diverged (the message names docs/closed-loop.md's
 stability condition ρ_eff < 1), 2 a user error, 70 an internal error, 130 stopped.
@@ -15,6 +18,7 @@ stability condition ρ_eff < 1), 2 a user error, 70 an internal error, 130 stopp
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import pathlib
 import sys
@@ -27,6 +31,7 @@ from ..cli_errors import (
     ArgumentParser,
     RunFailed,
     UserError,
+    one_line,
     positive_float,
     run_cli,
     show,
@@ -54,7 +59,12 @@ def parser(prog: str = PROG) -> ArgumentParser:
     )
     ap.add_argument("--step", default="1e-3", help="communication step [s] (default 1e-3)")
     ap.add_argument("--time", default="10", help="simulated time [s] (default 10)")
-    ap.add_argument("--out-dir", type=pathlib.Path, default=artifacts.results_dir())
+    ap.add_argument(
+        "--out-dir",
+        type=pathlib.Path,
+        default=artifacts.results_dir(),
+        help="where the SSPs, closed_loop.csv, .json and .png go (default: results/)",
+    )
     ap.add_argument(
         "--fmu-dir",
         type=pathlib.Path,
@@ -121,6 +131,25 @@ def main(argv=None, prog: str = PROG) -> int:
     )
 
 
+def require_libcosim() -> None:
+    """libcosim is an optional importer (the extra `libcosim` of pyproject.toml): when it is not
+    installed, or its native library does not load, say so, not "check the parameters"."""
+    try:
+        import libcosimpy.CosimExecution  # noqa: F401
+    except ModuleNotFoundError as e:
+        if e.name is None or e.name.split(".")[0] != "libcosimpy":
+            raise
+        raise UserError(
+            "--importer libcosim (the default) needs libcosimpy, which is not installed: "
+            "pip install 'reciprocating-drive[libcosim]', or use --importer fmpy"
+        ) from None
+    except (ImportError, OSError) as e:
+        raise UserError(
+            f"--importer libcosim: libcosimpy is installed but does not load ({one_line(e)}); "
+            "use --importer fmpy"
+        ) from None
+
+
 def _main(argv, prog: str = PROG) -> int:
     a = parser(prog).parse_args(argv)
     h = positive_float("--step", a.step)
@@ -131,17 +160,22 @@ def _main(argv, prog: str = PROG) -> int:
     for fmu in needed:
         if not (a.fmu_dir / fmu).is_file():
             raise UserError(f"--fmu-dir {a.fmu_dir}: no {fmu}; build it with scripts/build-fmu.sh")
+    if a.importer == "libcosim":
+        require_libcosim()
     from ..presets import read_ssv
     from ..system import (
         SSD,
         LoopFailed,
         build_ssp,
         loop_gain,
+        mean_speed_last,
         plot_closed_loop,
+        record_units,
         run_fmpy,
         run_libcosim,
         speed_fluctuation,
         start_values,
+        write_series,
     )
 
     extra = overrides(a.set, a.fmu_dir)
@@ -165,13 +199,9 @@ def _main(argv, prog: str = PROG) -> int:
             "(every sample is kept in memory)"
         )
 
-    # Beside the FMUs of a checkout's build; in the results of any other run (an installed
-    # package's folder is not the user's to write in).
-    ssp_path = (
-        a.out_dir / "ClosedLoop.ssp"
-        if a.fmu_dir != artifacts.fmu_dir() or a.set or artifacts.installed()
-        else artifacts.fmu_dir() / "ClosedLoop.ssp"
-    )
+    # With the run's other results: the system that was simulated, as it was simulated.
+    a.out_dir.mkdir(parents=True, exist_ok=True)
+    ssp_path = a.out_dir / "ClosedLoop.ssp"
     ssp = build_ssp(
         ssp_path,
         pump=pump if a.set else None,
@@ -180,7 +210,7 @@ def _main(argv, prog: str = PROG) -> int:
     )
     # The Model Exchange variant of the same system beside it (docs/closed-loop.md "Model
     # Exchange system"), for importers that integrate both FMUs in one ODE.
-    build_ssp(
+    ssp_me = build_ssp(
         ssp_path.with_name("ClosedLoopME.ssp"),
         pump=pump if a.set else None,
         drive=drive if a.set else None,
@@ -227,22 +257,47 @@ def _main(argv, prog: str = PROG) -> int:
         )
     dfl = speed_fluctuation(r["time"], r["drivetrain.crank.angle"], r["drivetrain.crank.speed"])
     w = r["drivetrain.crank.speed"]
-    print(f"{a.importer}: {t_end:g} s at h = {h:g} s in {wall:.2f} s wall; wrote {ssp}")
-    print(
-        f"crank speed at the end {w[-1]:.5g} rad/s ({w[-1] * 60 / (2 * math.pi):.4g} strokes/min)"
-    )
+    if a.importer == "model-exchange":
+        # Not a fixed step: DOP853 chooses its own; the series are sampled every h.
+        system, stepping = ssp_me, f"one ODE, DOP853 with variable steps, sampled every {h:g} s"
+        title = f"model exchange, {ssp_me.name}: DOP853 variable step, sampled every {h * 1e3:g} ms"
+    else:
+        system, stepping = ssp, f"h = {h:g} s"
+        title = f"{a.importer}, {ssp.name}, h = {h * 1e3:g} ms"
+    print(f"{a.importer}: {system.name}, {t_end:g} s ({stepping}) in {wall:.2f} s wall")
+    mean = mean_speed_last(r["time"], r["drivetrain.crank.angle"])
+    if mean is not None:
+        print(
+            f"mean crank speed over the last {mean[1]} revolution(s): {mean[0]:.5g} rad/s "
+            f"({mean[0] * 60 / (2 * math.pi):.4g} strokes/min)"
+        )
+    else:
+        print(f"mean crank speed: no complete revolution in {t_end:g} s")
     if dfl:
         print("speed fluctuation δ per revolution: " + ", ".join(f"{x:.4%}" for x in dfl))
     else:
         print(f"speed fluctuation δ: no complete revolution in {t_end:g} s")
+    csv_path, json_path = a.out_dir / "closed_loop.csv", a.out_dir / "closed_loop.json"
+    write_series(csv_path, r, record_units(a.fmu_dir))
+    summary = {
+        "importer": a.importer,
+        "system": system.name,
+        "step": h,
+        "variable_step": a.importer == "model-exchange",
+        "time": t_end,
+        "wall_time": wall,
+        "revolutions": len(dfl),
+        "mean_speed": None if mean is None else mean[0],
+        "strokes_per_minute": None if mean is None else mean[0] * 60 / (2 * math.pi),
+        "mean_over_revolutions": None if mean is None else mean[1],
+        "speed_at_end": float(w[-1]),
+        "speed_fluctuation": dfl,
+        "parameters": {"pump": pump, "drivetrain": drive} if a.set else None,
+    }
+    json_path.write_text(json.dumps(summary, indent=1) + "\n")
     png = a.out_dir / "closed_loop.png"
-    plot_closed_loop(
-        r,
-        dfl,
-        f"Pump and drive train in a closed loop ({a.importer}, h = {h * 1e3:g} ms)",
-        png,
-    )
-    print(f"wrote {png}")
+    plot_closed_loop(r, dfl, f"Pump and drive train in a closed loop ({title})", png)
+    print(f"wrote {ssp}, {ssp_me.name}, {csv_path.name}, {json_path.name}, {png.name}")
     return 0
 
 

@@ -3,8 +3,8 @@
 (data/twin/pump_encoder.csv by default) in real time or faster, with scalar and block nodes and
 history, optionally secured.
 
-    .venv/bin/python scripts/plc_sim.py                       # real time, no security
-    .venv/bin/python scripts/plc_sim.py --port 4840 --speed 4 --security SignAndEncrypt \\
+    rdrive plc-sim                       # real time, no security
+    rdrive plc-sim --port 4840 --speed 4 --security SignAndEncrypt \\
         --cert-dir /tmp/plc --user operator --password-env PLC_PASSWORD
 
 Prints "plc_sim: listening on opc.tcp://..." when ready. With --cert-dir the server's certificate
@@ -21,6 +21,7 @@ import pathlib
 import sys
 
 from .. import artifacts
+from . import prefix
 
 FAULTS = ("bad_status", "nan", "wrong_type")
 
@@ -93,14 +94,16 @@ def main(argv=None, prog: str | None = None) -> int:
                 password = pathlib.Path(a.password_file).read_text().strip("\r\n")
             except OSError as e:
                 print(
-                    f"plc_sim.py: --password-file {a.password_file}: {e.strerror}", file=sys.stderr
+                    f"{prefix('plc_sim.py')}: --password-file {a.password_file}: {e.strerror}",
+                    file=sys.stderr,
                 )
                 return 2
         elif a.password_env and a.password_env in os.environ:
             password = os.environ[a.password_env]
         else:
             print(
-                "plc_sim.py: --user needs --password-file or --password-env (set)", file=sys.stderr
+                f"{prefix('plc_sim.py')}: --user needs --password-file or --password-env (set)",
+                file=sys.stderr,
             )
             return 2
     if a.cert_dir:
@@ -125,7 +128,7 @@ def main(argv=None, prog: str | None = None) -> int:
             written=a.nodes,
         )
     except (OSError, ValueError) as e:
-        print(f"plc_sim.py: --data {a.data}: {e}", file=sys.stderr)
+        print(f"{prefix('plc_sim.py')}: --data {a.data}: {e}", file=sys.stderr)
         return 2
     try:
         asyncio.run(serve(sim, a.linger))

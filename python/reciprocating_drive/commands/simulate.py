@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""The main job's simulation (called by scripts/run.sh): runs one machine at constant crank speed
-with fmpy and writes, in results/ (or --out-dir):
+"""The main job's simulation (`rdrive run`; a checkout's main job builds the FMU, then runs it):
+runs one machine at constant crank speed with fmpy and writes, in results/ (or --out-dir):
 
   <preset>.csv    time, the model angle (crank.model_angle, rad and deg) and the outputs
   <preset>.png    the mission plot (python/reciprocating_drive/plots.py)
@@ -9,7 +9,8 @@ with fmpy and writes, in results/ (or --out-dir):
 and prints the summary. The work is done by python/reciprocating_drive/mission.py.
 
 Presets: "default" is the FMU's own start values (docs/model.md §8); any other NAME is the
-parameter set resources/presets/NAME.ssv, or a path to an .ssv file.
+shipped parameter set NAME.ssv (resources/presets/ of a checkout, also inside the FMU), or a path
+to an .ssv file.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from .. import artifacts
 from ..mission import OUTPUTS, format_summary, run_mission, write_summary
 from ..plots import plot_mission
 from ..presets import PRESET_DIR, available_presets, preset_values
+from . import prefix
 
 UNITS = {
     "crank.model_speed": "rad/s",
@@ -88,14 +90,17 @@ def main(argv=None, prog: str | None = None) -> int:
         )
         return 2
     if (a.step is not None and not a.step > 0) or (a.revolutions is not None and a.revolutions < 1):
-        print("simulate.py: --step must be positive and --revolutions at least 1", file=sys.stderr)
+        print(
+            f"{prefix('simulate.py')}: --step must be positive and --revolutions at least 1",
+            file=sys.stderr,
+        )
         return 2
     try:
         m = run_mission(
             a.fmu, a.preset, step=a.step, revolutions=a.revolutions, preset_dir=resources
         )
     except Exception as e:  # an FMU error or an invalid preset: a message, not a traceback
-        print(f"simulate.py: {e}", file=sys.stderr)
+        print(f"{prefix('simulate.py')}: {e}", file=sys.stderr)
         return 2
     out = pathlib.Path(a.out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -2,9 +2,12 @@
 """Runs a design study (a TOML study file, docs/sweeps.md) on Dask and writes
 <out>/<study>.parquet, <out>/<study>.csv and <out>/<study>.png.
 
-    .venv/bin/python scripts/sweep.py studies/kvo630_resonance.toml
-    .venv/bin/python scripts/sweep.py STUDY --workers 2               # LocalCluster with 2 workers
-    .venv/bin/python scripts/sweep.py STUDY --scheduler tcp://host:8786  # an existing cluster
+    rdrive sweep studies/kvo630_resonance.toml
+    rdrive sweep STUDY --workers 2               # LocalCluster with 2 workers
+    rdrive sweep STUDY --scheduler tcp://host:8786  # an existing cluster
+
+The paths above are those of a checkout, or of a folder made by `rdrive examples DIR` (the sample
+data, configurations and studies of an installed package).
 
 A killed or stopped sweep resumes: run the same command again and only the missing cases are
 computed. A result file of another study or FMU is refused; --fresh discards it and starts afresh.
@@ -27,6 +30,7 @@ from ..cli_errors import (
     run_cli,
 )
 from ..study import DEFAULT_MAX_CASES, check_fmu, load_study
+from . import prefix
 
 PROG = "sweep.py"
 STATE: dict = {}
@@ -94,7 +98,9 @@ def resume_hint() -> str:
     done = ""
     if p is not None and p.csv is not None:
         done = f" ({p.found + p.computed} cases in {p.csv})"
-    return f"stopped{done}; resume with: {shlex.join([sys.executable, sys.argv[0], *argv])}"
+    # Through rdrive its launcher is the command; a checkout's script runs with the interpreter.
+    run = [sys.argv[0]] if prefix("") else [sys.executable, sys.argv[0]]
+    return f"stopped{done}; resume with: {shlex.join([*run, *argv])}"
 
 
 def main(argv=None, prog: str = PROG) -> int:

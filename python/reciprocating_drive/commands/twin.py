@@ -1,9 +1,12 @@
 #!/usr/bin/env python3
 """The drilling-pump digital twin (docs/twin.md): measured crank data in, the FMU's loads out.
 
-    .venv/bin/python scripts/twin.py data/twin/pump_encoder.csv --angle-unit counts --counts-per-rev 4096
-    producer | .venv/bin/python scripts/twin.py - --live ...          # samples on standard input
-    .venv/bin/python scripts/twin.py growing.csv --follow --live ...   # follow a growing file
+    rdrive twin data/twin/pump_encoder.csv --angle-unit counts --counts-per-rev 4096
+    producer | rdrive twin - --live ...          # samples on standard input
+    rdrive twin growing.csv --follow --live ...   # follow a growing file
+
+The paths above are those of a checkout, or of a folder made by `rdrive examples DIR` (the sample
+data, configurations and studies of an installed package).
 
 Writes --out (every sample: time and every FMU output), --summary (one row per completed crank
 revolution) and, with --plots DIR, time series, the card and per-revolution trends. With
@@ -36,6 +39,7 @@ from ..twin import (
     save_checkpoint,
     summary_header,
 )
+from . import prefix
 
 
 class Writer:
@@ -100,7 +104,7 @@ class Parser(argparse.ArgumentParser):
     """argparse with its errors on one line (the option, the value and what is allowed)."""
 
     def error(self, message):
-        self.exit(2, f"twin.py: {message} (see --help)\n")
+        self.exit(2, f"{prefix('twin.py')}: {message} (see --help)\n")
 
 
 def number(text: str) -> float:
@@ -146,6 +150,7 @@ FIXED = (
     ("--gap-limit", "gap_limit", "gap_limit"),
     ("--max-speed", "max_speed", "max_speed"),
     ("--separator", "separator", "separator"),
+    ("--timezone", "timezone", "timezone"),
     ("--speed-check", "speed_check", "speed_check"),
     ("--speed-tolerance", "speed_tolerance", "speed_tolerance"),
 )
@@ -225,6 +230,13 @@ def main(argv=None, prog: str | None = None) -> int:
         choices=("auto", ",", ";"),
         default=None,
         help="field separator; ';' reads decimal commas (default: auto, from the header)",
+    )
+    ap.add_argument(
+        "--timezone",
+        default=None,
+        metavar="ZONE",
+        help="the zone of ISO 8601 timestamps without a UTC offset, an IANA name such as "
+        "Europe/Berlin (timestamps with Z or an offset need none)",
     )
     ap.add_argument(
         "--window",
@@ -371,7 +383,7 @@ def main(argv=None, prog: str | None = None) -> int:
             return twin_distributed.run(a, options_of(a)[0], stopping)
         return run(a, stopping)
     except KeyboardInterrupt:
-        print("twin.py: stopped", file=sys.stderr)
+        print(f"{prefix('twin.py')}: stopped", file=sys.stderr)
         return 130
     except Exception:  # noqa: BLE001 - a bug: one line for the user, the details in a file
         import tempfile
@@ -381,7 +393,7 @@ def main(argv=None, prog: str | None = None) -> int:
         with os.fdopen(fd, "w") as f:
             traceback.print_exc(file=f)
         print(
-            f"twin.py: internal error ({sys.exc_info()[1]!r:.200}); please report it with "
+            f"{prefix('twin.py')}: internal error ({sys.exc_info()[1]!r:.200}); please report it with "
             f"the details written to {path}",
             file=sys.stderr,
         )
@@ -455,7 +467,7 @@ def run(a, stopping: list) -> int:
         summ.flush()
         src = sys.stdin.buffer.raw if a.input == "-" else open(a.input, "rb", buffering=0)
     except (FmuError, OSError, ValueError) as e:
-        print(f"twin.py: {error_text(e)}", file=sys.stderr)
+        print(f"{prefix('twin.py')}: {error_text(e)}", file=sys.stderr)
         return 2
 
     # Blocks of at most 64 KiB (about 2000 lines): what a pipe holds, bounded memory in replay,
@@ -542,7 +554,7 @@ def run(a, stopping: list) -> int:
                     checkpoint()
                 close()
                 if stopping:
-                    print(f"twin.py: {resume_hint(lineno)}", file=sys.stderr)
+                    print(f"{prefix('twin.py')}: {resume_hint(lineno)}", file=sys.stderr)
                     return 128 + stopping[0]
                 print(
                     f"stopped after line {lineno}"
@@ -553,7 +565,7 @@ def run(a, stopping: list) -> int:
             if a.checkpoint and verified:
                 checkpoint()
             close()
-            print(f"twin.py: {resume_hint(lineno)}", file=sys.stderr)
+            print(f"{prefix('twin.py')}: {resume_hint(lineno)}", file=sys.stderr)
             return 128 + stopping[0]
         if not verified:
             if lineno < skip:
@@ -570,14 +582,14 @@ def run(a, stopping: list) -> int:
             emit(e.rows, getattr(e, "summaries", []))
         close()
         where = f"{name}: " if isinstance(e, (DataError, FmuError)) else ""
-        print(f"twin.py: {where}{error_text(e)}", file=sys.stderr)
+        print(f"{prefix('twin.py')}: {where}{error_text(e)}", file=sys.stderr)
         return 1
     if a.checkpoint:
         checkpoint()
     out.close()
     summ.close()
     for m in twin.messages:
-        print(f"twin.py: {m}", file=sys.stderr)
+        print(f"{prefix('twin.py')}: {m}", file=sys.stderr)
     print(
         f"{twin.rows_out} samples, {twin.duplicates} duplicate timestamps dropped, "
         f"{len(twin.gaps)} gap(s)"

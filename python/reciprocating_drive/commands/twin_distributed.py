@@ -38,6 +38,7 @@ from ..replay import (
     write_piece,
 )
 from ..twin import CheckpointError, DataError, Options, summary_header
+from . import prefix
 
 #: At most this many pieces in one Dask task (`_compute`).
 _GROUP_MAX = 32
@@ -67,15 +68,15 @@ def run(a, opts: Options, stopping: list) -> int:
     scheduler or work folder, 128 + signal when stopped (the pieces written are kept)."""
     err = sys.stderr
     if a.input == "-":
-        print("twin.py: --distributed replays a file, not standard input", file=err)
+        print(f"{prefix('twin.py')}: --distributed replays a file, not standard input", file=err)
         return 2
     for attr, flag in _NOT_WITH:
         if getattr(a, attr, None):
-            print(f"twin.py: {flag} cannot be combined with --distributed", file=err)
+            print(f"{prefix('twin.py')}: {flag} cannot be combined with --distributed", file=err)
             return 2
     if a.speed_check == "warn":
         print(
-            "twin.py: --speed-check warn cannot be combined with --distributed (the count of "
+            f"{prefix('twin.py')}: --speed-check warn cannot be combined with --distributed (the count of "
             "ignored speeds is per sample); use refuse or --ignore-speed",
             file=err,
         )
@@ -98,7 +99,7 @@ def run(a, opts: Options, stopping: list) -> int:
                 raise ReplayError(f"{flag} {p}: the same file as {seen[key]}")
             seen[key] = flag
     except ReplayError as e:
-        print(f"twin.py: {e}", file=err)
+        print(f"{prefix('twin.py')}: {e}", file=err)
         return 2
 
     if a.scheduler:
@@ -108,7 +109,7 @@ def run(a, opts: Options, stopping: list) -> int:
         try:
             probe_scheduler(a.scheduler, a.connect_timeout)
         except SweepError as e:
-            print(f"twin.py: {e}", file=err)
+            print(f"{prefix('twin.py')}: {e}", file=err)
             return 2
     t0 = time.monotonic()
     machine = a.machine or "default"
@@ -119,16 +120,18 @@ def run(a, opts: Options, stopping: list) -> int:
         sc = scan(a.input, a.fmu, machine, opts, stop=lambda: bool(stopping), table=table)
     except (DataError, InputChanged) as e:
         where = "the table" if remote else a.input
-        print(f"twin.py: {where}: {' '.join(str(e).split())}", file=err)
+        print(f"{prefix('twin.py')}: {where}: {' '.join(str(e).split())}", file=err)
         return 1
     except ReplayError as e:
-        print(f"twin.py: {e}", file=err)
+        print(f"{prefix('twin.py')}: {e}", file=err)
         return 2
     except (FmuError, ValueError, OSError) as e:
-        print(f"twin.py: {' '.join(str(e).split())}", file=err)
+        print(f"{prefix('twin.py')}: {' '.join(str(e).split())}", file=err)
         return 2
     if stopping:
-        print("twin.py: stopped while reading the input; nothing was written", file=err)
+        print(
+            f"{prefix('twin.py')}: stopped while reading the input; nothing was written", file=err
+        )
         return 128 + stopping[0]
     pieces = plan(sc, a.revolutions_per_piece, a.overlap)
     n_samples = len(sc.data["t"])
@@ -141,7 +144,7 @@ def run(a, opts: Options, stopping: list) -> int:
             # now, part of the scan, while nothing waits for it.
             save_inputs(work, sc.data)
     except (ReplayError, OSError) as e:
-        print(f"twin.py: {e}", file=err)
+        print(f"{prefix('twin.py')}: {e}", file=err)
         return 2
     if not a.quiet:
         warm = warm_up_time(sc.sigma) if a.overlap is None else a.overlap
@@ -193,7 +196,7 @@ def run(a, opts: Options, stopping: list) -> int:
         )
     shutil.rmtree(work, ignore_errors=True)
     for m in sc.messages:
-        print(f"twin.py: {m}", file=err)
+        print(f"{prefix('twin.py')}: {m}", file=err)
     print(
         f"{n_samples} samples, {sc.duplicates} duplicate timestamps dropped, "
         f"{len(sc.gaps)} gap(s); {len(pieces)} pieces; wrote {a.out} and {summary}"
@@ -234,13 +237,13 @@ def _compute_quietly(a, sc, pieces, todo, work, progress, stopping, asm) -> int 
     try:
         client, cluster = _client(a.scheduler, a.workers, a.connect_timeout)
     except SweepError as e:
-        print(f"twin.py: {e}", file=err)
+        print(f"{prefix('twin.py')}: {e}", file=err)
         return 2
     try:
         try:
             key = prepare_workers(client, a.fmu)
         except WorkerMismatch as e:
-            print(f"twin.py: {e}", file=err)
+            print(f"{prefix('twin.py')}: {e}", file=err)
             return 2
         client.run(warm_worker, key)
         n_workers = max(1, len(client.scheduler_info()["workers"]))
@@ -255,14 +258,14 @@ def _compute_quietly(a, sc, pieces, todo, work, progress, stopping, asm) -> int 
         progress.stop(time.process_time() - cpu0)
         if code is None and stopping:
             print(
-                f"twin.py: stopped with {progress.done} of {progress.total} pieces written to "
+                f"{prefix('twin.py')}: stopped with {progress.done} of {progress.total} pieces written to "
                 f"{work}; run the same command again to resume",
                 file=err,
             )
             return 128 + stopping[0]
         return code
     except (ReplayError, CheckpointError) as e:
-        print(f"twin.py: {e}", file=err)
+        print(f"{prefix('twin.py')}: {e}", file=err)
         return 2
     finally:
         _close(client, cluster)
@@ -301,7 +304,7 @@ class _Job:
             self.lonely = time.monotonic()
         elif time.monotonic() - self.lonely > max(a.connect_timeout, 30.0):
             print(
-                f"twin.py: no worker on the cluster for {max(a.connect_timeout, 30.0):g} s; "
+                f"{prefix('twin.py')}: no worker on the cluster for {max(a.connect_timeout, 30.0):g} s; "
                 f"{self.progress.done} of {self.progress.total} pieces are in {self.work}: run "
                 "the same command again to resume",
                 file=sys.stderr,
@@ -317,7 +320,7 @@ class _Job:
         except TimeoutError:
             return None  # its result went with its worker: Dask computes it again
         except PieceFailed as e:
-            print(f"twin.py: {self.a.input}: {e}", file=sys.stderr)
+            print(f"{prefix('twin.py')}: {self.a.input}: {e}", file=sys.stderr)
             return 1
         return None
 
@@ -446,7 +449,7 @@ class _Job:
                 except TimeoutError:
                     continue  # its result went with its worker: Dask computes it again
                 except PieceFailed as e:
-                    print(f"twin.py: {self.a.input}: {e}", file=sys.stderr)
+                    print(f"{prefix('twin.py')}: {self.a.input}: {e}", file=sys.stderr)
                     return 1
                 for i, (out, rev, n, cpu) in zip(running.pop(fut), got):
                     write_piece(work, i, out, rev)

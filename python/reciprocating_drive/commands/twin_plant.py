@@ -2,8 +2,11 @@
 """The twin in a plant (docs/plant.md): a configuration file names the machine, the source (a CSV
 file or an OPC UA server), the sinks (SQLite, PostgreSQL) and the conditioning.
 
-    .venv/bin/python scripts/twin_plant.py --config examples/twin/replay-sqlite.toml
-    .venv/bin/python scripts/twin_plant.py --demo        # simulated PLC + OPC UA + SQLite
+    rdrive plant --config examples/twin/replay-sqlite.toml
+    rdrive plant --demo        # simulated PLC + OPC UA + SQLite
+
+The paths above are those of a checkout, or of a folder made by `rdrive examples DIR` (the sample
+data, configurations and studies of an installed package).
 
 Run again with the same configuration after a crash or a stop: it resumes from the last
 checkpoint committed in the database, and nothing is lost or stored twice.

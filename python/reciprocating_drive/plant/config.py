@@ -203,6 +203,15 @@ def parse(data: dict, path: str = "<config>") -> Config:
         raise ConfigError(
             f'{path}: source.counts_per_rev is missing (angle_unit = "counts" needs it)'
         )
+    if stype in ("csv", "stdin"):
+        # The zone of ISO 8601 timestamps without an offset (docs/twin.md "Timestamps").
+        opts["timezone"] = src.get(
+            "timezone",
+            str,
+            None,
+            "an IANA time zone, e.g. Europe/Berlin",
+            _is_zone,
+        )
     password = None
     if stype == "csv":
         settings = _csv_source_settings(src, path)
@@ -352,12 +361,30 @@ def _distinct_files(path: str, source: dict, sinks: list) -> None:
             if k not in sk.settings:
                 continue
             f = str(pathlib.Path(sk.settings[k]).resolve())
+            if artifacts.installed() and pathlib.Path(f).is_relative_to(artifacts.PACKAGE):
+                # The shipped configurations write ../../results/ beside themselves: run from
+                # the installation they would write into it (docs/install.md "Examples").
+                raise ConfigError(
+                    f"{path}: sink[{i}].{k} = {sk.settings[k]!r} is inside the installed package "
+                    f"({artifacts.PACKAGE}); copy the examples into a folder of your own with "
+                    "`rdrive examples DIR` and use the configuration there"
+                )
             if f in seen:
                 raise ConfigError(
                     f"{path}: sink[{i}].{k} = {sk.settings[k]!r}: the same file as {seen[f]}; "
                     "each file is read or written by one part only"
                 )
             seen[f] = f"sink[{i}].{k}"
+
+
+def _is_zone(name: str) -> bool:
+    from ..timestamps import zone
+
+    try:
+        zone(name)
+    except ValueError:
+        return False
+    return True
 
 
 def _csv_source_settings(src: _Table, path: str) -> dict:

@@ -192,7 +192,12 @@ class Pipeline:
         self.lines_since = 0
 
     def source_origin(self):
-        return getattr(self.source, "time_origin", None)
+        """Unix seconds of the twin's time 0: the source's clock (OPC UA), or the input's ISO 8601
+        timestamps (docs/twin.md "Timestamps"); None for times in seconds."""
+        origin = getattr(self.source, "time_origin", None)
+        if origin is None and getattr(self, "twin", None) is not None:
+            origin = self.twin.time_origin
+        return origin
 
     # ---- the run --------------------------------------------------------------------------------
     def run(self) -> int:
@@ -307,10 +312,14 @@ class Pipeline:
                     if chunk.events:
                         self.dirty = True
                     if chunk.lines:
+                        had_origin = twin.time_origin is not None
                         try:
                             rows, sums = twin.feed(chunk.lines, lineno + 1)
                         except (DataError, FmuError) as e:
                             return self._failed(e)
+                        if self.page is not None and not had_origin and twin.time_origin:
+                            # Timestamps in the input: the page's clock starts at their origin.
+                            self.page.open(twin.outputs, self.source_origin())
                         lineno += len(chunk.lines)
                         self.lines_since += len(chunk.lines)
                         self.lines_since_checkpoint += len(chunk.lines)

@@ -6,8 +6,20 @@ from __future__ import annotations
 
 import time
 
+from ... import timestamps
 from ...twin import detect_separator
 from ..samples import Chunk
+
+
+def _pace_seconds(field: str) -> float:
+    """A time field as seconds for pacing: a number, or an ISO 8601 timestamp (docs/twin.md
+    "Timestamps"; one without an offset is taken as UTC here: pacing needs only differences, and
+    the twin itself reads it in its zone)."""
+    try:
+        return float(field)
+    except ValueError:
+        d = timestamps.parse(field)
+        return (d if d.tzinfo else d.replace(tzinfo=timestamps.dt.UTC)).timestamp()
 
 
 class CsvSource:
@@ -65,7 +77,7 @@ class CsvSource:
         for line in reversed(lines):
             try:
                 field = line.split(sep)[col]
-                t = float(field.replace(",", ".") if sep == ";" else field)
+                t = _pace_seconds(field.replace(",", ".") if sep == ";" else field)
             except (ValueError, IndexError):
                 continue
             if t0 is None:
