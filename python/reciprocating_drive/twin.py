@@ -8,8 +8,9 @@ same numbers bit for bit.
 
 1. **Reader** (`parse_lines`): a CSV with a header naming `time`, `crank_angle` and optionally
    `crank_speed` and `process_force`. A bad field, time going backwards, a duplicate timestamp
-   (dropped and counted, or an error), an angle step faster than `max_speed` or a crank turning
-   backwards stops the run with the line number (`DataError`), after the samples before it.
+   (dropped and counted, or an error) or an angle step faster than `max_speed` stops the run with
+   the line number (`DataError`), after the samples before it. The crank may stand still and
+   turn either way (docs/twin.md "Machine states"): every sample is computed.
 2. **Conditioning** (`conditioning.py`, vectorised over the chunk): angle to rad and unwrapped;
    ω and ε from a local cubic over the smoothing window where they are not measured (natively,
    `batch.local_cubic`, the algorithm of `conditioning.fit`). A gap longer
@@ -21,7 +22,8 @@ same numbers bit for bit.
    crank inputs are set and every output is read, for a whole chunk in one call of the native
    batch driver (`fmu.Channel.run`, tools/fmi2-batch).
 4. **Per revolution** (`revolution.py`): when the model angle completes a revolution its summary
-   is emitted.
+   is emitted, flagged `interrupted` when a stop or a reversal fell inside it. The machine's state
+   (running, stopped, reversing) is followed at every sample and its changes are `motion_events`.
 
 Checkpoints (`Twin.checkpoint`/`Twin.from_checkpoint`) hold the FMU's serialized state and the
 twin's own position and buffers; a run resumed from one continues exactly as if uninterrupted.
@@ -63,6 +65,16 @@ MAX_HALF = 100_000
 #: Samples conditioned and sent to the FMU per call at most (bounds the memory of the windows).
 BLOCK = 4096
 
+#: Samples of one revolution kept whole (docs/twin.md "Machine states"): a longer revolution (a
+#: stop inside it) keeps only the samples that hold its extremes, so a standstill of hours holds
+#: a bounded memory; its friction_work and speed_fluctuation, which need every sample, are empty.
+REV_SAMPLES_MAX = 65536
+
+#: The machine states (docs/twin.md "Machine states") and the event that enters each.
+MOTION_STATES = {1: "running", 0: "stopped", -1: "reversing"}
+MOTION_EVENTS = {1: "started", 0: "stopped", -1: "reversed"}
+MOTION_KEEP = 64
+
 
 class DataError(ValueError):
     """Bad measured data, with the input line number. `rows` and `summaries` are what the twin
@@ -101,6 +113,11 @@ class Options:
     # The zone of ISO 8601 timestamps without a UTC offset (an IANA name, docs/twin.md
     # "Timestamps"); None: such timestamps are refused.
     timezone: str | None = None
+    # Machine states (docs/twin.md "Machine states"): below stop_speed [rpm] in magnitude the
+    # crank is stopped, at -stop_speed or less it reverses; a state holds from the sample where
+    # it begins once it has lasted stop_duration [s].
+    stop_speed: float = 1.0
+    stop_duration: float = 0.5
 
     def to_dict(self) -> dict:
         return dict(self.__dict__)
@@ -131,7 +148,14 @@ class Options:
                 flag = "--" + name.replace("_", "-")
                 raise ValueError(f"{flag} {v!r}: allowed: {', '.join(allowed)}")
         time_zone(self.timezone)  # ValueError naming --timezone
-        positive = ["window", "gap_limit", "max_speed", "speed_tolerance"]
+        positive = [
+            "window",
+            "gap_limit",
+            "max_speed",
+            "speed_tolerance",
+            "stop_speed",
+            "stop_duration",
+        ]
         if self.angle_unit == "counts" or self.counts_per_rev is not None:
             positive.append("counts_per_rev")
         for name in positive:
@@ -164,6 +188,7 @@ SUMMARY_FIELDS = (
     "stroke",
     "rod_angle_amplitude",
     "stress_max",
+    "interrupted",
 )
 
 #: The unit of each of SUMMARY_FIELDS ("-": a count or a ratio), written in the CSV header as
@@ -177,6 +202,7 @@ SUMMARY_UNITS = {
     "stroke": "m",
     "rod_angle_amplitude": "rad",
     "stress_max": "Pa",
+    "interrupted": "-",
     **{
         f"{k}_{m}": u
         for k, u in (
@@ -438,6 +464,7 @@ class Twin:
         self.o = (options or Options()).resolved(self.design_speed)
         self.o.validate()
         self.i_angle = 1 + self.outputs.index("crank.model_angle")
+        self.i_speed = 1 + self.outputs.index("crank.model_speed")
         self.channel = None
         self.cols = None
         self.separator = ","  # of the input's fields: ',' or ';' (decimal comma), from the header
@@ -456,6 +483,14 @@ class Twin:
         self.gaps: list = []
         self.rev_parts: list = []  # rows of the revolution in progress (and the sample before it)
         self.rev_next = None  # index of the next revolution to complete
+        self.rev_dropped = 0  # its samples left out to bound the memory (REV_SAMPLES_MAX)
+        # Machine state (docs/twin.md "Machine states"): the state (1 running, 0 stopped, -1
+        # reversing; None before the first sample), the candidate state, the time and line it
+        # began; the last MOTION_KEEP events [kind, time, line] of the changes and their count
+        # (a twin that runs for months keeps a bounded list).
+        self.motion: list | None = None
+        self.motion_events: list = []
+        self.motion_count = 0
         self.defer_summaries = False
         self._pending: list = []  # rows for the summaries, None where a segment starts
         self.lines_read = 0  # input lines consumed (header included)
@@ -667,15 +702,8 @@ class Twin:
             )
             ln, t, theta, w, f, dt, near, dth = (x[:k] for x in (ln, t, theta, w, f, dt, near, dth))
             a = a[:k]
-        back = np.flatnonzero(near & (dth < 0))
-        if back.size:
-            k = int(back[0])
-            err = DataError(
-                f"line {ln[k]}: the crank angle goes backwards by {float(-dth[k]):.6g} rad "
-                "(the twin needs forward rotation)"
-            )
-            ln, t, theta, w, f, dt = (x[:k] for x in (ln, t, theta, w, f, dt))
-            a = a[:k]
+        # A step backwards is a state of the machine (a stop that rocks back, an encoder dithering
+        # at standstill, a crank jogged backwards), not an error: docs/twin.md "Machine states".
         if len(t) == 0:
             return err
         # Segments: a gap (an interval longer than gap_limit) starts a new one.
@@ -745,10 +773,52 @@ class Twin:
             raise err
         return out
 
-    def _emit(self, r: np.ndarray, rows: list) -> None:
+    def _emit(self, r: np.ndarray, rows: list, lines: np.ndarray | None = None) -> None:
         rows.append(r)
         if len(r):
             self._pending.append(r)
+            self._follow_motion(r[:, 0], r[:, self.i_speed], lines)
+
+    @property
+    def machine_state(self) -> str | None:
+        """running, stopped or reversing (docs/twin.md "Machine states"); None before a sample."""
+        return None if self.motion is None else MOTION_STATES[self.motion[0]]
+
+    def _follow_motion(self, t: np.ndarray, w: np.ndarray, lines) -> None:
+        """The machine state through these samples (time, the speed the FMU got): a class per
+        sample (running at ω ≥ stop_speed, reversing at ω ≤ -stop_speed, else stopped); a class
+        other than the state's becomes the state once it has held for stop_duration, from its
+        first sample (the event's time). Loops over the runs of equal class only."""
+        thr = self.o.stop_speed * TWO_PI / 60.0
+        cls = np.where(w >= thr, 1, np.where(w <= -thr, -1, 0))
+        if lines is None:
+            lines = np.full(len(t), -1)
+        if self.motion is None:
+            # The first sample's class is the state the record starts in (no event).
+            self.motion = [int(cls[0]), int(cls[0]), float(t[0]), int(lines[0])]
+        state, cand, t0, l0 = self.motion
+        change = (np.flatnonzero(np.diff(cls)) + 1).tolist()
+        for a, b in zip([0, *change], [*change, len(cls)]):
+            c = int(cls[a])
+            if c != cand:
+                cand, t0, l0 = c, float(t[a]), int(lines[a])
+            if cand != state and float(t[b - 1]) - t0 >= self.o.stop_duration:
+                state = cand
+                self.motion_events.append([MOTION_EVENTS[state], t0, l0])
+                self.motion_events = self.motion_events[-MOTION_KEEP:]
+                self.motion_count += 1
+        self.motion = [state, cand, t0, l0]
+
+    def motion_message(self, ev) -> str:
+        """The one-line report of a motion event [kind, time, line]."""
+        kind, t0, line = ev
+        rule = {
+            "stopped": f"|crank speed| below {self.o.stop_speed:g} rpm",
+            "started": f"crank speed at or above {self.o.stop_speed:g} rpm",
+            "reversed": f"crank speed at or below -{self.o.stop_speed:g} rpm",
+        }[kind]
+        where = f" (line {line})" if line >= 0 else ""
+        return f"t = {t0!r} s{where}: {kind} ({rule} for {self.o.stop_duration:g} s)"
 
     def _take_summaries(self) -> list:
         """The summaries of what was emitted since the last call (or its pieces, when deferred)."""
@@ -760,7 +830,7 @@ class Twin:
         out = []
         for r in pieces:
             if r is None:
-                self.rev_parts, self.rev_next = [], None
+                self.rev_parts, self.rev_next, self.rev_dropped = [], None, 0
             else:
                 out += self._revolutions(r)
         return out
@@ -827,13 +897,13 @@ class Twin:
                 self._fmu_rows(block, inputs, b.segment_start and lo == 0)
             except FmuError as e:
                 k = getattr(e, "index", 0)
-                self._emit(block[:k], rows)
+                self._emit(block[:k], rows, b.line[centres[:k]])
                 if k < len(centres):
                     e.args = (
                         f"line {int(b.line[centres[k]])} (t = {float(b.t[centres[k]])!r} s): {e}",
                     )
                 raise
-            self._emit(block, rows)
+            self._emit(block, rows, b.line[centres])
             b.done = int(centres[-1]) + 1
             if err is not None:
                 raise err
@@ -877,21 +947,57 @@ class Twin:
         while TWO_PI * (last + 1) <= top:
             last += 1
         if last == self.rev_next:
+            if sum(map(len, self.rev_parts)) > REV_SAMPLES_MAX + 3:
+                self._reduce_revolution()
             return []
         arr = np.concatenate(self.rev_parts)
         series = {name: arr[:, 1 + i] for i, name in enumerate(self.outputs)}
         tab = revolution_table(
-            arr[:, 0], arr[:, self.i_angle], series, speed=series["crank.model_speed"]
+            arr[:, 0],
+            arr[:, self.i_angle],
+            series,
+            speed=series["crank.model_speed"],
+            stop_speed=self.o.stop_speed * TWO_PI / 60.0,
         )
         pick = (tab["revolution"] >= self.rev_next) & (tab["revolution"] < last)
         n = int(np.count_nonzero(pick))
+        samples = tab["samples"][pick]
+        if n and tab["revolution"][pick][0] == self.rev_next:
+            samples[0] += self.rev_dropped
         columns = [tab[key][pick].tolist() if key in tab else [None] * n for key in _SUMMARY_KEYS]
         out = [dict(zip(SUMMARY_FIELDS, values)) for values in zip(*columns)]
-        # Keep the samples from just before the next revolution's start.
-        start = int(np.searchsorted(arr[:, self.i_angle], TWO_PI * last)) - 1
+        for sm, k in zip(out, samples.tolist()):
+            if k > REV_SAMPLES_MAX:
+                # Not every sample was kept: these two need them all (docs/twin.md).
+                sm["friction_work"] = sm["speed_fluctuation"] = None
+        # Keep the samples from just before the next revolution's start (the first sample at
+        # which the angle reaches it: the crank may have turned back before).
+        reached = np.maximum.accumulate(arr[:, self.i_angle])
+        start = int(np.searchsorted(reached, TWO_PI * last)) - 1
         self.rev_parts = [arr[max(0, start) :].copy()]
         self.rev_next = last
+        self.rev_dropped = 0
         return out
+
+    def _reduce_revolution(self) -> None:
+        """Bounds the rows kept for the revolution in progress (REV_SAMPLES_MAX): the rows before
+        it are not needed but the one before its start; of its own rows, the first three, the
+        last two, and those holding each column's largest and smallest value with their
+        neighbours (the summary's extremes, refined by the parabola through them) are kept."""
+        arr = np.concatenate(self.rev_parts)
+        reached = np.maximum.accumulate(arr[:, self.i_angle])
+        c = int(np.searchsorted(reached, TWO_PI * self.rev_next))
+        if c >= len(arr):  # not begun yet: the last samples before it are all it needs
+            self.rev_parts = [arr[-2:].copy()]
+            return
+        arr = arr[max(0, c - 1) :]
+        if len(arr) > REV_SAMPLES_MAX + 3:
+            body = arr[3:-2]
+            ext = np.concatenate((np.argmax(body, axis=0), np.argmin(body, axis=0)))
+            idx = np.unique(np.clip(np.concatenate((ext - 1, ext, ext + 1)), 0, len(body) - 1))
+            self.rev_dropped += len(body) - len(idx)
+            arr = np.concatenate((arr[:3], body[idx], arr[-2:]))
+        self.rev_parts = [arr.copy()]
 
     # ---- checkpoints ---------------------------------------------------------------------------
 
@@ -933,6 +1039,10 @@ class Twin:
             "gaps": self.gaps,
             "rev_rows": rev.tolist(),
             "rev_next": self.rev_next,
+            "rev_dropped": self.rev_dropped,
+            "motion": self.motion,
+            "motion_events": self.motion_events,
+            "motion_count": self.motion_count,
         }
 
     @classmethod
@@ -1003,6 +1113,10 @@ class Twin:
         tw.speed_ignored = int(cp.get("speed_ignored", 0))
         rev = np.array(cp["rev_rows"], dtype=float).reshape(-1, 1 + len(tw.outputs))
         tw.rev_parts, tw.rev_next = ([rev] if len(rev) else []), cp["rev_next"]
+        tw.rev_dropped = int(cp.get("rev_dropped", 0))
+        tw.motion = cp.get("motion")
+        tw.motion_events = [list(e) for e in cp.get("motion_events", [])]
+        tw.motion_count = int(cp.get("motion_count", len(tw.motion_events)))
         if cp["fmu_state"] is not None:
             tw.fmu.start(tw.values)
             tw.fmu.restore(base64.b64decode(cp["fmu_state"], validate=True), float(cp["fmu_time"]))
