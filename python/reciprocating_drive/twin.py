@@ -474,6 +474,7 @@ class Twin:
         self.clock: Clock | None = None
         self.iso_line = None  # the line of the first timestamp
         self.half = None
+        self._slack_tables: dict = {}
         self.buf = _Segment()
         self.last_raw = None  # previous accepted raw angle (rad), unwrapped angle, time
         self.last_unwrapped = None
@@ -865,8 +866,9 @@ class Twin:
             err = None
             # A measured speed is checked against the angle's own rate (docs/twin.md "Measured
             # speed"): a wrong unit or sign would otherwise go straight into the loads.
+            slack = SPEED_SLACK + self._resolution_slack(centres, half)
             with np.errstate(invalid="ignore"):
-                off = np.abs(w_meas - w_est) > self.o.speed_tolerance * np.abs(w_est) + SPEED_SLACK
+                off = np.abs(w_meas - w_est) > self.o.speed_tolerance * np.abs(w_est) + slack
             bad = np.flatnonzero(off)
             if bad.size and self.o.speed_check == "warn":
                 if not self.speed_ignored:
@@ -912,6 +914,37 @@ class Twin:
         if keep_from > 0:
             b.drop(keep_from)
             b.segment_start = False
+
+    def _resolution_slack(self, centres: np.ndarray, half: int) -> np.ndarray:
+        """What the angle's resolution can add to ω̂ at these samples [rad/s] (docs/twin.md
+        "Measured speed"): an encoder's angle is within half a count of the truth, so the local
+        cubic's ω̂ is within (h/2)·Σ|c_j| of the truth's, c_j the weights of ω̂ at the sample's
+        place in its window (uniform spacing window/(2·half); larger near a segment's ends, where
+        the window shifts inward). 0 for angles in rad or deg (no known resolution)."""
+        if self.o.angle_unit != "counts":
+            return np.zeros(len(centres))
+        n = len(self.buf.t)
+        width = min(2 * half + 1, n)
+        # The windows' placement of conditioning.windows (and the native fit's).
+        pos = centres - np.clip(centres - half, 0, n - width)
+        dt = 0.5 * self.o.window / half
+        key = (width, dt)
+        table = self._slack_tables.get(key)
+        if table is None:
+            h = TWO_PI / self.o.counts_per_rev
+            j = np.arange(width, dtype=float)
+
+            def bound(p):
+                x = (j - p) * dt
+                return 0.5 * h * float(np.sum(np.abs(np.linalg.pinv(np.vander(x, 4, True))[1])))
+
+            if width <= 2001:
+                table = np.array([bound(p) for p in range(width)])
+            else:  # a wide window: the edge's bound (the largest) wherever it shifts
+                table = np.full(width, max(bound(0), bound(width - 1)))
+                table[width // 2] = bound(width // 2)
+            self._slack_tables = {key: table}
+        return table[np.clip(pos, 0, width - 1)]
 
     def _fmu_rows(self, rows, inputs, new_segment) -> None:
         """Outputs into rows[:, 1:] for the inputs at the times rows[:, 0]."""
