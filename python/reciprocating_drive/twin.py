@@ -68,7 +68,7 @@ BLOCK = 4096
 #: Samples of one revolution kept whole (docs/twin.md "Machine states"): a longer revolution (a
 #: stop inside it) keeps only the samples that hold its extremes, so a standstill of hours holds
 #: a bounded memory; its friction_work and speed_fluctuation, which need every sample, are empty.
-REV_SAMPLES_MAX = 65536
+REV_SAMPLES_MAX = 32768
 
 #: The machine states (docs/twin.md "Machine states") and the event that enters each.
 MOTION_STATES = {1: "running", 0: "stopped", -1: "reversing"}
@@ -980,7 +980,8 @@ class Twin:
         while TWO_PI * (last + 1) <= top:
             last += 1
         if last == self.rev_next:
-            if sum(map(len, self.rev_parts)) > REV_SAMPLES_MAX + 3:
+            # Once reduced, a revolution is reduced at every chunk: its rows stay few.
+            if self.rev_dropped or sum(map(len, self.rev_parts)) > REV_SAMPLES_MAX + 3:
                 self._reduce_revolution()
             return []
         arr = np.concatenate(self.rev_parts)
@@ -1017,20 +1018,41 @@ class Twin:
         it are not needed but the one before its start; of its own rows, the first three, the
         last two, and those holding each column's largest and smallest value with their
         neighbours (the summary's extremes, refined by the parabola through them) are kept."""
-        arr = np.concatenate(self.rev_parts)
-        reached = np.maximum.accumulate(arr[:, self.i_angle])
-        c = int(np.searchsorted(reached, TWO_PI * self.rev_next))
-        if c >= len(arr):  # not begun yet: the last samples before it are all it needs
-            self.rev_parts = [arr[-2:].copy()]
+        # Part by part, without joining them: a join would double the memory at its peak.
+        parts = self.rev_parts
+        off = np.concatenate(([0], np.cumsum([len(p) for p in parts])))
+        n = int(off[-1])
+        ang = np.concatenate([p[:, self.i_angle] for p in parts])
+        c = int(np.searchsorted(np.maximum.accumulate(ang), TWO_PI * self.rev_next))
+
+        def gather(idx: np.ndarray) -> np.ndarray:
+            """The rows at these (sorted) indices of the parts one after the other."""
+            return np.concatenate(
+                [p[idx[(idx >= lo) & (idx < hi)] - lo] for p, lo, hi in zip(parts, off, off[1:])]
+            )
+
+        if c >= n:  # not begun yet: the last samples before it are all it needs
+            self.rev_parts = [gather(np.arange(n - 2, n))]
             return
-        arr = arr[max(0, c - 1) :]
-        if len(arr) > REV_SAMPLES_MAX + 3:
-            body = arr[3:-2]
-            ext = np.concatenate((np.argmax(body, axis=0), np.argmin(body, axis=0)))
-            idx = np.unique(np.clip(np.concatenate((ext - 1, ext, ext + 1)), 0, len(body) - 1))
-            self.rev_dropped += len(body) - len(idx)
-            arr = np.concatenate((arr[:3], body[idx], arr[-2:]))
-        self.rev_parts = [arr.copy()]
+        start = max(0, c - 1)
+        if n - start <= REV_SAMPLES_MAX + 3 and not self.rev_dropped:
+            self.rev_parts = [
+                p[max(0, start - lo) :] for p, lo in zip(parts, off) if lo + len(p) > start
+            ]
+            return
+        b0, b1 = start + 3, n - 2  # the body: all but the first three and the last two rows
+        best = []  # per part: (max, index of the first max, min, index of the first min)
+        for p, lo in zip(parts, off):
+            a, b = max(b0, lo), min(b1, lo + len(p))
+            if a < b:
+                seg = p[a - lo : b - lo]
+                best.append((seg.max(0), seg.argmax(0) + a, seg.min(0), seg.argmin(0) + a))
+        mx, amx, mn, amn = (np.stack(x) for x in zip(*best))
+        cols = np.arange(mx.shape[1])
+        ext = np.concatenate((amx[np.argmax(mx, 0), cols], amn[np.argmin(mn, 0), cols]))
+        idx = np.unique(np.clip(np.concatenate((ext - 1, ext, ext + 1)), b0, b1 - 1))
+        self.rev_dropped += (b1 - b0) - len(idx)
+        self.rev_parts = [gather(np.concatenate((np.arange(start, b0), idx, np.arange(b1, n))))]
 
     # ---- checkpoints ---------------------------------------------------------------------------
 

@@ -146,10 +146,11 @@ class Pipeline:
                 self.gap_count += 1
             self.last_gap = tuple(gap)
         self.gaps_seen = len(tw.gaps)
-        # The machine's state changes (docs/twin.md "Machine states"): stopped, started, reversed.
+        # The machine's state changes (docs/twin.md "Machine states"), as machine_stopped,
+        # machine_started, machine_reversed (`started` is the run's own start).
         new = tw.motion_count - self.motion_seen
         for ev in tw.motion_events[len(tw.motion_events) - min(new, len(tw.motion_events)) :]:
-            self._event(Event(ev[0], tw.motion_message(ev), t=ev[1]))
+            self._event(Event(f"machine_{ev[0]}", tw.motion_message(ev), t=ev[1]))
         self.motion_seen = tw.motion_count
         for line, n in tw.short_dropped[self.short_seen :]:
             self._event(

@@ -328,7 +328,13 @@ class OpcUaSource:
                 notes.append((by_node[node.nodeid], data.monitored_item.Value))
 
         sub = await client.create_subscription(self.s["publishing_interval"] * 1000, Handler())
-        await sub.subscribe_data_change(list(nodes.values()), queuesize=10000)
+        # Every sample, also one whose value repeats (a pump at standstill, docs/plant.md
+        # "Machine states"): the trigger includes the SourceTimestamp. subscribe_data_change
+        # takes no filter, so its own helper is called with one (the same request otherwise).
+        changed = ua.DataChangeFilter(Trigger=ua.DataChangeTrigger.StatusValueTimestamp)
+        await sub._subscribe(
+            list(nodes.values()), mfilter=changed, queuesize=10000, sampling_interval=50.0
+        )
         if end_node is not None:
             await sub.subscribe_data_change(end_node)
         self.join = _Joiner(self)
