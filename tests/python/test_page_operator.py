@@ -90,7 +90,10 @@ def test_the_demo_raises_and_clears_an_alarm_at_clock_times(tmp_path, page_of): 
         tab.wait_for_selector(
             "#alarms tr[data-name='crank torque high'][data-state='cleared']", timeout=30_000
         )
-        _, err = p.communicate(timeout=60)
+        # Read through the same buffered reader as the first line (communicate with a timeout
+        # would read the pipe beneath it and miss what the reader already holds).
+        p.wait(timeout=60)
+        err = p.stderr.read()
     finally:
         if p.poll() is None:
             p.kill()

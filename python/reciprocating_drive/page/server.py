@@ -189,6 +189,9 @@ class PageServer:
         # made them), so a long window's query never holds up the pushes to the pages.
         self._reader = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="twin-page-db")
         self._history = None
+        #: True for the page that follows a database written by another process (page/follow.py):
+        #: a database it cannot read is then an error, not a run that has not started yet.
+        self.follows = False
 
     # ---- life -----------------------------------------------------------------------------------
     def start(self) -> PageServer:
@@ -567,6 +570,7 @@ class _TrendApi(_Base):
             return
         page = self.page
         source = "memory"
+        data = None
         if page.database:
             try:
                 data = await asyncio.wrap_future(
@@ -574,11 +578,16 @@ class _TrendApi(_Base):
                 )
                 source = "database"
             except (HistoryError, sqlite3.Error) as e:
-                why = str(e) if isinstance(e, HistoryError) else f"{page.database}: {e}"
-                self.set_status(503)
-                self.finish(f"503: {why}\n")
-                return
-        else:
+                if not page.follows:
+                    # The twin serves its page before its sink has made the database or the
+                    # run (a fresh run): what the page got so far, from memory.
+                    source = "memory (no run in the database yet)"
+                else:
+                    why = str(e) if isinstance(e, HistoryError) else f"{page.database}: {e}"
+                    self.set_status(503)
+                    self.finish(f"503: {why}\n")
+                    return
+        if data is None:
             rev = list(page.state.trend)
             if rev:
                 t0 = rev[-1]["t"] - window

@@ -186,6 +186,8 @@ function showHealth(h) {
   else if (h.lag === null) lag = "no sample yet";
   else lag = fmt(h.lag, 3) + " s";
   const run = status + (h.run_message ? ": " + h.run_message : "");
+  const ev = h.last_event;
+  const last = !ev ? "none yet" : ev.message.startsWith(ev.kind) ? ev.message : ev.kind + ": " + ev.message;
   const rows = [
     ["source", conn, "connected", !ended && h.connected === false],
     ["lag (now − sample time)", lag, "lag", false],
@@ -194,7 +196,7 @@ function showHealth(h) {
     ["FMU errors", String(h.fmu_errors), "fmu_errors", h.fmu_errors > 0],
     ["last sample", h.last_sample_time === null ? "none yet" : when(h.last_sample_time), "last_sample", false],
     ["run", run, "run_status", status === "failed"],
-    ["last event", h.last_event ? h.last_event.kind + ": " + h.last_event.message : "none yet", "last_event", false],
+    ["last event", last, "last_event", false],
   ];
   for (const [name, val, key, bad] of rows) {
     const tr = el("tr", { "data-key": key, class: bad ? "bad" : "" });
@@ -322,7 +324,13 @@ function appendTrend(revs) {
 async function loadTrend() {
   const w = document.getElementById("window").value;
   const r = await fetch("/api/trend?window=" + encodeURIComponent(w), { credentials: "same-origin" });
-  if (!r.ok) { document.getElementById("trend-source").textContent = await r.text(); return; }
+  if (!r.ok) {
+    // A database the twin has not yet written its run into (the page starts first): the reason
+    // is shown and the trends are asked for again.
+    document.getElementById("trend-source").textContent = await r.text();
+    if (!S.trend && !S.retry) S.retry = setTimeout(() => { S.retry = null; loadTrend(); }, 1000);
+    return;
+  }
   S.trend = await r.json();
   document.getElementById("trend-source").textContent = "from the " + S.trend.source;
   buildTrends();
