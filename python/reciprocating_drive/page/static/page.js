@@ -187,7 +187,7 @@ function showHealth(h) {
   else lag = fmt(h.lag, 3) + " s";
   const run = status + (h.run_message ? ": " + h.run_message : "");
   const ev = h.last_event;
-  const last = !ev ? "none yet" : ev.message.startsWith(ev.kind) ? ev.message : ev.kind + ": " + ev.message;
+  const last = !ev ? "none yet" : ev.message.startsWith(ev.kind + ":") ? ev.message : ev.kind + ": " + ev.message;
   const rows = [
     ["source", conn, "connected", !ended && h.connected === false],
     ["lag (now − sample time)", lag, "lag", false],
