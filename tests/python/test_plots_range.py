@@ -10,7 +10,6 @@ import pytest
 
 matplotlib.use("Agg")
 import matplotlib.figure  # noqa: E402
-from reciprocating_drive.plots import y_range  # noqa: E402
 
 
 @pytest.fixture
@@ -32,6 +31,8 @@ def drawn(monkeypatch):
 
 
 def test_y_range_rule_by_hand():
+    from reciprocating_drive.plots import y_range
+
     # Spread far below 2 %: centred, 2 % of 0.4 m wide, plus 5 % each side.
     lo, hi = y_range([0.399996, 0.4, 0.399998])
     mid, span = 0.399998, 0.02 * 0.4
