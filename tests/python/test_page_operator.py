@@ -267,3 +267,15 @@ def test_the_clock_of_a_live_source_reaches_the_page_when_it_is_known(server, pa
     lag = float(cell(tab, "lag").split()[0])
     assert 0.0 < lag < 2.0, lag
     assert tab.errors == []
+
+
+def test_a_followed_run_knows_its_rod_from_its_machine():
+    """`python -m reciprocating_drive.page --database` has no twin: it tells the rod from the
+    runs table's machine. The default machine takes the FMU's start value rod.kind = 0 (rigid,
+    modelDescription/modelDescription.xml); kvo630's preset sets rod.kind = 2 (a helical spring,
+    resources/presets/kvo630.ssv); an unknown machine is not known (both values shown)."""
+    from reciprocating_drive.page.follow import elastic_of
+
+    assert elastic_of("default") is False
+    assert elastic_of("kvo630") is True
+    assert elastic_of("no-such-machine") is None
