@@ -107,7 +107,8 @@ def plot_mission(m: Mission, path: str | pathlib.Path, dpi: int = 100) -> None:
         k, unit = _scale(d[name][sl], unit)
         ax.plot(deg, d[name][sl] * k, lw=1.2)
         ax.axhline(0.0, color="k", lw=0.5)
-        span_axis(ax, d[name][sl] * k)
+        # The zero line stays in view, as matplotlib's own range kept it.
+        span_axis(ax, np.append(d[name][sl] * k, 0.0))
         ax.set_ylabel(f"{label}\n[{unit}]")
         ax.grid(True, alpha=0.4)
         axes.append(ax)
