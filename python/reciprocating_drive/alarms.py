@@ -265,8 +265,9 @@ def _parse_item(kind, keys, t, where):
 
 @dataclass
 class AlarmChange:
-    """An alarm raised or cleared at a revolution. `t` is the revolution's start_time (the twin's
-    time, s); `value` the value (for a trend: the recent mean) and `limit` the threshold crossed."""
+    """An alarm raised or cleared at a revolution. `t` is when its condition was met: the end of
+    that revolution, its start_time + 2π/mean_speed (the twin's time, s); `value` the value (for
+    a trend: the recent mean) and `limit` the threshold crossed."""
 
     state: str  # "raised" | "cleared"
     name: str
@@ -385,6 +386,13 @@ class AlarmEngine:
         rev = summary.get("revolution")
         t = summary.get("start_time")
         t = float(t) if t is not None else None
+        # The condition is met when the revolution is complete: at its end, start + 2π/mean
+        # speed (revolution.py: mean_speed = 2π/duration), the time of its last sample. The
+        # trend windows keep the revolutions' start times.
+        t_met = t
+        w = _f(summary, "mean_speed")
+        if t is not None and math.isfinite(w) and w > 0:
+            t_met = t + 2.0 * math.pi / w
         out: list[AlarmChange] = []
         for x in self.limits.limits:
             v = vals.get(x.value, math.nan)
@@ -401,7 +409,7 @@ class AlarmEngine:
                     beyond, back = v < lim, v > lim + x.hysteresis
                 word = "above" if side == "high" else "below"
                 out += self._transition(
-                    key, x, rev, t, v, lim, beyond, back,
+                    key, x, rev, t_met, v, lim, beyond, back,
                     f"{x.value} = {v:.6g} {UNITS[x.value]} {word} its {side} limit {lim:.6g}",
                     f"{x.value} = {v:.6g} {UNITS[x.value]} back within its {side} limit "
                     f"{lim:.6g} (hysteresis {x.hysteresis:g})",
@@ -410,10 +418,10 @@ class AlarmEngine:
             v = vals.get(tr.value, math.nan)
             if t is None or not math.isfinite(v):
                 continue
-            out += self._trend(tr, rev, t, v)
+            out += self._trend(tr, rev, t, v, t_met)
         return out
 
-    def _trend(self, tr: Trend, rev, t, v) -> list[AlarmChange]:
+    def _trend(self, tr: Trend, rev, t, v, t_met) -> list[AlarmChange]:
         recent, ref = self._recent[tr.name], self._reference[tr.name]
         recent.push((t, v))
         # Revolutions leave the recent window into the reference window, then drop out of it.
@@ -434,7 +442,7 @@ class AlarmEngine:
         lim = m_ref * (1 + (tr.rise if change > 0 and tr.rise is not None else -(tr.fall or 0)))
         span = f"over the last {_dur(tr.recent)} against the {_dur(tr.reference)} before"
         return self._transition(
-            tr.name, tr, rev, t, m_recent, lim, beyond, back,
+            tr.name, tr, rev, t_met, m_recent, lim, beyond, back,
             f"{tr.value} mean {m_recent:.6g} {UNITS[tr.value]} {span}: {change:+.1%} "
             f"(mean {m_ref:.6g})",
             f"{tr.value} mean {m_recent:.6g} {UNITS[tr.value]} {span}: {change:+.1%}, "

@@ -29,6 +29,42 @@ ROD_PANELS = [
 ]
 #: Steady revolutions drawn against the crank angle.
 PLOT_REVOLUTIONS = 2
+#: The y-range rule of every plot and of the live page's trends (docs/twin.md "Output",
+#: docs/page.md "Trends"): a span of at least MIN_SPAN times the largest magnitude drawn, limits
+#: within NEAR times the value's size of the data included.
+MIN_SPAN, NEAR = 0.02, 0.5
+
+
+def y_range(values, limits=()) -> tuple[float, float]:
+    """The y-range of `values` (and of each limit near them): the data's range, widened to at
+    least MIN_SPAN times the largest magnitude among them and padded by 5 % each side, so that
+    rounding noise of a steady value (a 4 µm change of a 0.4 m stroke, the sixth digit of a
+    friction work) is drawn as the flat line it is. The page's page.js `yRange` is the same."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    lims = [float(x) for x in limits if x is not None and np.isfinite(x)]
+    if len(v) == 0:
+        if not lims:
+            return 0.0, 1.0
+        v = np.asarray(lims)
+    lo, hi = float(np.min(v)), float(np.max(v))
+    size = max(abs(lo), abs(hi))
+    shown = [x for x in lims if abs(x - min(max(x, lo), hi)) <= NEAR * size]
+    for x in shown:
+        lo, hi = min(lo, x), max(hi, x)
+    span = MIN_SPAN * max([size, *map(abs, shown)]) or 1.0
+    if hi - lo < span:
+        mid = 0.5 * (lo + hi)
+        lo, hi = mid - 0.5 * span, mid + 0.5 * span
+    pad = 0.05 * (hi - lo)
+    return lo - pad, hi + pad
+
+
+def span_axis(ax, values, limits=()) -> None:
+    """The y-range rule on a matplotlib axis, without offset notation (which would show rounding
+    noise as variation)."""
+    ax.ticklabel_format(axis="y", useOffset=False, style="plain")
+    ax.set_ylim(*y_range(values, limits))
 
 
 def _scale(y: np.ndarray, unit: str) -> tuple[float, str]:
@@ -56,6 +92,7 @@ def plot_mission(m: Mission, path: str | pathlib.Path, dpi: int = 100) -> None:
     if m.elastic:
         ax = fig.add_subplot(gs[0, 0])
         ax.plot(d["time"], d["rod.angle"], lw=0.6, color="C3")
+        span_axis(ax, d["rod.angle"])
         t_steady = m.revolutions[m.transient_revolutions].start_time
         ax.axvspan(d["time"][0], t_steady, color="0.9")
         ax.set_xlabel(
@@ -70,6 +107,8 @@ def plot_mission(m: Mission, path: str | pathlib.Path, dpi: int = 100) -> None:
         k, unit = _scale(d[name][sl], unit)
         ax.plot(deg, d[name][sl] * k, lw=1.2)
         ax.axhline(0.0, color="k", lw=0.5)
+        # The zero line stays in view, as matplotlib's own range kept it.
+        span_axis(ax, np.append(d[name][sl] * k, 0.0))
         ax.set_ylabel(f"{label}\n[{unit}]")
         ax.grid(True, alpha=0.4)
         axes.append(ax)
@@ -90,6 +129,7 @@ def plot_mission(m: Mission, path: str | pathlib.Path, dpi: int = 100) -> None:
         ax = fig.add_subplot(gs[:, 1])
         k, unit = _scale(d["rod.force"][sl], "N")
         ax.plot(d["suspension.position"][sl], d["rod.force"][sl] * k, lw=1.2, color="C2")
+        span_axis(ax, d["rod.force"][sl] * k)
         ax.set_xlabel("polished-rod position s [m]")
         ax.set_ylabel(f"rod force P [{unit}] (compression positive)")
         ax.set_title("card: rod force against position")

@@ -15,6 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from .plots import MIN_SPAN, y_range  # noqa: E402
 from .study import Study  # noqa: E402
 
 #: SI unit -> (display unit, factor) for parameters (docs/fmi-interface.md "Units").
@@ -35,18 +36,18 @@ SPEEDS = {"strokes_per_minute": ("strokes/min", 1.0), "crank.speed": ("rad/s", 1
 METRIC_AXES = {
     "friction_work": ("friction work per revolution", "J", 1.0),
     "torque_peak": ("largest |crank torque|", "N·m", 1.0),
-    "torque_max": ("largest crank torque", "N·m", 1.0),
-    "torque_min": ("smallest crank torque", "N·m", 1.0),
-    "acceleration_max": ("largest acceleration", "m/s²", 1.0),
-    "acceleration_max_angle": ("crank angle of the largest acceleration", "deg", 1.0),
-    "acceleration_min": ("smallest acceleration", "m/s²", 1.0),
-    "inertia_force_max": ("largest inertia force", "kN", 1e-3),
-    "inertia_force_min": ("smallest inertia force", "kN", 1e-3),
-    "guide_friction_max": ("largest guide friction", "N", 1.0),
-    "guide_friction_min": ("smallest guide friction", "N", 1.0),
-    "rod_force_max": ("largest rod force", "kN", 1e-3),
-    "rod_force_max_angle": ("crank angle of the largest rod force", "deg", 1.0),
-    "rod_force_min": ("smallest rod force", "kN", 1e-3),
+    "torque_max": ("maximum crank torque", "N·m", 1.0),
+    "torque_min": ("minimum crank torque", "N·m", 1.0),
+    "acceleration_max": ("maximum acceleration", "m/s²", 1.0),
+    "acceleration_max_angle": ("crank angle of the maximum acceleration", "deg", 1.0),
+    "acceleration_min": ("minimum acceleration", "m/s²", 1.0),
+    "inertia_force_max": ("maximum inertia force", "kN", 1e-3),
+    "inertia_force_min": ("minimum inertia force", "kN", 1e-3),
+    "guide_friction_max": ("maximum guide friction", "N", 1.0),
+    "guide_friction_min": ("minimum guide friction", "N", 1.0),
+    "rod_force_max": ("maximum rod force", "kN", 1e-3),
+    "rod_force_max_angle": ("crank angle of the maximum rod force", "deg", 1.0),
+    "rod_force_min": ("minimum rod force", "kN", 1e-3),
     "rod_angle_amplitude": ("largest cage angle |ϑ|", "mrad", 1e3),
     "stress_max": ("largest rod stress", "MPa", 1e-6),
 }
@@ -179,7 +180,10 @@ def plain_axis(ax, values, axis: str = "y", rel: float = 1e-9) -> None:
         return
     lo, hi = float(v.min()), float(v.max())
     size = max(abs(lo), abs(hi))
-    if hi - lo <= rel * size or hi == lo:
+    if axis == "y" and hi - lo < MIN_SPAN * size:
+        # The y-range rule of every plot (plots.y_range): at least 2 % of the value's size.
+        ax.set_ylim(*y_range(v))
+    elif hi - lo <= rel * size or hi == lo:
         mid = 0.5 * (lo + hi)
         half = 0.05 * abs(mid) if mid != 0 else 1.0
         (ax.set_ylim if axis == "y" else ax.set_xlim)(mid - half, mid + half)

@@ -1,7 +1,7 @@
 """Plots of a twin run (docs/twin.md "Output"): time series, the card (rod force against position)
 and the per-revolution trends. Lines break where the data do: at a gap between samples and at a
-missing revolution. A constant signal is drawn as a constant, on an axis without matplotlib's
-offset notation (which would show rounding noise as variation)."""
+missing revolution. Every y-range spans at least 2 % of the value's size (plots.y_range), on an axis
+without matplotlib's offset notation: rounding noise is drawn as the flat line it is."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from .plots import span_axis  # noqa: E402
 from .twin import column_name  # noqa: E402
 
 
@@ -36,18 +37,9 @@ def broken(x: np.ndarray, y: np.ndarray, breaks: np.ndarray) -> tuple[np.ndarray
 
 
 def steady_axis(a, y: np.ndarray) -> None:
-    """No offset notation; a signal whose spread is rounding (below 1e-9 of its size) gets an
-    axis centred on its value, so it is drawn as the constant it is."""
-    a.ticklabel_format(axis="y", useOffset=False, style="plain")
-    v = y[np.isfinite(y)]
-    if len(v) == 0:
-        return
-    lo, hi = float(np.min(v)), float(np.max(v))
-    size = max(abs(lo), abs(hi))
-    if hi - lo <= 1e-9 * size or hi == lo:
-        half = 0.1 * size if size > 0 else 1.0
-        mid = 0.5 * (lo + hi)
-        a.set_ylim(mid - half, mid + half)
+    """No offset notation, and the y-range rule of every plot (plots.y_range): a span of at
+    least 2 % of the value's size, so that a steady signal's rounding is drawn flat."""
+    span_axis(a, y)
 
 
 def _stacked(x, data, panels, xlabel, title, path, breaks, style="-", size=(10, 12)):
@@ -126,7 +118,7 @@ def plot_twin(
             ("mean_speed", "mean speed [rad/s]"),
             ("speed_fluctuation", "speed fluctuation [-]"),
             ("stroke", "stroke [m]"),
-            ("crank_torque_max", "largest crank torque [N·m]"),
+            ("crank_torque_max", "maximum crank torque [N·m]"),
             ("friction_work", "friction work [J]"),
         ],
         "revolution",

@@ -33,7 +33,7 @@ def test_example_limits_file_loads():
     lim = load_limits(ROOT / "examples" / "twin" / "limits.toml")
     assert [x.name for x in lim.limits][0] == "crank torque high"
     assert lim.trends[0].recent == 3600.0 and lim.trends[0].rise == 0.15
-    assert lim.for_value("strokes_per_minute") == {"high": 75.0, "low": 55.0}
+    assert lim.for_value("strokes_per_minute") == {"high": 70.0, "low": 60.0}
 
 
 def test_high_limit_with_hysteresis_and_delay_raises_and_clears_once():

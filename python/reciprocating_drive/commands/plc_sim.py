@@ -24,6 +24,9 @@ from .. import artifacts
 from . import prefix
 
 FAULTS = ("bad_status", "nan", "wrong_type")
+#: Seconds the server stays up after "finished playing" unless --linger says otherwise: enough
+#: for a subscriber's last notification (Pump.Finished among them), then it exits.
+LINGER = 2.0
 
 
 def fault(text: str):
@@ -84,7 +87,13 @@ def main(argv=None, prog: str | None = None) -> int:
         "--start-delay", type=float, default=0.0, help="seconds from listening to the first sample"
     )
     ap.add_argument(
-        "--linger", type=float, default=math.inf, help="seconds to stay up after the end"
+        "--linger",
+        type=float,
+        nargs="?",
+        const=math.inf,
+        default=LINGER,
+        help=f"seconds to stay up after the end (default {LINGER:g}: subscribers get the last "
+        "values, then it exits); --linger alone: until stopped",
     )
     ap.add_argument(
         "--stop-cycle",

@@ -43,11 +43,20 @@ def main(argv=None, prog: str | None = None) -> int:
         default=str(artifacts.results_dir() / "twin" / "demo.sqlite"),
         help="with --demo: the database",
     )
+    ap.add_argument(
+        "--force-step",
+        type=float,
+        default=None,
+        help="with --demo: the process force [N] the PLC adds from 3 s to 8 s of the sample, "
+        "which raises and clears the example's torque and rod force alarms (default 2000; 0: "
+        "the sample as shipped)",
+    )
     a = ap.parse_args(argv)
     if a.demo:
-        from ..plant.demo import demo
+        from ..plant.demo import FORCE_STEP, demo
 
-        return demo(a.db, a.seconds, a.page_port)
+        step = FORCE_STEP if a.force_step is None else a.force_step
+        return demo(a.db, a.seconds, a.page_port, force_step=step)
     from ..plant.pipeline import run_config
 
     return run_config(a.config)

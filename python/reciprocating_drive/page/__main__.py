@@ -71,6 +71,7 @@ def main(argv=None) -> int:
         page = PageServer(
             a.host, a.port, token, a.database, a.run, limits, a.title, on_alarm=log_alarm
         )
+        page.follows = True
         warmup = max((t.recent + t.reference for t in limits.trends), default=0.0) if limits else 0
         follower = Follower(a.database, page, a.run, warmup)
         page.start()

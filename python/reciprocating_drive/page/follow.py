@@ -18,6 +18,27 @@ import numpy as np
 from ..twin import SUMMARY_FIELDS
 from .history import HistoryError
 
+
+def elastic_of(machine: str) -> bool | None:
+    """Whether the run's machine (a preset name or an .ssv file, the runs table's `machine`) has
+    an elastic rod (rod.kind != 0); its preset leaving rod.kind out means the FMU's own start
+    value, read from the model description. None when it cannot be told (the page then shows
+    what an elastic rod has too)."""
+    from ..presets import preset_values
+    from ..study import MODEL_DESCRIPTION
+
+    try:
+        kind = preset_values(machine).get("rod.kind")
+        if kind is None:
+            from fmpy import read_model_description
+
+            md = read_model_description(str(MODEL_DESCRIPTION))
+            kind = next(v.start for v in md.modelVariables if v.name == "rod.kind")
+        return int(float(kind)) != 0
+    except Exception:  # noqa: BLE001 - an unknown machine or no model description: not known
+        return None
+
+
 #: The samples-table columns of the card (the plant schema's column names of the FMU outputs).
 CARD_COLUMNS = ("crank_model_angle", "suspension_position", "rod_force")
 
@@ -39,6 +60,7 @@ class Follower:
         self.cards = False
         self.origin = None
         self.status = None
+        self.elastic = None
 
     def _find_run(self) -> bool:
         q = self.db.execute
@@ -51,9 +73,16 @@ class Follower:
         if row is None:
             return False
         self.run, self.run_name, self.origin = row
+        try:
+            (machine,) = q("SELECT machine FROM runs WHERE run = ?", (self.run,)).fetchone()
+            self.elastic = elastic_of(machine)
+        except sqlite3.Error:  # a database of an older schema without the column
+            self.elastic = None
         cols = {r[1] for r in q("PRAGMA table_info(samples)")}
         self.cards = all(c in cols for c in CARD_COLUMNS)
-        self.page.open(["crank.model_angle", "suspension.position", "rod.force"], self.origin)
+        self.page.open(
+            ["crank.model_angle", "suspension.position", "rod.force"], self.origin, self.elastic
+        )
         last = q("SELECT MAX(start_time) FROM revolutions WHERE run = ?", (self.run,)).fetchone()[0]
         if last is None:
             self.next_rev, self.next_seq = 0, 0
@@ -88,7 +117,9 @@ class Follower:
             (origin,) = q("SELECT time_origin FROM runs WHERE run = ?", (self.run,)).fetchone()
             if origin is not None:
                 self.origin = origin
-                self.page.open(["crank.model_angle", "suspension.position", "rod.force"], origin)
+                self.page.open(
+                    ["crank.model_angle", "suspension.position", "rod.force"], origin, self.elastic
+                )
         rows = None
         if self.cards:
             got = q(

@@ -63,9 +63,17 @@ LABELS = {
     "crank_torque_peak": "peak crank torque",
     "rod_force_largest": "largest rod force",
     "friction_work": "friction work",
-    "rod_angle_amplitude": "rod angle amplitude (ϑ of an elastic rod)",
-    "stress_max": "largest rod stress (elastic rod)",
+    "rod_angle_amplitude": "rod angle amplitude ϑ (elastic rod)",
+    "stress_max": "largest rod stress",
 }
+#: A rigid rod (rod.kind 0) has no stress of its own and no cage angle: its ϑ is the crank-slider's
+#: swing of the rod, named as such, and the stress (0) is not shown (docs/page.md, "What the page
+#: shows").
+RIGID_LABELS = {**LABELS, "rod_angle_amplitude": "rod swing amplitude (rigid rod)"}
+RIGID_HIDDEN = ("stress_max",)
+#: Units as an operator reads them: the speed fluctuation, a ratio, in percent (the page scales
+#: it; `data-value` and the trend data stay the summary's SI number).
+SHOWN_UNITS = {**UNITS, "speed_fluctuation": "%"}
 CARDS = 6  # revolutions kept for the card: the last over the previous ones
 CARD_POINTS = 720  # points of one card at most (decimated)
 MEMORY = 200_000  # revolutions kept for the trends when there is no database
@@ -102,17 +110,27 @@ class _State:
             "last_sample_time": None,
             "last_event": None,
             "run_status": None,
+            "run_message": None,
+            "ended": False,
         }
         self.time_origin = None
         self.revolutions = 0
+        self.elastic = None  # None: the rod is not known (a followed database), both are shown
+
+    def shown(self) -> tuple:
+        return tuple(k for k in SHOWN if not (self.elastic is False and k in RIGID_HIDDEN))
 
     def snapshot(self) -> dict:
         lim = {
             k: (self.limits.for_value(k) if self.limits else {"high": None, "low": None})
             for k in SHOWN
         }
+        labels = RIGID_LABELS if self.elastic is False else LABELS
         return {
-            "values": [{"key": k, "label": LABELS[k], "unit": UNITS[k]} for k in SHOWN],
+            "values": [
+                {"key": k, "label": labels[k], "unit": SHOWN_UNITS[k]} for k in self.shown()
+            ],
+            "elastic": self.elastic,
             "limits": lim,
             "last": self.last,
             "cards": list(self.cards),
@@ -171,6 +189,9 @@ class PageServer:
         # made them), so a long window's query never holds up the pushes to the pages.
         self._reader = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="twin-page-db")
         self._history = None
+        #: True for the page that follows a database written by another process (page/follow.py):
+        #: a database it cannot read is then an error, not a run that has not started yet.
+        self.follows = False
 
     # ---- life -----------------------------------------------------------------------------------
     def start(self) -> PageServer:
@@ -217,19 +238,36 @@ class PageServer:
             return
 
         def stop():
+            # What is still queued (the run's end, its last revolutions) reaches the pages
+            # before they are told that the server stops: they then stop listening instead of
+            # trying to reconnect.
+            self._flush()
+            bye = json.dumps({"closed": True})
             for q in list(self._clients):
+                q.put_nowait(bye)
                 q.put_nowait(None)
             self._loop.call_later(0.05, self._loop.stop)
 
         self._loop.add_callback(stop)
         self._thread.join(timeout)
         self._loop = None
+        # The trends' read-only connection is closed on the thread that made it: an open reader
+        # would keep the twin's database from being checkpointed when its sink closes.
+        if self._history is not None:
+            try:
+                self._reader.submit(self._history.close).result(timeout)
+            except Exception:  # noqa: BLE001 - a database already gone: nothing left to close
+                pass
+            self._history = None
         self._reader.shutdown(wait=False, cancel_futures=True)
 
     # ---- the sink side (any thread) -------------------------------------------------------------
-    def open(self, outputs, time_origin: float | None = None) -> None:
-        """The FMU's outputs (the columns after time of the rows handed to `add`) and the Unix
-        time of the twin's time 0 (None when the source has no clock: file replay)."""
+    def open(self, outputs, time_origin: float | None = None, elastic: bool | None = None) -> None:
+        """The FMU's outputs (the columns after time of the rows handed to `add`), the Unix
+        time of the twin's time 0 (None when the source has no clock: file replay; a live source
+        whose clock is known only from its first sample hands it later to `clock`), and whether
+        the rod is elastic (rod.kind != 0; False hides what a rigid rod does not have, None: not
+        known)."""
         self._outputs = list(outputs)
         self._cols = tuple(
             1 + self._outputs.index(n)
@@ -237,6 +275,21 @@ class PageServer:
         )
         with self._lock:
             self._pending.append(("origin", time_origin))
+            self._pending.append(("elastic", elastic))
+            self._pending.append(("health", {"run_status": "running"}))
+
+    def clock(self, time_origin: float | None) -> None:
+        """The Unix time of the twin's time 0, once the source knows it (an OPC UA source: from
+        its first sample's timestamp): the page switches to clock times."""
+        with self._lock:
+            self._pending.append(("origin", time_origin))
+
+    def end(self, status: str, message: str | None = None) -> None:
+        """The run is over (`status`: finished, failed, stopped): the page says so, with the
+        failure's message, and the source is no longer watched."""
+        end = {"run_status": status, "run_message": message, "connected": None, "ended": True}
+        with self._lock:
+            self._pending.append(("health", end))
 
     def add(self, rows, first_seq=0, summaries=(), first_rev=0, events=()) -> None:
         """What the twin produced: rows (time, outputs), revolution summaries and data-health
@@ -315,7 +368,7 @@ class PageServer:
                 entry = {
                     "revolution": s.get("revolution"),
                     "t": _clean(s.get("start_time")),
-                    **{k: _clean(v.get(k)) for k in SHOWN},
+                    **{k: _clean(v.get(k)) for k in st.shown()},
                 }
                 st.last = entry
                 st.trend.append(entry)
@@ -372,7 +425,17 @@ class PageServer:
                 st.health.update({k: v for k, v in it[1].items() if k in st.health})
                 push["health"] = st.health
             elif kind == "origin":
-                st.time_origin = it[1]
+                if it[1] != st.time_origin:
+                    st.time_origin = it[1]
+                    if st.health["last_sample_time"] is not None and it[1] is not None:
+                        st.health["lag"] = time.time() - (it[1] + st.health["last_sample_time"])
+                    push["origin"] = it[1]
+                    push["health"] = st.health
+            elif kind == "elastic":
+                if it[1] != st.elastic:
+                    # The rod known (the twin made): the values it has, under their names.
+                    st.elastic = it[1]
+                    push["values"] = st.snapshot()["values"]
         if not push["alarms"]:
             del push["alarms"]
         msg = json.dumps(push, allow_nan=False)
@@ -507,6 +570,7 @@ class _TrendApi(_Base):
             return
         page = self.page
         source = "memory"
+        data = None
         if page.database:
             try:
                 data = await asyncio.wrap_future(
@@ -514,16 +578,21 @@ class _TrendApi(_Base):
                 )
                 source = "database"
             except (HistoryError, sqlite3.Error) as e:
-                why = str(e) if isinstance(e, HistoryError) else f"{page.database}: {e}"
-                self.set_status(503)
-                self.finish(f"503: {why}\n")
-                return
-        else:
+                if not page.follows:
+                    # The twin serves its page before its sink has made the database or the
+                    # run (a fresh run): what the page got so far, from memory.
+                    source = "memory (no run in the database yet)"
+                else:
+                    why = str(e) if isinstance(e, HistoryError) else f"{page.database}: {e}"
+                    self.set_status(503)
+                    self.finish(f"503: {why}\n")
+                    return
+        if data is None:
             rev = list(page.state.trend)
             if rev:
                 t0 = rev[-1]["t"] - window
                 rev = [r for r in rev if r["t"] is not None and r["t"] >= t0]
-            data = {"t": [r["t"] for r in rev], **{k: [r[k] for r in rev] for k in SHOWN}}
+            data = {"t": [r["t"] for r in rev], **{k: [r.get(k) for r in rev] for k in SHOWN}}
         data = {k: [_clean(v) for v in vals] for k, vals in data.items()}
         self.set_header("Content-Type", "application/json")
         self.finish(json.dumps({"source": source, "window": window, **data}, allow_nan=False))

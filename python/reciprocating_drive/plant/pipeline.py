@@ -105,6 +105,7 @@ class Pipeline:
         self.stop_signal = None
         self.commits = 0
         self.page = None
+        self.page_origin = None
 
     def _on_alarm(self, change) -> None:
         """An alarm raised or cleared (alarms.py): the log, and an event every sink stores."""
@@ -123,6 +124,10 @@ class Pipeline:
         for s in self.sinks:
             s.add(rows, first, summaries, self.c.revolutions, events)
         if self.page is not None:
+            origin = self.source_origin()
+            if origin != self.page_origin:  # a live source's clock, known from its first sample
+                self.page_origin = origin
+                self.page.clock(origin)
             self.page.add(rows, first, summaries, self.c.revolutions, events)
         self.c.samples = self.twin.rows_out
         self.c.revolutions += len(summaries)
@@ -221,7 +226,11 @@ class Pipeline:
                     self.page = None
                     raise ConfigError(str(e)) from None
                 self.log(f"page: http://{self.page.host}:{self.page.port}/")
-            return self._run()
+            try:
+                return self._run()
+            except Exception as e:  # a source or sink that failed: the page says so too
+                self._page_end("failed", str(e) or type(e).__name__)
+                raise
         finally:
             if self.page is not None:
                 self.page.close()
@@ -283,7 +292,9 @@ class Pipeline:
         if self.page is not None:
             if state is not None and "alarms" in state and self.page.engine is not None:
                 self.page.engine.restore(state["alarms"])
-            self.page.open(twin.outputs, self.source_origin())
+            self.page_origin = self.source_origin()
+            kind = twin.values.get("rod.kind", twin.fmu.variables["rod.kind"].start)
+            self.page.open(twin.outputs, self.page_origin, elastic=int(float(kind)) != 0)
         self._event(
             Event(
                 "resumed" if resumed else "started",
@@ -355,6 +366,7 @@ class Pipeline:
                 self.log(
                     f"stopped by {self.stop_signal} after input line {lineno}; committed. {hint}"
                 )
+                self._page_end("stopped", f"by {self.stop_signal}")
                 # Not 0: the run did not reach the end of its input (128 + the signal, as a shell).
                 return 128 + int(signal.Signals[self.stop_signal])
             try:
@@ -366,9 +378,11 @@ class Pipeline:
                 self._event(Event("data_error", "the input holds no sample"))
                 self._commit("failed")
                 self.log(f"{self._source_name()}: the input holds no sample")
+                self._page_end("failed", "the input holds no sample")
                 return 1
             self._event(Event("finished", f"finished: {twin.rows_out} samples"))
             self._commit("finished")
+            self._page_end("finished", f"{twin.rows_out} samples, {self.c.revolutions} revolutions")
         finally:
             for sig, h in old.items():
                 signal.signal(sig, h)
@@ -389,7 +403,12 @@ class Pipeline:
         self._event(Event(kind, str(e)))
         self._commit("failed")
         self.log(f"{self._source_name()}: {e}")
+        self._page_end("failed", str(e))
         return 1
+
+    def _page_end(self, status: str, message: str) -> None:
+        if self.page is not None:
+            self.page.end(status, message)
 
     def _source_name(self) -> str:
         src = self.cfg.source.public()

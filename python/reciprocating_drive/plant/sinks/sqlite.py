@@ -176,5 +176,12 @@ class SqliteSink(Sink):
 
     def close(self) -> None:
         if self.db is not None:
+            # Everything into the database file itself, the WAL file emptied: SQLite does so on
+            # closing only when no other connection is open (a page reading the trends may be),
+            # so the .sqlite alone then holds every committed row.
+            try:
+                self.db.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+            except sqlite3.Error:
+                pass  # busy or gone: the WAL stays, as valid, and the next opening replays it
             self.db.close()
             self.db = None
