@@ -57,3 +57,39 @@ def test_plant_through_three_stop_start_cycles_over_opcua(fmu_path, tmp_path):
         t_start = float(ev[2 * c + 1][3].split("t = ")[1].split(" s")[0])
         assert t_stop == pytest.approx(c * period + 8 - stop, abs=0.05)
         assert t_start == pytest.approx(c * period + 14 + stop, abs=0.05)
+
+
+def test_the_page_shows_the_machine_state(fmu_path, tmp_path):
+    """The page following the plant's database: the machine's state and since when, from its
+    events (stopped at 7.97 s, running again from 14.03 s, docs/plant.md "Machine states"); with a
+    stop/start cycle cut in its standstill, 'stopped since'."""
+    import time
+
+    from reciprocating_drive.page.follow import Follower
+    from reciprocating_drive.page.server import PageServer
+
+    data = stop_cycle.write(tmp_path / "cycles.csv", 1)
+    lines = data.read_text().splitlines()
+    cut = tmp_path / "cut.csv"
+    cut.write_text("\n".join(lines[:11002]) + "\n")  # to t = 11 s: at rest since 7.97 s
+    stop = 2 * (2 * math.pi / 60) / OMEGA0
+    for path, state, since in ((data, "running", 14 + stop), (cut, "stopped", 8 - stop)):
+        db = tmp_path / f"{path.stem}.sqlite"
+        cfg = pu.write_config(
+            tmp_path / f"{path.stem}.toml",
+            run=path.stem,
+            source=pu.csv_source(path),
+            sinks=pu.sqlite_sink(db),
+            fmu=fmu_path,
+        )
+        assert pu.run(cfg).returncode == 0
+        page = PageServer(port=0, database=str(db)).start()
+        try:
+            follower = Follower(str(db), page, warmup=1e9)
+            follower.poll()
+            time.sleep(0.4)
+            m = page.state.snapshot()["health"]["machine"]
+            assert m["state"] == state and m["since"] == pytest.approx(since, abs=0.05), m
+            follower.close()
+        finally:
+            page.close()
