@@ -93,3 +93,31 @@ def test_the_page_shows_the_machine_state(fmu_path, tmp_path):
             follower.close()
         finally:
             page.close()
+
+
+@pytest.mark.parametrize(
+    "script,args,words",
+    [
+        ("plc_sim.py", ["--stop-cycle", "0"], ["--stop-cycle 0", "whole number >= 1"]),
+        (
+            "twin_plant.py",
+            ["--config", "x.toml", "--stop-cycle", "2"],
+            ["--stop-cycle 2", "--demo"],
+        ),
+    ],
+)
+def test_a_bad_stop_cycle_option_is_one_line(script, args, words):
+    import subprocess
+    import sys
+
+    p = subprocess.run(
+        [sys.executable, str(pu.ROOT / "scripts" / script), *args],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=pu.env(),
+    )
+    assert p.returncode == 2, p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1 and "Traceback" not in p.stderr
+    for w in words:
+        assert w in p.stderr, p.stderr

@@ -30,11 +30,14 @@ def samples(cycles: int) -> tuple[np.ndarray, np.ndarray]:
     return t, (counts % COUNTS).astype(np.int64)
 
 
-def write(path, cycles: int) -> pathlib.Path:
-    """The cycles as a CSV file the PLC plays (time, crank_angle in counts)."""
+def write(path, cycles: int, force: bool = False) -> pathlib.Path:
+    """The cycles as a CSV file the PLC plays (time, crank_angle in counts; with `force`, a
+    process_force column of zeros, for a twin that subscribes to the force node too)."""
     t, c = samples(cycles)
     p = pathlib.Path(path)
+    tail = ",0.0\n" if force else "\n"
     p.write_text(
-        "time,crank_angle\n" + "".join(f"{a!r},{b}\n" for a, b in zip(t.tolist(), c.tolist()))
+        ("time,crank_angle,process_force\n" if force else "time,crank_angle\n")
+        + "".join(f"{a!r},{b}{tail}" for a, b in zip(t.tolist(), c.tolist()))
     )
     return p
