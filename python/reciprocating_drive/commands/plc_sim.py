@@ -21,6 +21,7 @@ import pathlib
 import sys
 
 from .. import artifacts
+from ..cli_errors import ArgumentParser, UserError, run_cli
 
 FAULTS = ("bad_status", "nan", "wrong_type")
 
@@ -59,12 +60,28 @@ def positive(text: str) -> float:
     return v
 
 
+def port(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        v = -1
+    if not 0 <= v <= 65535:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a port 0 to 65535 (0: a free one)")
+    return v
+
+
 def main(argv=None, prog: str | None = None) -> int:
-    ap = argparse.ArgumentParser(
+    """The command: its exit code, with every error as one line (cli_errors.run_cli)."""
+    prog = prog or "plc_sim.py"
+    return run_cli(prog, lambda: _main(argv, prog))
+
+
+def _main(argv, prog: str) -> int:
+    ap = ArgumentParser(
         prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("--data", default=str(artifacts.twin_sample()))
-    ap.add_argument("--port", type=int, default=0, help="default: a free port")
+    ap.add_argument("--port", type=port, default=0, help="default: a free port")
     ap.add_argument("--speed", type=positive, default=1.0, help="multiple of real time")
     ap.add_argument("--block-ms", type=positive, default=50.0)
     ap.add_argument("--no-history", action="store_true")
@@ -105,6 +122,18 @@ def main(argv=None, prog: str | None = None) -> int:
             return 2
     if a.cert_dir:
         pathlib.Path(a.cert_dir).mkdir(parents=True, exist_ok=True)
+    if a.port:
+        # A port taken is one line here (asyncua would log its traceback when it fails to bind).
+        import socket
+
+        with socket.socket() as probe:
+            try:
+                probe.bind(("127.0.0.1", a.port))
+            except OSError as e:
+                raise UserError(
+                    f"--port {a.port}: cannot listen on 127.0.0.1 ({e.strerror or e}); "
+                    "choose another port, or 0 for a free one"
+                ) from None
     from ..plant.plc_sim import PlcSim, serve
 
     try:
@@ -131,6 +160,10 @@ def main(argv=None, prog: str | None = None) -> int:
         asyncio.run(serve(sim, a.linger))
     except KeyboardInterrupt:
         pass
+    except OSError as e:  # the port taken by another program, or not ours to bind
+        raise UserError(
+            f"--port {sim.port}: cannot listen on 127.0.0.1 ({e.strerror or e})"
+        ) from None
     return 0
 
 

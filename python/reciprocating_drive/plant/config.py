@@ -7,10 +7,10 @@ from __future__ import annotations
 import math
 import os
 import pathlib
-import tomllib
 from dataclasses import dataclass, field
 
 from .. import artifacts
+from ..cli_errors import read_toml
 from ..presets import available_presets
 
 
@@ -19,6 +19,7 @@ class ConfigError(ValueError):
 
 
 _MISSING = object()
+MIN_PACE, MAX_PACE = 1e-3, 1e6  # source.pace: multiples of real time (docs/plant.md "Sources")
 
 
 class _Table:
@@ -46,6 +47,9 @@ class _Table:
             raise self.err(key, v, allowed or f"must be a {getattr(kind, '__name__', kind)}")
         if isinstance(v, float) and not math.isfinite(v):
             raise self.err(key, v, allowed or "must be a finite number")
+        if isinstance(v, str) and "\0" in v:
+            # The operating system takes no path or name with a NUL in it.
+            raise self.err(key, v, "a NUL character is not allowed")
         if check is not None and not check(v):
             raise self.err(key, v, allowed)
         return v
@@ -142,13 +146,7 @@ def _path(config_path: str, p: str) -> str:
 
 
 def load(path: str) -> Config:
-    try:
-        with open(path, "rb") as f:
-            data = tomllib.load(f)
-    except OSError as e:
-        raise ConfigError(f"{path}: {e.strerror}") from None
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{path}: not valid TOML: {e}") from None
+    data = read_toml(path, ConfigError, "the configuration file")
     return parse(data, str(path))
 
 
@@ -297,7 +295,13 @@ def _opcua_settings(src: _Table, path: str) -> dict:
         "security_mode": src.choice("security_mode", ("Sign", "SignAndEncrypt"), "SignAndEncrypt"),
         "certificate": src.get("certificate", str, None),
         "private_key": src.get("private_key", str, None),
-        "trust": src.get("trust", list, []),
+        "trust": src.get(
+            "trust",
+            list,
+            [],
+            "must be a list of certificate files (strings)",
+            lambda v: all(isinstance(x, str) and x and "\0" not in x for x in v),
+        ),
         "username": src.get("username", str, None),
         "timeout": src.positive("timeout", 5.0),
         "reconnect_max": src.positive("reconnect_max", 5.0),
@@ -365,7 +369,15 @@ def _csv_source_settings(src: _Table, path: str) -> dict:
     (docs/plant.md "Sources")."""
     p = src.get("path", str, allowed='the CSV file to replay, or "-" for standard input')
     follow = src.get("follow", bool, False)
-    pace = src.positive("pace", 0.0, zero=True)
+    # A pace below MIN_PACE would wait longer than any plant runs between two samples (and
+    # 1e-300 overflows the sleep): 0 (as fast as possible) or MIN_PACE to MAX_PACE.
+    pace = src.get(
+        "pace",
+        float,
+        0.0,
+        f"must be a number >= 0: 0 (as fast as possible) or {MIN_PACE:g} to {MAX_PACE:g}",
+        lambda v: v == 0 or MIN_PACE <= v <= MAX_PACE,
+    )
     if p == "-" and follow:
         raise src.err("follow", True, 'follows a file, not standard input (path = "-")')
     if pace > 0 and (follow or p == "-"):

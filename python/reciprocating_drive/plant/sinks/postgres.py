@@ -15,7 +15,7 @@ import psycopg
 
 from ...twin import SUMMARY_FIELDS
 from ..schema import SCHEMA_VERSION, column, ddl, insert_events, upsert_checkpoint
-from .base import RunInfo, Sink, SinkError, uncovered
+from .base import RunInfo, Sink, SinkError, parse_state, uncovered
 
 _COPY_HEADER = b"PGCOPY\n\xff\r\n\x00" + (0).to_bytes(4, "big") + (0).to_bytes(4, "big")
 _COPY_TRAILER = (-1).to_bytes(2, "big", signed=True)
@@ -127,7 +127,7 @@ class PostgresSink(Sink):
                         "SELECT state FROM checkpoints WHERE run = %s", (key,)
                     ).fetchone()
                     if cp is not None and cp[0]:
-                        state = json.loads(cp[0])
+                        state = parse_state(cp[0], self.name, run.name)
                         state["status"] = status
                     # What the last checkpoint does not cover is computed again (base.py).
                     for stmt, args in uncovered(state, key):
