@@ -240,6 +240,7 @@ def test_secured_connection_with_trusted_certificate_and_password(fmu_path, tmp_
         ("anonymous", "refuses anonymous connections"),
         ("wrong password", "refused user 'operator'"),
         ("untrusted server", "is not in the trust list"),
+        ("another application", "not 'urn:other-plc' (source.server_uri); refused"),
     ],
 )
 def test_secured_server_refusals_are_one_clear_line(fmu_path, tmp_path, secured, case, message):
@@ -256,6 +257,8 @@ def test_secured_server_refusals_are_one_clear_line(fmu_path, tmp_path, secured,
         user=case != "anonymous",
         pw_file=wrong if case == "wrong password" else None,
     )
+    if case == "another application":
+        src += 'server_uri = "urn:other-plc"\n'
     cfg = twin_config(tmp_path, "refused", src, fmu_path)
     p = pu.run(cfg, timeout=60)
     assert p.returncode == 1, p.stderr

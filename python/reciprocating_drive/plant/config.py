@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import os
 import pathlib
+import re
 from dataclasses import dataclass, field
 
 from .. import artifacts
@@ -248,15 +249,14 @@ def parse(data: dict, path: str = "<config>") -> Config:
         elif stype_ == "csv":
             settings_ = _csv_sink_settings(s, path)
         else:
-            settings_ = {
-                "dsn": s.get(
-                    "dsn",
-                    str,
-                    allowed="a libpq connection string without password, e.g. "
-                    '"host=127.0.0.1 port=5432 dbname=twin user=twin"',
-                    check=lambda v: "password" not in v.lower(),
-                )
-            }
+            dsn = s.get(
+                "dsn",
+                str,
+                allowed="a libpq connection string without password, e.g. "
+                '"host=127.0.0.1 port=5432 dbname=twin user=twin"',
+            )
+            _dsn_without_password(path, f"sink[{i}]", dsn)
+            settings_ = {"dsn": dsn}
             pw = _secret(s, f"sink[{i}]")
         s.done()
         sinks.append(SinkConfig(stype_, {**settings_, **common}, pw))
@@ -276,6 +276,96 @@ def parse(data: dict, path: str = "<config>") -> Config:
         checkpoint_interval,
         data.get("page"),
     )
+
+
+def mask_dsn(dsn: str) -> str:
+    """A connection string as a message may show it: any password replaced by ***, in a URI's
+    user-info (postgresql://user:***@host/db), as a key (password=***) or a URI parameter."""
+    dsn = re.sub(r"(://[^/@:?#]*:)[^@/?#]*@", r"\1***@", dsn)
+    dsn = re.sub(r"(?i)(password\s*=\s*)('(?:[^'\\]|\\.)*'|[^\s&]*)", r"\1***", dsn)
+    return dsn
+
+
+def _service_files() -> list[pathlib.Path]:
+    """The connection service files libpq reads (PGSERVICEFILE or ~/.pg_service.conf, then
+    PGSYSCONFDIR/pg_service.conf): the PostgreSQL manual, "The Connection Service File"."""
+    out = [pathlib.Path(os.environ.get("PGSERVICEFILE", "~/.pg_service.conf")).expanduser()]
+    if os.environ.get("PGSYSCONFDIR"):
+        out.append(pathlib.Path(os.environ["PGSYSCONFDIR"]) / "pg_service.conf")
+    return out
+
+
+def _dsn_without_password(path: str, name: str, dsn: str) -> None:
+    """Refuses a connection string that carries a password in any form libpq reads: the key
+    `password`, a URI's user-info (user:PW@) or parameter (?password=), or the connection service
+    it names (service=NAME) in a service file. libpq's own parser (psycopg.conninfo) reads the
+    string, so every form it accepts is seen."""
+    how = (
+        f"a password is never written in the configuration; remove it and give it with "
+        f"{name}.password_file or {name}.password_env"
+    )
+    from psycopg import ProgrammingError
+    from psycopg.conninfo import conninfo_to_dict
+
+    try:
+        parts = conninfo_to_dict(dsn)
+    except ProgrammingError as e:
+        raise ConfigError(
+            f"{path}: {name}.dsn = {mask_dsn(dsn)!r}: not a libpq connection string "
+            f"({str(e).splitlines()[0] if str(e) else 'unreadable'})"
+        ) from None
+    if "password" in parts:
+        where = "in the URI's user-info" if re.search(r"://[^/@]*:[^@/]*@", dsn) else "as a key"
+        raise ConfigError(
+            f"{path}: {name}.dsn = {mask_dsn(dsn)!r}: holds a password ({where}); {how}"
+        )
+    service = parts.get("service")
+    if service:
+        import configparser
+
+        for f in _service_files():
+            cp = configparser.ConfigParser(interpolation=None)
+            try:
+                cp.read(f, encoding="utf-8")
+            except (configparser.Error, UnicodeDecodeError, OSError):
+                continue  # libpq reports an unreadable service file when it connects
+            if cp.has_section(service) and cp.has_option(service, "password"):
+                raise ConfigError(
+                    f"{path}: {name}.dsn = {mask_dsn(dsn)!r}: its service {service!r} in {f} holds "
+                    f"a password; {how} (and remove it from the service file)"
+                )
+
+
+def _certificate_in_date(path: str, cert_file: str) -> None:
+    """A server certificate of source.trust that has expired or is not valid yet is refused
+    here, at the configuration check (a certificate that cannot be read is reported when the
+    source connects). The dates are the certificate's own (X.509 notBefore / notAfter)."""
+    import datetime as dt
+
+    from cryptography import x509
+
+    try:
+        data = pathlib.Path(cert_file).read_bytes()
+        cert = (
+            x509.load_pem_x509_certificate(data)
+            if b"-----BEGIN" in data
+            else x509.load_der_x509_certificate(data)
+        )
+    except (OSError, ValueError):
+        return
+    now = dt.datetime.now(dt.UTC)
+    start, end = cert.not_valid_before_utc, cert.not_valid_after_utc
+    span = f"valid from {start:%Y-%m-%d %H:%M} to {end:%Y-%m-%d %H:%M} UTC"
+    if now > end:
+        raise ConfigError(
+            f"{path}: source.trust: {cert_file}: the certificate expired ({span}); refused: "
+            "trust the server's current certificate"
+        )
+    if now < start:
+        raise ConfigError(
+            f"{path}: source.trust: {cert_file}: the certificate is not valid yet ({span}); "
+            "refused: check the server's and this machine's clocks"
+        )
 
 
 def _opcua_settings(src: _Table, path: str) -> dict:
@@ -308,6 +398,8 @@ def _opcua_settings(src: _Table, path: str) -> dict:
         "reconnect_for": src.positive("reconnect_for", 300.0),
         "publishing_interval": src.positive("publishing_interval", 0.05),
         "end_node": src.get("end_node", str, None),
+        # The server's application URI: its certificate must name it (checked at connection).
+        "server_uri": src.get("server_uri", str, None),
     }
     if mode == "block" and not s["time_node"]:
         raise ConfigError(
@@ -317,6 +409,8 @@ def _opcua_settings(src: _Table, path: str) -> dict:
         if s[k]:
             s[k] = _path(path, s[k])
     s["trust"] = [_path(path, p) for p in s["trust"]]
+    for p in s["trust"]:
+        _certificate_in_date(path, p)
     if s["security_policy"] != "None":
         for k in ("certificate", "private_key"):
             if not s[k]:

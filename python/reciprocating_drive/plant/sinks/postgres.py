@@ -14,6 +14,7 @@ import numpy as np
 import psycopg
 
 from ...twin import SUMMARY_FIELDS
+from ..config import mask_dsn
 from ..schema import SCHEMA_VERSION, column, ddl, insert_events, upsert_checkpoint
 from .base import RunInfo, Sink, SinkError, parse_state, uncovered
 
@@ -42,8 +43,7 @@ class PostgresSink(Sink):
         super().__init__(**kw)
         self.dsn, self.password, self.connect_timeout = dsn, password, connect_timeout
         # The name shown in messages: the connection string without any password in it.
-        shown = " ".join(p for p in dsn.split() if not p.lower().startswith("password"))
-        self.name = f"postgres {shown}"
+        self.name = f"postgres {mask_dsn(dsn)}"
         self.conn = None
         self.outputs: list[str] = []
 

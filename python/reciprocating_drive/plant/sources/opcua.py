@@ -71,6 +71,18 @@ def _der(path: str) -> bytes:
     return x509.load_der_x509_certificate(data).public_bytes(Encoding.DER)
 
 
+def _cert_uri(cert) -> str | None:
+    """The application URI in a certificate's subject alternative names (None if absent)."""
+    from cryptography import x509
+
+    try:
+        san = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
+    except x509.ExtensionNotFound:
+        return None
+    uris = san.get_values_for_type(x509.UniformResourceIdentifier)
+    return uris[0] if uris else None
+
+
 def _application_uri(path: str) -> str | None:
     """The application URI in a certificate's subject alternative names (None if absent)."""
     from cryptography import x509
@@ -255,6 +267,12 @@ class OpcUaSource:
                     raise _Fatal(
                         f"{where}: the server's certificate ({cert.subject.rfc4514_string()}, "
                         f"SHA-256 {fp}) is not in the trust list (source.trust); refused"
+                    )
+                want = s.get("server_uri")
+                if want and _cert_uri(cert) != want:
+                    raise _Fatal(
+                        f"{where}: the server's certificate names the application URI "
+                        f"{_cert_uri(cert)!r}, not {want!r} (source.server_uri); refused"
                     )
 
             client.certificate_validator = check
