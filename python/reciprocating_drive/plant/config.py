@@ -368,6 +368,28 @@ def _certificate_in_date(path: str, cert_file: str) -> None:
         )
 
 
+def _distinct_nodes(path: str, s: dict, allowed: str) -> None:
+    """Each node id is one (asyncua's parser, the OPC UA string form), and no node is named for
+    two roles (the same node as angle and speed, the time array again as the angle)."""
+    from asyncua import ua
+
+    seen: dict = {}
+    for key in ("angle_node", "speed_node", "force_node", "time_node", "end_node"):
+        v = s.get(key)
+        if v is None:
+            continue
+        try:
+            nid = ua.NodeId.from_string(v)
+        except Exception:  # noqa: BLE001 - asyncua raises several kinds for a bad string
+            raise ConfigError(f"{path}: source.{key} = {v!r}: not a node id; {allowed}") from None
+        if nid in seen:
+            raise ConfigError(
+                f"{path}: source.{key} = {v!r}: the same node as source.{seen[nid]}; "
+                "each role needs its own node"
+            )
+        seen[nid] = key
+
+
 def _opcua_settings(src: _Table, path: str) -> dict:
     mode = src.choice("mode", ("scalar", "block"), "scalar")
     node = 'an OPC UA node id, e.g. "ns=2;s=Pump.CrankAngle"'
@@ -401,6 +423,7 @@ def _opcua_settings(src: _Table, path: str) -> dict:
         # The server's application URI: its certificate must name it (checked at connection).
         "server_uri": src.get("server_uri", str, None),
     }
+    _distinct_nodes(path, s, node)
     if mode == "block" and not s["time_node"]:
         raise ConfigError(
             f'{path}: source.time_node is missing (mode = "block" needs the timestamps\' array)'

@@ -47,7 +47,7 @@ def make_source(cfg: Config):
         return CsvSource(s.settings["path"], pace=s.settings["pace"])
     from .sources.opcua import OpcUaSource
 
-    return OpcUaSource(s.settings, password=s.password)
+    return OpcUaSource(s.settings, password=s.password, config_path=cfg.path)
 
 
 def make_sinks(cfg: Config) -> list:

@@ -40,6 +40,18 @@ class _Fatal(Exception):
     pass
 
 
+class _BadNode(_Fatal):
+    """A configured node the server does not have as the role needs it (a configuration error)."""
+
+
+#: Node classes and data types for the start-up check (OPC UA Part 3 and Part 6: the standard
+#: DataType node ids of namespace 0). Numbers: Boolean excluded; the abstract Number, Integer,
+#: UInteger and BaseDataType are accepted (the value's own type is checked on every sample).
+_NUMBER_TYPES = {2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 26, 27, 28, 24}
+_TIME_TYPES = {13, 294, 24}  # DateTime, UtcTime, BaseDataType
+_BOOLEAN_TYPES = {1, 24}
+
+
 def _numeric_types():
     global _NUMERIC
     if _NUMERIC is None:
@@ -104,11 +116,12 @@ def _application_uri(path: str) -> str | None:
 class OpcUaSource:
     rewindable = False
 
-    def __init__(self, settings: dict, password: str | None = None):
+    def __init__(self, settings: dict, password: str | None = None, config_path: str = "<config>"):
         # asyncua logs warnings and tracebacks of its own; the twin reports in one line instead.
         logging.getLogger("asyncua").setLevel(logging.CRITICAL)
         self.s = settings
         self._password = password
+        self.config_path = config_path
         self.ended = False
         self.time_origin = None
         self.q: queue.Queue = queue.Queue()
@@ -153,8 +166,11 @@ class OpcUaSource:
             self._raise(self.q.get())
 
     def _raise(self, e):
+        from ..config import ConfigError
         from ..pipeline import SourceError
 
+        if isinstance(e, ConfigError):  # a configured node the server does not have: exit 2
+            raise ConfigError(str(e)) from None
         raise SourceError(str(e)) from None
 
     def get(self, timeout: float) -> Chunk | None:
@@ -184,8 +200,12 @@ class OpcUaSource:
 
     # ---- the client's thread --------------------------------------------------------------------
     def _thread(self) -> None:
+        from ..config import ConfigError
+
         try:
             asyncio.run(self._main())
+        except _BadNode as e:
+            self.q.put(ConfigError(str(e)))
         except _Fatal as e:
             self.q.put(RuntimeError(str(e)))
         except Exception as e:  # noqa: BLE001 - reported by the pipeline as one line
@@ -217,6 +237,17 @@ class OpcUaSource:
                 await asyncio.sleep(delay)
                 delay = min(delay * 2, s["reconnect_max"])
                 continue
+            if first:
+                try:
+                    await self._check_nodes(client)
+                except _BadNode:
+                    try:
+                        await asyncio.wait_for(client.disconnect(), 2.0)
+                    except Exception:  # noqa: BLE001 - refused anyway
+                        pass
+                    raise
+                except (TimeoutError, OSError, ConnectionError):
+                    continue  # the connection went: retried as any lost connection
             self.connected.set()
             delay = 0.2
             try:
@@ -238,6 +269,59 @@ class OpcUaSource:
                 self.q.put(None)
                 return
             return  # stopped by the pipeline
+
+    async def _check_nodes(self, client) -> None:
+        """Every configured node read once before subscribing (docs/plant.md "Start-up
+        checks"): it exists, is a Variable, and its DataType and ValueRank fit its role (a number,
+        DateTime[] for block times, Boolean for the end node; scalar in scalar mode, an array in
+        block mode). Otherwise one line, and the run stops with exit status 2: a subscription to
+        a node that never notifies would wait for ever."""
+        from asyncua import ua
+        from asyncua.ua.object_ids import ObjectIdNames
+
+        s = self.s
+        block = self.block
+        keys = {"angle": "angle_node", "speed": "speed_node", "force": "force_node"}
+        keys["time"] = "time_node"
+        checks = [(keys[role], nid, role) for role, nid in self.roles.items()]
+        if s.get("end_node"):
+            checks.append(("end_node", s["end_node"], "end"))
+        for key, nid, role in checks:
+            where = f"{self.config_path}: source.{key} = {nid!r}"
+            node = client.get_node(nid)
+            try:
+                cls = await asyncio.wait_for(node.read_node_class(), s["timeout"])
+            except ua.UaStatusCodeError as e:
+                raise _BadNode(
+                    f"{where}: no such node on {s['endpoint']} ({type(e).__name__}); check the "
+                    "namespace index and the name"
+                ) from None
+            if cls != ua.NodeClass.Variable:
+                raise _BadNode(f"{where}: a node of class {cls.name}, not a Variable")
+            try:
+                dtype = await asyncio.wait_for(node.read_data_type(), s["timeout"])
+                rank = await asyncio.wait_for(node.read_value_rank(), s["timeout"])
+            except ua.UaStatusCodeError as e:
+                raise _BadNode(
+                    f"{where}: its data type cannot be read ({type(e).__name__})"
+                ) from None
+            tid = dtype.Identifier if dtype.NamespaceIndex == 0 else None
+            tname = ObjectIdNames.get(tid, dtype.to_string())
+            array = rank >= 0  # -1 scalar, -2 any, -3 scalar or 1-D; 0 one or more dimensions
+            if role == "end":
+                want, ok = "a Boolean", tid in _BOOLEAN_TYPES and not array
+            elif role == "time":
+                want, ok = "an array of DateTime", tid in _TIME_TYPES and rank in (1, 0, -2, -3)
+            elif block:
+                want = "an array of numbers (block mode)"
+                ok = tid in _NUMBER_TYPES and rank in (1, 0, -2, -3)
+            else:
+                want, ok = "a number (scalar mode)", tid in _NUMBER_TYPES and not array
+            if not ok:
+                shape = {-1: "scalar", -2: "any shape", -3: "scalar or 1-D", 0: "array"}.get(
+                    rank, f"{rank}-D array"
+                )
+                raise _BadNode(f"{where}: of type {tname}, {shape}; allowed: {want}")
 
     async def _connect(self):
         from asyncua import Client, ua
@@ -446,12 +530,13 @@ class OpcUaSource:
             out_w.append(w)
             out_f.append(f)
         for why, stamps in dropped.items():
-            first = stamps[0]
-            at = self._t(first) if hasattr(self, "_origin_dt") else None
+            first = next((x for x in stamps if x is not None), None)
+            at = self._t(first) if first is not None and hasattr(self, "_origin_dt") else None
+            when = f" (first at {first.isoformat()})" if first is not None else ""
             events.append(
                 Event(
                     "dropped",
-                    f"{len(stamps)} sample(s) dropped: {why} (first at {first.isoformat()})",
+                    f"{len(stamps)} sample(s) dropped: {why}{when}",
                     t=at,
                     count=len(stamps),
                 )
@@ -505,7 +590,11 @@ class _Joiner:
         if block:
             if not isinstance(var.Value, list):
                 return None, f"{role} is not an array"
+            if any(isinstance(x, list) for x in var.Value):
+                return None, f"{role} is an array of more than one dimension"
             return [float(x) for x in var.Value], None
+        if isinstance(var.Value, list):
+            return None, f"{role} is an array ({len(var.Value)} values), not a number"
         v = float(var.Value)
         if not math.isfinite(v):
             return None, f"{role} not finite ({v})"
@@ -515,10 +604,15 @@ class _Joiner:
         """(ts, sample time, angle, speed, force, why dropped or None) of completed samples."""
         block = self.src.block
         done = []
+        out_now: list = []
         for role, dv in batch:
             if dv.StatusCode.value == _WAITING:
                 continue  # the PLC has measured nothing yet: no sample
             ts = dv.SourceTimestamp
+            if ts is None:
+                # Without a SourceTimestamp a value has no sample time: dropped and counted.
+                out_now.append((None, None, None, None, None, f"no SourceTimestamp on {role}"))
+                continue
             g = self.groups.setdefault(ts, {})
             value, bad = self._check(role, dv, block)
             g[role] = value
@@ -526,7 +620,7 @@ class _Joiner:
                 g.setdefault("_bad", bad)
             if self.roles <= set(g):
                 done.append(ts)
-        out = []
+        out = out_now
         if done:
             newest = max(done)
             for ts in sorted(t for t in self.groups if t <= newest or flush):
