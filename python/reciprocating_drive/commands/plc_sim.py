@@ -60,6 +60,31 @@ def positive(text: str) -> float:
     return v
 
 
+def at_sample(option: str, kinds=None):
+    """SAMPLE:SECONDS (a finite number) or, with `kinds`, SAMPLE:KIND."""
+
+    def parse(text: str):
+        try:
+            i, v = text.split(":")
+            i = int(i)
+            if i < 0:
+                raise ValueError
+            if kinds is None:
+                v = float(v)
+                if not math.isfinite(v):
+                    raise ValueError
+            elif v not in kinds:
+                raise ValueError
+            return i, v
+        except ValueError:
+            what = "SECONDS (a finite number)" if kinds is None else "|".join(kinds)
+            raise argparse.ArgumentTypeError(
+                f"{option} {text!r}: give SAMPLE:{what}, SAMPLE a whole number >= 0"
+            ) from None
+
+    return parse
+
+
 def port(text: str) -> int:
     try:
         v = int(text)
@@ -101,6 +126,31 @@ def _main(argv, prog: str) -> int:
     )
     ap.add_argument(
         "--linger", type=float, default=math.inf, help="seconds to stay up after the end"
+    )
+    ap.add_argument(
+        "--clock-glitch",
+        type=at_sample("--clock-glitch"),
+        default=None,
+        help="SAMPLE:SECONDS: that one sample stamped SECONDS ahead (a PLC clock glitch)",
+    )
+    ap.add_argument(
+        "--clock-step",
+        type=at_sample("--clock-step"),
+        default=None,
+        help="SAMPLE:SECONDS: from that sample on, every stamp SECONDS earlier (a step back)",
+    )
+    ap.add_argument(
+        "--duplicate",
+        type=at_sample("--duplicate", ("same", "other")),
+        default=None,
+        help="SAMPLE:same|other: that sample's angle written again after the next sample, with "
+        "its timestamp and the same or another value",
+    )
+    ap.add_argument(
+        "--stamp-apart",
+        type=int,
+        default=0,
+        help="µs between the angle's stamp and the speed's and force's of the same sample",
     )
     a = ap.parse_args(argv)
     password = None
@@ -152,6 +202,10 @@ def _main(argv, prog: str) -> int:
             origin=a.origin,
             start_delay=a.start_delay,
             written=a.nodes,
+            clock_glitch=a.clock_glitch,
+            clock_step=a.clock_step,
+            duplicate=a.duplicate,
+            stamp_apart_us=a.stamp_apart,
         )
     except (OSError, ValueError) as e:
         print(f"plc_sim.py: --data {a.data}: {e}", file=sys.stderr)

@@ -420,6 +420,10 @@ def _opcua_settings(src: _Table, path: str) -> dict:
         "reconnect_for": src.positive("reconnect_for", 300.0),
         "publishing_interval": src.positive("publishing_interval", 0.05),
         "end_node": src.get("end_node", str, None),
+        # docs/plant.md "Timestamps" and "Sample assembly"
+        "clock_tolerance": src.positive("clock_tolerance", 1.0),
+        "join_tolerance": src.positive("join_tolerance", 0.0005, zero=True),
+        "hold_limit": src.positive("hold_limit", 10.0),
         # The server's application URI: its certificate must name it (checked at connection).
         "server_uri": src.get("server_uri", str, None),
     }

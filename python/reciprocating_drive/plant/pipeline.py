@@ -47,7 +47,9 @@ def make_source(cfg: Config):
         return CsvSource(s.settings["path"], pace=s.settings["pace"])
     from .sources.opcua import OpcUaSource
 
-    return OpcUaSource(s.settings, password=s.password, config_path=cfg.path)
+    src = OpcUaSource(s.settings, password=s.password, config_path=cfg.path)
+    src.gap_limit = cfg.options["gap_limit"]  # a clock step back ends in a gap (docs/plant.md)
+    return src
 
 
 def make_sinks(cfg: Config) -> list:
@@ -132,6 +134,9 @@ class Pipeline:
     def _event(self, ev: Event) -> None:
         self.events.append((self.c.events, time.time(), ev))
         self.c.events += 1
+        if ev.kind == "dropped":
+            why = ev.reason or "other"
+            self.drops[why] = self.drops.get(why, 0) + ev.count
 
     def _hand(self, rows, summaries) -> None:
         first = self.twin.rows_out - len(rows)
@@ -269,6 +274,7 @@ class Pipeline:
             return 0
         self.c = Counters()
         self.events: list = []
+        self.drops: dict = {}  # reason -> samples dropped (this process's share of the run)
         self.dups_seen = 0
         if state is not None:
             try:
@@ -392,6 +398,20 @@ class Pipeline:
                 self._commit("failed")
                 self.log(f"{self._source_name()}: the input holds no sample")
                 return 1
+            acct = getattr(self.source, "accounting", None)
+            if acct is not None:
+                received, out, dropped = acct()
+                if received != out + dropped:
+                    # Never "finished" with a sample neither stored nor counted (docs/plant.md
+                    # "Final status").
+                    msg = (
+                        f"{received} samples received, {out} handed to the twin and {dropped} "
+                        f"dropped: {received - out - dropped} unaccounted for"
+                    )
+                    self._event(Event("data_error", msg))
+                    self._commit("failed")
+                    self.log(f"{self._source_name()}: {msg}")
+                    return 1
             self._event(Event("finished", f"finished: {twin.rows_out} samples"))
             self._commit("finished")
         finally:
@@ -399,9 +419,13 @@ class Pipeline:
                 signal.signal(sig, h)
         for m in dict.fromkeys(twin.messages):
             self.log(f"twin: {m}")
+        n_drop = sum(self.drops.values())
+        why = "; ".join(f"{k}: {v}" for k, v in sorted(self.drops.items()))
+        lost = sum(t1 - t0 for t0, t1 in twin.gaps)
         self.log(
-            f"run {cfg.run_id!r}: {twin.rows_out} samples, {self.c.revolutions} revolutions, "
-            f"{twin.duplicates} duplicate timestamps dropped, {self.gap_count} gap(s); "
+            f"run {cfg.run_id!r}: {twin.rows_out} samples stored, {n_drop} dropped"
+            f"{f' ({why})' if why else ''}, {twin.duplicates} duplicate timestamps dropped, "
+            f"{self.gap_count} gap(s) ({lost:.6g} s lost); {self.c.revolutions} revolutions; "
             f"{self.commits} commits to {', '.join(s.name for s in self.sinks)}"
         )
         return 0

@@ -23,6 +23,8 @@ through a queue, so a slow database never stalls the subscription (the queue buf
 from __future__ import annotations
 
 import asyncio
+import bisect
+import collections
 import datetime as dt
 import logging
 import math
@@ -136,6 +138,9 @@ class OpcUaSource:
         if settings["mode"] == "block":
             self.roles["time"] = settings["time_node"]
         self.block = settings["mode"] == "block"
+        self._recent: dict = {}  # SourceTimestamp -> values of samples handed out (bounded)
+        self._recent_order: collections.deque = collections.deque()
+        self.gap_limit = 0.05  # conditioning.gap_limit (set by the pipeline)
 
     # ---- the pipeline's side --------------------------------------------------------------------
     def start(self, lines_read: int = 0, last_t=None, time_origin=None) -> None:
@@ -430,10 +435,20 @@ class OpcUaSource:
                 notes.append((by_node[node.nodeid], data.monitored_item.Value))
 
         sub = await client.create_subscription(self.s["publishing_interval"] * 1000, Handler())
-        await sub.subscribe_data_change(list(nodes.values()), queuesize=10000)
+        # Notifications when the SourceTimestamp changes too, not only the value: a PLC that
+        # writes the same speed or force every cycle then notifies every sample (OPC UA Part 4,
+        # DataChangeTrigger StatusValueTimestamp). asyncua's public subscribe_data_change takes
+        # no filter; its _subscribe does. A node that refuses the filter is subscribed without.
+        trigger = ua.DataChangeFilter(Trigger=ua.DataChangeTrigger.StatusValueTimestamp)
+        handles = await sub._subscribe(list(nodes.values()), mfilter=trigger, queuesize=10000)
+        refused = [
+            n for n, h in zip(nodes.values(), handles, strict=True) if isinstance(h, ua.StatusCode)
+        ]
+        if refused:
+            await sub.subscribe_data_change(refused, queuesize=10000)
         if end_node is not None:
             await sub.subscribe_data_change(end_node)
-        self.join = _Joiner(self)
+        self.join = _Joiner(self) if self.block else _ScalarJoiner(self)
         events = []
         if lost is None and getattr(self, "_resumed", False):
             lost = (None, "the twin was restarted")
@@ -485,7 +500,7 @@ class OpcUaSource:
                 self._emit([], events)
             events = []
             if finished and (
-                (self.last_dt is not None and self.last_dt >= finished[0])
+                (self.newest_dt is not None and self.newest_dt >= finished[0])
                 or time.monotonic() - quiet > 2.0
             ):
                 # Every sample up to the PLC's end is out (or nothing came for 2 s after it).
@@ -511,25 +526,29 @@ class OpcUaSource:
         return (ts - self._origin_dt).total_seconds()
 
     def _process(self, batch, events, flush=False) -> None:
-        out_t, out_a, out_w, out_f = [], [], [], []
+        """Joined samples through the clock's rules (docs/plant.md "Timestamps"): every sample is
+        handed out or dropped with its reason, counted in a `dropped` event."""
+        out = ([], [], [], [])
         dropped: dict = {}
-        for ts, t_dt, a, w, f, bad in self.join.feed(batch, flush):
+
+        def drop(why, ts):
+            dropped.setdefault(why, []).append(ts)
+
+        for ts, _t_dt, a, w, f, bad in self.join.feed(batch, flush):
+            self.received += 1
             if bad:
-                dropped.setdefault(bad, []).append(ts)
+                drop(bad, ts)
                 continue
-            if self.time_origin is None:
-                self.time_origin = float(math.floor((t_dt - EPOCH).total_seconds()))
-            if not hasattr(self, "_origin_dt"):
-                self._origin_dt = EPOCH + dt.timedelta(seconds=self.time_origin)
-            t = self._t(t_dt)
-            if self.last_t is not None and t <= self.last_t:
-                continue  # already handed out (history overlap, or before a resume)
-            self.last_t, self.last_dt = t, t_dt
-            out_t.append(t)
-            out_a.append(a)
-            out_w.append(w)
-            out_f.append(f)
+            self._admit(ts, (a, w, f), out, drop, events)
+        if flush and self._held is not None:
+            hts, hvals, _ = self._held
+            self._held = None
+            if self.last_dt is None or hts > self.last_dt:
+                self._hand(hts, hvals, out)
+            else:
+                drop(_BACK, hts)
         for why, stamps in dropped.items():
+            self.dropped += len(stamps)
             first = next((x for x in stamps if x is not None), None)
             at = self._t(first) if first is not None and hasattr(self, "_origin_dt") else None
             when = f" (first at {first.isoformat()})" if first is not None else ""
@@ -539,8 +558,10 @@ class OpcUaSource:
                     f"{len(stamps)} sample(s) dropped: {why}{when}",
                     t=at,
                     count=len(stamps),
+                    reason=why,
                 )
             )
+        out_t, out_a, out_w, out_f = out
         self.samples_out += len(out_t)
         lines = sample_lines(
             out_t,
@@ -551,12 +572,215 @@ class OpcUaSource:
         self._emit(lines, events)
         events.clear()
 
+    # The clock's state: a sample held for one more (the first, or one after a forward jump
+    # beyond clock_tolerance), samples handed out recently (duplicates), samples before the last.
+    _held = None
+    _back_streak = 0
+    _resync = None
+    received = dropped = 0
+
+    def _admit(self, ts, vals, out, drop, events) -> None:
+        tol = dt.timedelta(seconds=self.s.get("clock_tolerance", 1.0))
+        if self._held is not None:
+            hts, hvals, _kind = self._held
+            if ts > hts:
+                self._held = None
+                self._hand(hts, hvals, out)
+            elif ts == hts:
+                drop(_dup(vals, hvals), ts)
+                return
+            elif self.last_dt is None or ts > self.last_dt:
+                # Ahead of the samples before and after it: the PLC clock glitched for it.
+                self._held = None
+                ahead = (hts - ts).total_seconds()
+                drop(_GLITCH, hts)
+                events.append(
+                    Event(
+                        "clock_jump",
+                        f"a sample stamped {hts.isoformat()}, {ahead:.6g} s ahead of the next "
+                        "one, dropped as a glitch of the PLC clock; the samples after it go on",
+                        t=self._t(ts) if hasattr(self, "_origin_dt") else None,
+                    )
+                )
+            else:
+                drop(_BACK, ts)
+                return
+        last = self.last_dt
+        if last is None:
+            self._held = (ts, vals, "first")
+            return
+        if ts <= last:
+            prev = self._recent.get(ts)
+            if prev is not None or ts == last:
+                drop(_dup(vals, prev if prev is not None else self._recent.get(last)), ts)
+                return
+            self._back_streak += 1
+            if self._back_streak == 2:
+                # Two in a row before the last sample: the PLC clock stepped back. The samples
+                # stamped before the last one are dropped, and after it until the clock has passed
+                # it by more than gap_limit, so that the core sees a gap and restarts after it.
+                gap = self.gap_limit
+                self._resync = last + dt.timedelta(seconds=gap)
+                events.append(
+                    Event(
+                        "clock_jump",
+                        f"the PLC clock stepped back {(last - ts).total_seconds():.6g} s (a sample "
+                        f"stamped {ts.isoformat()} after {last.isoformat()}): samples are dropped "
+                        f"until the clock passes {self._resync.isoformat()} (gap_limit {gap:g} s "
+                        "beyond the last sample), then the run goes on after a gap",
+                        t=self._t(last),
+                    )
+                )
+            drop(_BACK, ts)
+            return
+        self._back_streak = 0
+        if self._resync is not None:
+            if ts <= self._resync:
+                drop(_BACK, ts)
+                return
+            self._resync = None
+        if ts - last > tol:
+            self._held = (ts, vals, "jump")
+            return
+        self._hand(ts, vals, out)
+
+    def _hand(self, ts, vals, out) -> None:
+        if self.time_origin is None:
+            self.time_origin = float(math.floor((ts - EPOCH).total_seconds()))
+        if not hasattr(self, "_origin_dt"):
+            self._origin_dt = EPOCH + dt.timedelta(seconds=self.time_origin)
+        t = self._t(ts)
+        self.last_t, self.last_dt = t, ts
+        self._recent[ts] = vals
+        self._recent_order.append(ts)
+        if len(self._recent_order) > 20000:  # bounded: duplicates come within seconds
+            self._recent.pop(self._recent_order.popleft(), None)
+        for col, v in zip(out, (t, *vals), strict=True):
+            col.append(v)
+
+    def accounting(self) -> tuple[int, int, int]:
+        """(samples received, handed to the twin, dropped and counted) in this process."""
+        held = int(self._held is not None)
+        return self.received, self.samples_out + held, self.dropped
+
+    @property
+    def newest_dt(self):
+        """The newest sample time handed out or held (the end node's test)."""
+        if self._held is not None and (self.last_dt is None or self._held[0] > self.last_dt):
+            return self._held[0]
+        return self.last_dt
+
+
+_GLITCH = "a glitch of the PLC clock (one sample stamped ahead)"
+_BACK = "stamped before the last sample handed out (out of order, or a clock step back)"
+
+
+def _dup(vals, prev) -> str:
+    """The reason of a sample whose timestamp was handed out already."""
+    if prev is None or all(
+        (a == b) or (a != a and b != b) for a, b in zip(vals, prev, strict=True)
+    ):
+        return "duplicate timestamp, same values"
+    return "duplicate timestamp with other values (the first kept)"
+
 
 _WAITING = 0x80320000  # BadWaitingForInitialData
 
 
 class _Lost(Exception):
     pass
+
+
+def _stamp(item):
+    return item[0]
+
+
+class _ScalarJoiner:
+    """Scalar mode (docs/plant.md "Sample assembly"): the angle node is the clock. Each angle
+    value is a sample; speed and force take the value of their node stamped at most
+    `join_tolerance` after the angle's stamp, or the latest before it (sample and hold), if it
+    is at most `hold_limit` s older than the angle. An angle waits until every other node has a
+    value stamped after it (+ join_tolerance), or until an angle stamped JOIN_WAIT s later has
+    come (a node whose value does not change may not notify), so nothing waits for ever; what
+    waits is bounded (MAX_PENDING angles, then the oldest goes out with the values held)."""
+
+    JOIN_WAIT = 0.2  # s of PLC time
+    MAX_PENDING = 20000
+
+    def __init__(self, src: OpcUaSource):
+        self.src = src
+        self.others = [r for r in ("speed", "force") if r in src.roles]
+        self.values: dict = {r: [] for r in self.others}  # (ts, value, bad) in time order
+        self.angles: collections.deque = collections.deque()
+        self.tol = dt.timedelta(seconds=src.s.get("join_tolerance", 0.0005))
+        self.hold = dt.timedelta(seconds=src.s.get("hold_limit", 10.0))
+        self.wait = dt.timedelta(seconds=self.JOIN_WAIT)
+        self.clock = dt.timedelta(seconds=src.s.get("clock_tolerance", 1.0))
+        self.check = _Joiner(src)._check
+
+    def feed(self, batch, flush=False):
+        out = []
+        for role, dv in batch:
+            if dv.StatusCode.value == _WAITING:
+                continue  # the PLC has measured nothing yet: no sample
+            ts = dv.SourceTimestamp
+            value, bad = self.check(role, dv, False)
+            if role == "angle":
+                if ts is None:
+                    out.append((None, None, None, None, None, "no SourceTimestamp on angle"))
+                else:
+                    self.angles.append((ts, value, bad))
+            elif ts is not None:
+                q = self.values[role]
+                if q and ts < q[-1][0]:  # late: kept in time order
+                    bisect.insort_right(q, (ts, value, bad), key=_stamp)
+                else:
+                    q.append((ts, value, bad))
+        while self.angles:
+            ts, a, bad = self.angles[0]
+            last = self.angles[-1][0]
+            ready = (
+                flush
+                or len(self.angles) > self.MAX_PENDING
+                or all(
+                    self.values[r] and self.values[r][-1][0] > ts + self.tol for r in self.others
+                )
+                or ts + self.wait <= last <= ts + self.clock
+            )
+            if not ready:
+                break
+            self.angles.popleft()
+            if bad:
+                out.append((ts, ts, None, None, None, bad))
+                continue
+            got, why = {}, None
+            for r in self.others:
+                got[r], w = self._at(r, ts)
+                why = why or w
+            out.append((ts, ts, a, got.get("speed"), got.get("force"), why))
+        # Bounded memory: of the values before the oldest angle still to come, only the latest
+        # is needed (it is the one held); at most MAX_PENDING are kept whatever the server sends.
+        upto = self.angles[0][0] if self.angles else None
+        for q in self.values.values():
+            k = bisect.bisect_right(q, upto, key=_stamp) - 1 if upto is not None else 0
+            k = max(k, len(q) - self.MAX_PENDING)
+            if k > 0:
+                del q[:k]
+        return out
+
+    def _at(self, role, ts):
+        """The value of `role` for an angle stamped `ts`, or (None, why)."""
+        q = self.values[role]
+        k = bisect.bisect_right(q, ts + self.tol, key=_stamp)
+        best = q[k - 1] if k > 0 else None
+        if best is None:
+            return None, f"no value of {role} at or before the angle's time"
+        if best[2]:
+            return None, best[2]
+        if ts - best[0] > self.hold:
+            age = (ts - best[0]).total_seconds()
+            return None, f"{role} stale: its last value is {age:.3g} s old (hold_limit)"
+        return best[1], None
 
 
 class _Joiner:
