@@ -139,6 +139,7 @@ class OpcUaSource:
             self.roles["time"] = settings["time_node"]
         self.block = settings["mode"] == "block"
         self._recent: dict = {}  # SourceTimestamp -> values of samples handed out (bounded)
+        self._gone: dict = {}  # the same for samples dropped by the clock's rules
         self._recent_order: collections.deque = collections.deque()
         self.gap_limit = 0.05  # conditioning.gap_limit (set by the pipeline)
 
@@ -579,8 +580,20 @@ class OpcUaSource:
     _resync = None
     received = dropped = 0
 
-    def _admit(self, ts, vals, out, drop, events) -> None:
+    def _admit(self, ts, vals, out, drop_, events) -> None:
         tol = dt.timedelta(seconds=self.s.get("clock_tolerance", 1.0))
+
+        def drop(why, when, v=vals):
+            # Remembered (bounded, with the samples handed out): the same sample delivered again
+            # (subscription and history) is then counted as such, not twice under its reason.
+            drop_(why, when)
+            if why != _SAME:
+                self._remember(self._gone, when, v)
+
+        gone = self._gone.get(ts)
+        if gone is not None and ts not in self._recent and _dup(vals, gone) == _SAME:
+            drop_(_SAME, ts)
+            return
         if self._held is not None:
             hts, hvals, _kind = self._held
             if ts > hts:
@@ -593,7 +606,7 @@ class OpcUaSource:
                 # Ahead of the samples before and after it: the PLC clock glitched for it.
                 self._held = None
                 ahead = (hts - ts).total_seconds()
-                drop(_GLITCH, hts)
+                drop(_GLITCH, hts, hvals)
                 events.append(
                     Event(
                         "clock_jump",
@@ -611,9 +624,14 @@ class OpcUaSource:
             return
         if ts <= last:
             prev = self._recent.get(ts)
-            if prev is not None or ts == last:
-                drop(_dup(vals, prev if prev is not None else self._recent.get(last)), ts)
-                return
+            if prev is not None:
+                why = _dup(vals, prev)
+                drop(why, ts)
+                if why == _SAME:
+                    return  # the same sample delivered again: nothing about the clock
+            else:
+                drop(_BACK, ts)
+            # A stamp at or before the last one (a time reused with other values counts too).
             self._back_streak += 1
             if self._back_streak == 2:
                 # Two in a row before the last sample: the PLC clock stepped back. The samples
@@ -631,14 +649,11 @@ class OpcUaSource:
                         t=self._t(last),
                     )
                 )
-            drop(_BACK, ts)
             return
         self._back_streak = 0
-        if self._resync is not None:
-            if ts <= self._resync:
-                drop(_BACK, ts)
-                return
-            self._resync = None
+        if self._resync is not None and ts <= self._resync:
+            drop(_BACK, ts)
+            return
         if ts - last > tol:
             self._held = (ts, vals, "jump")
             return
@@ -651,10 +666,9 @@ class OpcUaSource:
             self._origin_dt = EPOCH + dt.timedelta(seconds=self.time_origin)
         t = self._t(ts)
         self.last_t, self.last_dt = t, ts
-        self._recent[ts] = vals
-        self._recent_order.append(ts)
-        if len(self._recent_order) > 20000:  # bounded: duplicates come within seconds
-            self._recent.pop(self._recent_order.popleft(), None)
+        if self._resync is not None and ts > self._resync:
+            self._resync = None  # past a step back: only a sample handed out ends the wait
+        self._remember(self._recent, ts, vals)
         for col, v in zip(out, (t, *vals), strict=True):
             col.append(v)
 
@@ -662,6 +676,13 @@ class OpcUaSource:
         """(samples received, handed to the twin, dropped and counted) in this process."""
         held = int(self._held is not None)
         return self.received, self.samples_out + held, self.dropped
+
+    def _remember(self, table: dict, ts, vals) -> None:
+        table[ts] = vals
+        self._recent_order.append((table, ts))
+        if len(self._recent_order) > 40000:  # bounded: a sample comes again within seconds
+            t, k = self._recent_order.popleft()
+            t.pop(k, None)
 
     @property
     def newest_dt(self):
@@ -680,8 +701,11 @@ def _dup(vals, prev) -> str:
     if prev is None or all(
         (a == b) or (a != a and b != b) for a, b in zip(vals, prev, strict=True)
     ):
-        return "duplicate timestamp, same values"
+        return _SAME
     return "duplicate timestamp with other values (the first kept)"
+
+
+_SAME = "duplicate timestamp, same values"
 
 
 _WAITING = 0x80320000  # BadWaitingForInitialData
@@ -746,6 +770,9 @@ class _ScalarJoiner:
                     self.values[r] and self.values[r][-1][0] > ts + self.tol for r in self.others
                 )
                 or ts + self.wait <= last <= ts + self.clock
+                # An angle came stamped before this one: this one is ahead of the clock (the
+                # clock's rules decide); waiting for values after it would hold up the rest.
+                or last < ts
             )
             if not ready:
                 break
@@ -760,7 +787,7 @@ class _ScalarJoiner:
             out.append((ts, ts, a, got.get("speed"), got.get("force"), why))
         # Bounded memory: of the values before the oldest angle still to come, only the latest
         # is needed (it is the one held); at most MAX_PENDING are kept whatever the server sends.
-        upto = self.angles[0][0] if self.angles else None
+        upto = min(x[0] for x in self.angles) if self.angles else None
         for q in self.values.values():
             k = bisect.bisect_right(q, upto, key=_stamp) - 1 if upto is not None else 0
             k = max(k, len(q) - self.MAX_PENDING)
