@@ -4,9 +4,10 @@ rod"): runs the study `model::drive::cage_step::work_precision` (cargo test, rel
 ignored by default), which writes target/work_precision.csv, keeps that table as
 docs/figures/work_precision.csv (scripts/make_docs.py redraws the figure from it) and draws
 docs/figures/work_precision.png: for the kvo630 spring and the thin rod (rows) and communication
-steps of 0.1, 1 and 10 ms (columns), the largest error of ϑ [rad] and ϑ̇/Ω0 against the reference
-over the right-hand-side evaluations per simulated second (top block) and over the wall time per
-simulated second (bottom block), one line per method through tolerances 1e-6 … 1e-10.
+steps of 0.1, 1 and 10 ms (columns), the largest error of ϑ and of ϑ̇ against the reference, each
+relative to its own amplitude, over the right-hand-side evaluations per simulated second (top two
+blocks: ϑ, then ϑ̇) and the error of ϑ̇ over the wall time per simulated second (bottom block), one
+line per method through tolerances 1e-6 … 1e-10.
 
     python3 scripts/work_precision.py [--no-run] [--out PNG]
 
@@ -58,7 +59,7 @@ def read(path: pathlib.Path) -> list[dict]:
     except OSError as e:
         sys.exit(f"work_precision.py: cannot read {path}: {e.strerror}")
     for r in rows:
-        for k in ("step_ms", "tol", "error", "evals_per_s", "ns_per_s"):
+        for k in ("step_ms", "tol", "error", "error_rate", "evals_per_s", "ns_per_s"):
             r[k] = float(r[k])
     return rows
 
@@ -74,13 +75,17 @@ def draw(rows: list[dict], out: pathlib.Path) -> None:
     steps = sorted({r["step_ms"] for r in rows})
     methods = list(dict.fromkeys(r["method"] for r in rows))
     blocks = [
-        ("evals_per_s", "RHS evaluations per simulated s"),
-        ("ns_per_s", "ms per simulated s"),
+        ("evals_per_s", "RHS evaluations per simulated s", "error", "ϑ"),
+        ("evals_per_s", "RHS evaluations per simulated s", "error_rate", "ϑ̇"),
+        ("ns_per_s", "ms per simulated s", "error_rate", "ϑ̇"),
     ]
     fig, axes = plt.subplots(
-        2 * len(rods), len(steps), figsize=(4.2 * len(steps), 3.2 * 2 * len(rods)), squeeze=False
+        len(blocks) * len(rods),
+        len(steps),
+        figsize=(4.2 * len(steps), 3.2 * len(blocks) * len(rods)),
+        squeeze=False,
     )
-    for b, (key, xlabel) in enumerate(blocks):
+    for b, (key, xlabel, err_key, var) in enumerate(blocks):
         for i, rod in enumerate(rods):
             for j, step in enumerate(steps):
                 ax = axes[b * len(rods) + i][j]
@@ -97,7 +102,7 @@ def draw(rows: list[dict], out: pathlib.Path) -> None:
                     color, marker, line = STYLE.get(m, (None, "x", ":"))
                     ax.loglog(
                         [p[key] * scale for p in pts],
-                        [p["error"] for p in pts],
+                        [p[err_key] for p in pts],
                         color=color,
                         marker=marker,
                         linestyle=line,
@@ -106,7 +111,7 @@ def draw(rows: list[dict], out: pathlib.Path) -> None:
                     )
                 ax.set_title(f"{rod}, h = {step:g} ms", fontsize=9)
                 ax.set_xlabel(xlabel, fontsize=8)
-                ax.set_ylabel("largest error (rad)", fontsize=8)
+                ax.set_ylabel(f"largest error of {var} / amplitude", fontsize=8)
                 ax.grid(True, which="both", alpha=0.3)
                 ax.tick_params(labelsize=7)
                 # Labels at 1, 2, 3, 5, 7 of each decade (x) and 1, 2, 5 (y): a panel spans less

@@ -436,3 +436,95 @@ fn a_freed_fmi3_instance_is_refused_without_touching_freed_memory() {
         free(d);
     }
 }
+
+/// FMI 2.0, as FMI 3.0 above: an instance freed by fmi2FreeInstance, co-simulation and Model
+/// Exchange, is recognised (docs/fmi-interface.md "A freed instance"): a second free and calls on
+/// it (the fast paths of fmi2SetReal, fmi2GetReal and fmi2DoStep among them, and an FMU state it
+/// made, freed with it) return fmi2Error without reading freed memory (under valgrind,
+/// scripts/valgrind.sh, a read of freed memory is an error), its logger is not called again, and
+/// the next instance gets a handle of its own while the freed one stays refused.
+#[test]
+fn a_freed_fmi2_instance_is_refused_without_touching_freed_memory() {
+    use fmi_sys::fmi2::*;
+    use std::ffi::{c_void, CString};
+    use std::sync::Arc;
+    let api = Api::load();
+    let lib = unsafe { libloading::Library::new(library_path()) }.expect("load the FMU library");
+    macro_rules! sym {
+        ($name:ident: $ty:ident) => {
+            *unsafe { lib.get::<<$ty as OptionFn>::F>(concat!(stringify!($name), "\0").as_bytes()) }
+                .expect(stringify!($name))
+        };
+    }
+    let set_time = sym!(fmi2SetTime: fmi2SetTimeTYPE);
+    let get_derivatives = sym!(fmi2GetDerivatives: fmi2GetDerivativesTYPE);
+    let enter_event_mode = sym!(fmi2EnterEventMode: fmi2EnterEventModeTYPE);
+    let set_states = sym!(fmi2SetContinuousStates: fmi2SetContinuousStatesTYPE);
+    let log = Arc::new(LogSink::default());
+    let callbacks = fmi2CallbackFunctions {
+        logger: logger_fn(),
+        allocateMemory: None,
+        freeMemory: None,
+        stepFinished: None,
+        componentEnvironment: Arc::as_ptr(&log) as *mut c_void,
+    };
+    let name = CString::new("freed").unwrap();
+    let guid =
+        CString::new(reciprocating_drive::fmi2::model_description::guid::<ReciprocatingDrive>())
+            .unwrap();
+    let make = |ty: fmi2Type| unsafe {
+        (api.fmi2Instantiate)(name.as_ptr(), ty, guid.as_ptr(), std::ptr::null(), &callbacks, 0, 1)
+    };
+    let der0 = reciprocating_drive::fmi2::model_exchange::derivative_vr::<ReciprocatingDrive>(0);
+    for ty in [fmi2Type_fmi2CoSimulation, fmi2Type_fmi2ModelExchange] {
+        let cs = ty == fmi2Type_fmi2CoSimulation;
+        let c = make(ty);
+        assert!(!c.is_null());
+        let mut state: fmi2FMUstate = std::ptr::null_mut();
+        unsafe {
+            assert_eq!((api.fmi2SetupExperiment)(c, 0, 0.0, 0.0, 0, 0.0), OK);
+            assert_eq!((api.fmi2EnterInitializationMode)(c), OK);
+            assert_eq!((api.fmi2ExitInitializationMode)(c), OK);
+            if cs {
+                assert_eq!((api.fmi2DoStep)(c, 0.0, 1e-3, 1), OK);
+            }
+            // A state the importer leaves to fmi2FreeInstance.
+            assert_eq!((api.fmi2GetFMUstate)(c, &mut state), OK);
+            (api.fmi2FreeInstance)(c);
+            let logged = log.messages().len();
+            (api.fmi2FreeInstance)(c);
+            let output = [vr("crank.torque")];
+            let mut out = [0.0];
+            assert_eq!((api.fmi2GetReal)(c, output.as_ptr(), 1, out.as_mut_ptr()), ERROR);
+            let der = [der0];
+            assert_eq!((api.fmi2GetReal)(c, der.as_ptr(), 1, out.as_mut_ptr()), ERROR);
+            let input = [vr("crank.speed")];
+            assert_eq!((api.fmi2SetReal)(c, input.as_ptr(), 1, [1.0].as_ptr()), ERROR);
+            assert_eq!((api.fmi2DoStep)(c, 1e-3, 1e-3, 1), ERROR);
+            assert_eq!((api.fmi2SetupExperiment)(c, 0, 0.0, 0.0, 0, 0.0), ERROR);
+            assert_eq!((api.fmi2Terminate)(c), ERROR);
+            assert_eq!((api.fmi2Reset)(c), ERROR);
+            // The state was freed with the instance: not read either.
+            assert_eq!((api.fmi2SetFMUstate)(c, state), ERROR);
+            assert_eq!((api.fmi2FreeFMUstate)(c, &mut state), ERROR);
+            assert_eq!(set_time(c, 1.0), ERROR);
+            assert_eq!(enter_event_mode(c), ERROR);
+            assert_eq!(get_derivatives(c, out.as_mut_ptr(), 1), ERROR);
+            assert_eq!(set_states(c, [0.0].as_ptr(), 1), ERROR);
+            assert_eq!(log.messages().len(), logged, "the freed instance's logger was called");
+            // A new instance gets a handle of its own: the freed one stays refused.
+            let d = make(ty);
+            assert!(!d.is_null() && d != c);
+            assert_eq!((api.fmi2EnterInitializationMode)(c), ERROR);
+            assert_eq!((api.fmi2SetupExperiment)(d, 0, 0.0, 0.0, 0, 0.0), OK);
+            assert_eq!((api.fmi2EnterInitializationMode)(d), OK);
+            assert_eq!((api.fmi2ExitInitializationMode)(d), OK);
+            if cs {
+                assert_eq!((api.fmi2DoStep)(d, 0.0, 1e-3, 1), OK);
+            } else {
+                assert_eq!(set_time(d, 0.0), OK);
+            }
+            (api.fmi2FreeInstance)(d);
+        }
+    }
+}

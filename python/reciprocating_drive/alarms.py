@@ -27,9 +27,10 @@ from __future__ import annotations
 
 import math
 import re
-import tomllib
 from collections import deque
 from dataclasses import dataclass, field
+
+from .cli_errors import read_toml
 
 #: The values an alarm can watch: the revolution summary's fields (twin.SUMMARY_FIELDS) and the
 #: quantities the page shows, derived from them (`derived_values`), with their units.
@@ -152,13 +153,7 @@ def parse_duration(v) -> float:
 def load_limits(path) -> Limits:
     """Reads and checks a limits file; LimitsError (one line) on anything wrong."""
     path = str(path)
-    try:
-        with open(path, "rb") as f:
-            doc = tomllib.load(f)
-    except OSError as e:
-        raise LimitsError(f"{path}: cannot read the limits file: {e.strerror}") from None
-    except tomllib.TOMLDecodeError as e:
-        raise LimitsError(f"{path}: not valid TOML: {e}") from None
+    doc = read_toml(path, LimitsError, "the limits file")
     return parse_limits(doc, path)
 
 

@@ -19,6 +19,7 @@ import pathlib
 import signal
 import sys
 import tempfile
+import tomllib
 import traceback
 from collections.abc import Callable
 
@@ -92,6 +93,33 @@ def positive_float(name: str, value: str, *, allow_zero: bool = False) -> float:
         allowed = ">= 0" if allow_zero else "> 0"
         raise UserError(f"{name} {value}: allowed: a finite number {allowed}")
     return x
+
+
+def read_toml(path, error: type[Exception] = UserError, what: str = "a TOML file") -> dict:
+    """A TOML file parsed, or `error` with one line naming the file: unreadable, a path with a
+    NUL character, bytes that are not UTF-8, not TOML, or nested deeper than the parser goes
+    (tomllib recurses once per level: 100 000 nested arrays exhaust Python's stack)."""
+    p = str(path)
+    try:
+        data = pathlib.Path(p).read_bytes()
+    except ValueError:  # "embedded null byte": the operating system takes no such path
+        raise error(f"{show(p)}: a path with a NUL character; allowed: {what}") from None
+    except IsADirectoryError:
+        raise error(f"{p}: is a folder; allowed: {what}") from None
+    except OSError as e:
+        raise error(f"{p}: cannot read {what}: {e.strerror or e}") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise error(f"{p}: byte {e.start} is not UTF-8; allowed: {what} in UTF-8") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise error(f"{p}: not valid TOML: {one_line(e, 200)}") from None
+    except RecursionError:
+        raise error(
+            f"{p}: tables or arrays nested too deep to read; allowed: {what} of a few levels"
+        ) from None
 
 
 def _raise_interrupt(signum, _frame):

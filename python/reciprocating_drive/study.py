@@ -469,13 +469,19 @@ def load_study(
         raise StudyError(f"{path}: cannot be read ({e.strerror})") from None
     except UnicodeDecodeError as e:
         raise StudyError(f"{path}: byte {e.start} is not UTF-8; allowed: a TOML file") from None
+    deep = f"{path}: tables or arrays nested too deep to read; allowed: a study of a few levels"
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise StudyError(f"{path}: not valid TOML: {e}") from None
-    return study_from_dict(
-        doc, base_dir=path.parent, source=str(path), fmu=fmu, max_cases=max_cases
-    )
+    except RecursionError:  # tomllib recurses once per level of nested arrays or tables
+        raise StudyError(deep) from None
+    try:
+        return study_from_dict(
+            doc, base_dir=path.parent, source=str(path), fmu=fmu, max_cases=max_cases
+        )
+    except RecursionError:  # dotted keys a.b.c... nest without recursing in the parser
+        raise StudyError(deep) from None
 
 
 def _speed_of(doc: dict, base: dict) -> float:

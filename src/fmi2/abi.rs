@@ -17,6 +17,7 @@ use std::ptr;
 use fmi_sys::fmi2::*;
 
 use crate::fmi2::fmu_state;
+use crate::fmi2::handle::{free_instance, live, new_handle, report_freed};
 use crate::fmi2::instance::{copy_name, snapshot_magic, Failure, Instance, Severity, Snapshot};
 use crate::fmi2::logging::{Category, Logger};
 use crate::fmi2::model::FmuModel;
@@ -55,16 +56,19 @@ fn status_of(s: Severity) -> fmi2Status {
     }
 }
 
-/// Runs `f` on the instance behind `c`: NULL check, panic barrier, status and logging.
+/// Runs `f` on the instance behind `c`: NULL and freed-instance check (`crate::fmi2::handle`),
+/// panic barrier, status and logging.
 pub(crate) unsafe fn call<M: FmuModel>(
     c: fmi2Component,
     function: &str,
     f: impl FnOnce(&mut Instance<M>) -> Result<(), Failure>,
 ) -> fmi2Status {
-    if c.is_null() {
+    let Some(inst) = live::<M>(c) else {
+        if !c.is_null() {
+            report_freed::<M>(c, function);
+        }
         return fmi2Status_fmi2Error;
-    }
-    let inst = c as *mut Instance<M>;
+    };
     match catch_unwind(AssertUnwindSafe(|| f(&mut *inst))) {
         Ok(Ok(())) => {
             (*inst).log(fmi2Status_fmi2OK, Category::Calls, function);
@@ -201,25 +205,16 @@ pub unsafe fn fmi2Instantiate<M: FmuModel>(
             Category::Events,
             &format!("instantiated; resources: {:?}", inst.resource_dir),
         );
-        Box::into_raw(inst) as fmi2Component
+        new_handle(inst)
     }));
     result.unwrap_or(ptr::null_mut())
 }
 
+/// Frees the instance and keeps its handle (`crate::fmi2::handle`): a second call is reported
+/// and does nothing.
 #[inline]
 pub unsafe fn fmi2FreeInstance<M: FmuModel>(c: fmi2Component) {
-    if !c.is_null() {
-        let _ = catch_unwind(AssertUnwindSafe(|| {
-            let mut inst = Box::from_raw(c as *mut Instance<M>);
-            // The states the importer did not free belong to the instance (FMI 2.0 §2.1.5).
-            for p in inst.states.drain(..) {
-                let s = p as *mut Snapshot<M>;
-                (*s).magic = 0;
-                drop(Box::from_raw(s));
-            }
-            drop(inst);
-        }));
-    }
+    free_instance::<M>(c, "fmi2FreeInstance")
 }
 
 #[inline]
@@ -315,14 +310,15 @@ pub unsafe fn fmi2GetReal<M: FmuModel>(
     // Outputs read at every step take the fast path (`Instance::quick_get_real`), still behind
     // the panic barrier: it evaluates the model. Anything that needs a message takes the general
     // path, which evaluates again and reports.
-    if let (false, Some(vrs), false) = (c.is_null(), slice(vr, nvr), nvr > 0 && value.is_null()) {
-        let inst = c as *mut Instance<M>;
-        let out: &mut [fmi2Real] =
-            if nvr == 0 { &mut [] } else { std::slice::from_raw_parts_mut(value, nvr) };
-        match catch_unwind(AssertUnwindSafe(|| (*inst).quick_get_real(vrs, out))) {
-            Ok(true) => return fmi2Status_fmi2OK,
-            Ok(false) => {}
-            Err(_) => return panicked(inst, "fmi2GetReal"),
+    if let Some(inst) = live::<M>(c) {
+        if let (Some(vrs), false) = (slice(vr, nvr), nvr > 0 && value.is_null()) {
+            let out: &mut [fmi2Real] =
+                if nvr == 0 { &mut [] } else { std::slice::from_raw_parts_mut(value, nvr) };
+            match catch_unwind(AssertUnwindSafe(|| (*inst).quick_get_real(vrs, out))) {
+                Ok(true) => return fmi2Status_fmi2OK,
+                Ok(false) => {}
+                Err(_) => return panicked(inst, "fmi2GetReal"),
+            }
         }
     }
     // Model Exchange: the state derivatives are not in the table.
@@ -373,9 +369,11 @@ pub unsafe fn fmi2SetReal<M: FmuModel>(
 ) -> fmi2Status {
     // Finite crank inputs at every step cannot panic (proved at link time,
     // `Instance::quick_set_real`) and need no barrier; anything else takes the general path.
-    if let (false, Some(vrs), Some(vals)) = (c.is_null(), slice(vr, nvr), slice(value, nvr)) {
-        if (*(c as *mut Instance<M>)).quick_set_real::<2>(vrs, vals) {
-            return fmi2Status_fmi2OK;
+    if let Some(inst) = live::<M>(c) {
+        if let (Some(vrs), Some(vals)) = (slice(vr, nvr), slice(value, nvr)) {
+            if (*inst).quick_set_real::<2>(vrs, vals) {
+                return fmi2Status_fmi2OK;
+            }
         }
     }
     set_values::<M, _>(c, "fmi2SetReal", VarType::Real, vr, nvr, value, |v| v)
@@ -666,8 +664,8 @@ pub unsafe fn fmi2DoStep<M: FmuModel>(
 ) -> fmi2Status {
     // A rigid mechanism's ordinary step cannot panic (proved at link time, `Instance::quick_step`)
     // and needs no barrier; anything else takes the general path.
-    if !c.is_null()
-        && (*(c as *mut Instance<M>)).quick_step(currentCommunicationPoint, communicationStepSize)
+    if live::<M>(c)
+        .is_some_and(|i| (*i).quick_step(currentCommunicationPoint, communicationStepSize))
     {
         return fmi2Status_fmi2OK;
     }

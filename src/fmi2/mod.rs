@@ -8,6 +8,7 @@ pub mod directional;
 pub mod display_units;
 pub mod documentation;
 pub mod fmu_state;
+pub(crate) mod handle;
 pub mod instance;
 pub mod logging;
 pub mod model;

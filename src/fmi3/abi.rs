@@ -16,17 +16,15 @@
 #![allow(clippy::too_many_arguments)]
 
 use std::borrow::Cow;
-use std::ffi::{c_char, c_void, CStr};
-use std::io::Write;
+use std::ffi::{c_char, CStr};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::ptr;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Mutex;
 
 use fmi_sys::fmi3::*;
 
 use crate::fmi2::abi::{opt_str, slice, snapshot_ref, store_snapshot};
 use crate::fmi2::fmu_state;
+use crate::fmi2::handle::{free_instance, live, new_handle, report_freed};
 use crate::fmi2::instance::{
     copy_name, snapshot_magic, Failure, Instance, Mode, Severity, Snapshot,
 };
@@ -78,62 +76,6 @@ fn status_of(s: Severity) -> fmi3Status {
         Severity::Discard => fmi3Status_fmi3Discard,
         Severity::Error => fmi3Status_fmi3Error,
         Severity::Fatal => fmi3Status_fmi3Fatal,
-    }
-}
-
-// ------------------------------------------------------------------------------ the handle
-
-/// What an `fmi3Instance` points to: a handle to the instance, not the instance itself, so that
-/// an instance freed by fmi3FreeInstance is recognised (docs/fmi-interface.md "FMI 3.0", "A freed
-/// instance"): the handle outlives its instance, its pointer set to NULL, and a second
-/// fmi3FreeInstance or any call on it returns fmi3Error instead of reading freed memory. A
-/// handle is never freed nor reused (a reused one would let a stale pointer reach another
-/// importer's instance): 16 bytes per instance made (41 with the allocator's overhead and
-/// the entry in [`HANDLES`]) stay for the life of the process, kept in [`HANDLES`] so that leak
-/// checkers see them as reachable.
-struct Handle {
-    /// The `Instance<M>`; NULL once freed.
-    inst: *mut c_void,
-    /// Whether a call on the freed instance was reported already (once per handle).
-    reported: AtomicBool,
-}
-
-/// Every handle made in this process (see [`Handle`]).
-static HANDLES: Mutex<Vec<usize>> = Mutex::new(Vec::new());
-
-fn new_handle(inst: *mut c_void) -> fmi3Instance {
-    let h = Box::into_raw(Box::new(Handle { inst, reported: AtomicBool::new(false) }));
-    HANDLES.lock().unwrap_or_else(|e| e.into_inner()).push(h as usize);
-    h as fmi3Instance
-}
-
-/// The live instance behind `c`: None for NULL and for an instance already freed (quietly: the
-/// caller reports it, or falls back to a path that does).
-#[inline(always)]
-unsafe fn live<M: FmuModel>(c: fmi3Instance) -> Option<*mut Instance<M>> {
-    if c.is_null() {
-        return None;
-    }
-    let inst = (*(c as *const Handle)).inst;
-    (!inst.is_null()).then_some(inst as *mut Instance<M>)
-}
-
-/// A call on an instance fmi3FreeInstance freed: its logger went with it (the importer may have
-/// released the callback's environment), so one line goes to standard error instead, the first
-/// time per instance; the call returns fmi3Error.
-#[cold]
-#[inline(never)]
-unsafe fn report_freed<M: FmuModel>(c: fmi3Instance, function: &str) {
-    let h = &*(c as *const Handle);
-    if !h.reported.swap(true, Ordering::Relaxed) {
-        let _ = catch_unwind(|| {
-            let _ = writeln!(
-                std::io::stderr(),
-                "{}: {function}: instance {c:p} was freed by fmi3FreeInstance; no call is \
-                 allowed on it (fmi3Error); instantiate a new one",
-                M::info().model_identifier
-            );
-        });
     }
 }
 
@@ -286,7 +228,7 @@ unsafe fn instantiate<M: FmuModel>(
             Category::Events,
             &format!("instantiated; resources: {:?}", inst.resource_dir),
         );
-        new_handle(Box::into_raw(inst) as *mut c_void)
+        new_handle(inst)
     }));
     result.unwrap_or(ptr::null_mut())
 }
@@ -376,27 +318,10 @@ pub unsafe fn fmi3InstantiateScheduledExecution<M: FmuModel>(
     )
 }
 
-/// Frees the instance and keeps its handle, its pointer NULL ([`Handle`]): a second call is
-/// reported and does nothing.
+/// Frees the instance and keeps its handle (`crate::fmi2::handle`): a second call is reported
+/// and does nothing.
 pub unsafe fn fmi3FreeInstance<M: FmuModel>(c: fmi3Instance) {
-    if c.is_null() {
-        return;
-    }
-    let Some(inst) = live::<M>(c) else {
-        report_freed::<M>(c, "fmi3FreeInstance");
-        return;
-    };
-    (*(c as *mut Handle)).inst = ptr::null_mut();
-    let _ = catch_unwind(AssertUnwindSafe(|| {
-        let mut inst = Box::from_raw(inst);
-        // The states the importer did not free belong to the instance.
-        for p in inst.states.drain(..) {
-            let s = p as *mut Snapshot<M>;
-            (*s).magic = 0;
-            drop(Box::from_raw(s));
-        }
-        drop(inst);
-    }));
+    free_instance::<M>(c, "fmi3FreeInstance")
 }
 
 /// FMI 3.0 merges fmi2SetupExperiment into fmi3EnterInitializationMode: both run, and a failure

@@ -912,9 +912,11 @@ pub(crate) mod tests {
             assert_eq!(sa, sb);
             // Below TABLE_MIN_TOLERANCE the stages solve exactly (only the exact solve's first
             // iterate still comes from the table): the same solution to far below the tolerance.
+            // The steps may differ by a marginal accept or reject (the stage solves differ in
+            // rounding), not by more.
             let (c, sc) = run(&m, 1e-3, 30, 1e-11);
             let (d, sd) = run(&m.without_rod_table(), 1e-3, 30, 1e-11);
-            assert_eq!(sc, sd);
+            assert!(sc.rhs_evals.abs_diff(sd.rhs_evals) * 50 <= sd.rhs_evals, "{sc:?} {sd:?}");
             assert!((c.cage.theta - d.cage.theta).abs() < 1e-2 * 1e-11, "{c:?} {d:?}");
             assert!((c.cage.rate - d.cage.rate).abs() < 1e-2 * 1e-11 * rod.omega0, "{c:?} {d:?}");
         }
@@ -922,13 +924,13 @@ pub(crate) mod tests {
 
     #[test]
     fn the_shifted_cage_variable_saves_right_hand_sides() {
-        // `CageRhs::shift`: integrating φ = ϑ − c·Δ takes one internal step for most 1 ms
-        // communication steps (9 evaluations) where ϑ itself took two (17). 0.3 s at tol 1e-8:
-        // 3 237 evaluations for the spring, 5 429 for the thin rod (5 101 and 9 597 for ϑ).
+        // `CageRhs::shift`: integrating φ = ϑ − c·Δ instead of ϑ takes fewer internal steps per
+        // 1 ms communication step (docs/performance.md "The elastic rod"). 0.3 s at tol 1e-8
+        // (ϑ̇'s tolerance tol·|ω|): 4 501 evaluations for the spring, 8 109 for the thin rod.
         // The accuracy of the result is checked against an independent solution in
         // tests/python/test_elastic_rod.py.
         let thin = Params { rod_kind: 1, ..kvo630() };
-        for (params, bound) in [(kvo630(), 12.0), (thin, 20.0)] {
+        for (params, bound) in [(kvo630(), 16.0), (thin, 28.0)] {
             let m = Model::new(&params).unwrap();
             let (_, stats) = run(&m, 1e-3, 300, 1e-8);
             let per_step = stats.rhs_evals as f64 / 300.0;

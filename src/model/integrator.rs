@@ -51,10 +51,12 @@
 //! 6 times (they need a second step per call more often: error ∝ h⁵ instead of h⁶), and Verner
 //! 7(6) (10 evaluations a step, not FSAL) is cheaper only below about 3e-9 rad.
 //!
-//! For communication steps up to [`SINGLE_STEP_MAX`] (0.1 ms), where the communication step and
-//! not the error sets the internal step, the cage's step uses Tsitouras 5(4) instead
-//! ([`advance_single_step`]: 7 evaluations per call against 9, errors far inside the tolerance;
-//! see the constant).
+//! Verner 6(5) also integrates the shortest communication steps (0.1 ms and below), where one
+//! internal step covers the call: Tsitouras 5(4) would save 2 of 9 evaluations there, but its
+//! embedded estimate accepted steps of 0.1 ms across the kinks of the guide friction (where an
+//! edge force changes sign) and at hΩ0 ≈ 1.5 (a thin rod) whose errors were 7 (kvo630) to 10
+//! (thin rod) times Verner's, not falling with the tolerance
+//! (tests/python/test_tolerance_proportionality.py, docs/performance.md "The elastic rod").
 //!
 //! Any pair can also run in Lawson's integrating-factor form with the RHS's frozen oscillator
 //! treated exactly ([`Form::Lawson`], `lawson.rs`). On φ that is not
@@ -119,7 +121,8 @@ pub enum Form {
 }
 
 /// Error tolerances (docs/model.md §6): `rtol` relative, `atol_theta` [rad] and `atol_rate` [rad/s]
-/// absolute (`atol_rate = tol·Ω0` with Ω0 at P = 0, a fixed scale).
+/// absolute (`atol_rate = tol·ω_s`, ω_s the caller's frequency scale of the rate: the crank's speed
+/// for the cage, drive/cage_step.rs `rate_scale`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Tolerance {
     pub rtol: f64,
@@ -129,9 +132,9 @@ pub struct Tolerance {
 
 impl Tolerance {
     /// The §6 convention: `tol` (`solver.tolerance`) as relative tolerance and as absolute
-    /// tolerance on ϑ [rad] and on ϑ̇/Ω0.
-    pub fn from_solver_tolerance(tol: f64, omega0: f64) -> Tolerance {
-        Tolerance { rtol: tol, atol_theta: tol, atol_rate: tol * omega0 }
+    /// tolerance on ϑ [rad] and on ϑ̇/ω_s (`rate_scale` [rad/s]).
+    pub fn from_solver_tolerance(tol: f64, rate_scale: f64) -> Tolerance {
+        Tolerance { rtol: tol, atol_theta: tol, atol_rate: tol * rate_scale }
     }
 }
 
@@ -280,7 +283,7 @@ pub struct Pair<const S: usize> {
     pub est_exponent: f64,
 }
 
-/// Tsitouras 5(4) (Ch. Tsitouras, Comput. Math. Appl. 62 (2011) 770–775; digits as in
+/// Tsitouras 5(4), compared in the tests and the work-precision study (Ch. Tsitouras, Comput. Math. Appl. 62 (2011) 770–775; digits as in
 /// diffrax's tableau).
 pub const TSIT5_B: [f64; 7] = [
     0.09646076681806522951816731316512876333712,
@@ -323,7 +326,7 @@ pub const TSIT5: Pair<7> = Pair {
     est_exponent: 1.0 / 5.0,
 };
 
-/// The pair the FMU integrates with above SINGLE_STEP_MAX (see the module doc).
+/// The pair the FMU integrates with (see the module doc).
 pub const VERNER_65: Pair<STAGES> =
     Pair { c: C, a: A, b: B, fsal: true, e: E, order: 6.0, est_exponent: 1.0 / 6.0 };
 const SAFETY: f64 = 0.9;
@@ -469,39 +472,6 @@ pub fn advance(
     }
     advance_with(&VERNER_65, Form::Plain, rhs, t0, y0, h, tol, state, stats)
 }
-
-/// [`advance`] with Tsitouras 5(4), for the cage's communication steps up to
-/// [`SINGLE_STEP_MAX`] (drive/cage_step.rs). Not inlined, so that the caller's Verner 6(5) path
-/// compiles as if this one did not exist (inlined too, it cost that path about 55 instructions
-/// per 1 ms step in kvo630's loop).
-#[inline(never)]
-pub fn advance_single_step(
-    rhs: &mut impl SecondOrderRhs,
-    t0: f64,
-    y0: [f64; 2],
-    h: f64,
-    tol: &Tolerance,
-    state: &mut IntegratorState,
-    stats: &mut IntegratorStats,
-) -> Result<[f64; 2], ModelError> {
-    #[cfg(test)]
-    if let Some(r) =
-        tests::compared::advance_with_pair_under_test(rhs, t0, y0, h, tol, state, stats)
-    {
-        return r;
-    }
-    advance_with(&TSIT5, Form::Plain, rhs, t0, y0, h, tol, state, stats)
-}
-
-/// Communication steps [s] up to which the elastic rod's step integrates with Tsitouras 5(4)
-/// ([`advance_single_step`]) instead of Verner 6(5) ([`advance`]; the drive train keeps Verner
-/// 6(5) at every step). WHY: there the communication step, not the error, sets the internal step (one
-/// step per call for the kvo630 spring and the thin rod at every tolerance from 1e-6 to 1e-10),
-/// so the stages per step set the cost: 7 evaluations against 9, with errors of 1.0e-10 and
-/// 5.3e-10 rad against the reference where Verner 6(5) has 1.5e-10 and 1.9e-11, far inside
-/// every tolerance (docs/performance.md "The elastic rod", work-precision study at 0.1 ms).
-/// Above it (1 ms) Tsitouras misses the tolerance 2 to 6 times where Verner 6(5) meets it.
-pub const SINGLE_STEP_MAX: f64 = 1.000_001e-4;
 
 /// [`advance`] with the pair `pair` (inlined, so that each pair's coefficients are constants)
 /// in the form `form`.
@@ -694,6 +664,9 @@ fn advance_in<const S: usize, const LAWSON: bool>(
     Ok(y)
 }
 
+/// Shortest trial step [s] of [`initial_step`]'s difference quotient (1e-6 of TIME_SCALE).
+const MIN_FIRST_TRIAL: f64 = 1e-6 * TIME_SCALE;
+
 /// Initial step (Hairer, Nørsett & Wanner, Solving ODE I, II.4 "hinit"): from the sizes of y,
 /// f(y) and a difference quotient of f; one extra RHS evaluation.
 #[allow(clippy::too_many_arguments)] // the step's context, as `advance_with` has it
@@ -711,7 +684,12 @@ fn initial_step(
     let rms = |v: [f64; 2]| (0.5 * ((v[0] / sc[0]).powi(2) + (v[1] / sc[1]).powi(2))).sqrt();
     let d0 = rms(y);
     let d1 = rms(f0);
-    let h0 = if d0 < 1e-5 || d1 < 1e-5 { 1e-6 } else { 0.01 * d0 / d1 }.min(remaining);
+    // Not below MIN_FIRST_TRIAL: a y at the level of rounding (the cage's φ = ϑ − c·Δ at a
+    // quasi-static start, against the tolerance tol·|ω| of φ̇ at tol = 1e-13) is not "small
+    // against f", and 0.01·d0/d1 then gave 4e-20 s, a difference quotient of rounding noise and a
+    // first step below the step-size floor.
+    let h0 = if d0 < 1e-5 || d1 < 1e-5 { 1e-6 } else { (0.01 * d0 / d1).max(MIN_FIRST_TRIAL) }
+        .min(remaining);
     let y1 = [y[0] + h0 * f0[0], y[1] + h0 * f0[1]];
     let d2 = match eval(rhs, t + h0, y1, stats) {
         Ok(f1) => rms([f1[0] - f0[0], f1[1] - f0[1]]) / h0,

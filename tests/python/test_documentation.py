@@ -138,7 +138,7 @@ def test_defaults_in_the_model_page_are_the_fmus_start_values(model_description)
 
 
 #: Figures a test takes rather than scripts/make_docs.py (a browser's screenshot), and that test.
-TAKEN_BY_TESTS = {"twin_page.png": "tests/python/test_page.py"}
+TAKEN_BY_TESTS = {"twin_page.png": "tests/python/test_page_operator.py"}
 
 
 def test_figures_regenerate(tmp_path, fmu_path, monkeypatch):

@@ -322,6 +322,10 @@ NAMED_STUDIES = {
         '"link.E" = { start = 1e11, stop = 2e11, num = 10000000 }\n',
         "1,000,000,000,000,000 cases; allowed: at most 1,000,000",
     ),
+    "50 000-deep arrays": (
+        "revolutions = " + "[" * 50_000 + "]" * 50_000 + "\n",
+        "nested too deep",
+    ),
 }
 
 

@@ -1,6 +1,6 @@
 """The FMI 2.0 C API through fmpy's low-level FMU2Slave: error handling and its messages, recovery
-after an error, several instances in one process, instance names, resource locations
-(docs/fmi-interface.md, "What importers pass" and "State machine").
+after an error, several instances in one process, instance names, resource locations, a freed
+instance (docs/fmi-interface.md, "What importers pass", "State machine", "A freed instance").
 
 Every log message is captured by our own logger callback, which takes the FMU's "%s" format and
 its one variadic argument directly (see `Log`).
@@ -9,10 +9,15 @@ its one variadic argument directly (see `Log`).
 from __future__ import annotations
 
 import ctypes
+import json
 import math
 import pathlib
 import re
+import subprocess
+import sys
+import zipfile
 
+import fmpy
 import pytest
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (
@@ -464,3 +469,105 @@ def test_instantiate_refuses_wrong_guid_and_type_with_a_message(model_descriptio
         assert not c
     finally:
         fmu.freeLibrary()
+
+
+# ---------------------------------------------------------------- a freed instance
+
+# Driven in a child process: on a binary that reads the freed instance the child dies (SIGSEGV)
+# or returns what the freed memory happens to hold, and the test fails either way.
+_FREED_CHILD = r"""
+import ctypes as C, json, re, sys
+
+so, header, guid, kind = sys.argv[1:5]
+lib = C.CDLL(so)
+# Every function of the standard's header (fmpy ships the official fmi2Functions.h).
+names = re.findall(r"FMI2_Export\s+fmi2\w+TYPE\s+(fmi2\w+)\s*;", open(header).read())
+V = C.c_void_p
+# The logger with the one variadic argument the FMU passes (its format is always "%s").
+LOG = C.CFUNCTYPE(None, V, C.c_char_p, C.c_int, C.c_char_p, C.c_char_p, C.c_char_p)
+messages = []
+logger = LOG(lambda env, name, status, category, fmt, message: messages.append(message.decode()))
+
+
+class Callbacks(C.Structure):
+    _fields_ = [("logger", V), ("allocateMemory", V), ("freeMemory", V), ("stepFinished", V),
+                ("componentEnvironment", V)]
+
+
+callbacks = Callbacks(C.cast(logger, V).value, None, None, None, None)
+lib.fmi2Instantiate.restype = V
+
+
+def instantiate(name):
+    return lib.fmi2Instantiate(name, C.c_int(0 if kind == "me" else 1), guid.encode(), None,
+                               C.byref(callbacks), 0, 1)
+
+
+inst = instantiate(b"freed")
+assert inst, messages
+lib.fmi2FreeInstance.restype = None
+lib.fmi2FreeInstance(V(inst))
+logged = len(messages)
+status = {}
+for n in names:
+    if n in ("fmi2GetTypesPlatform", "fmi2GetVersion", "fmi2Instantiate"):
+        continue  # no instance argument
+    f = getattr(lib, n)
+    if n == "fmi2FreeInstance":
+        f(V(inst))  # a second free: void, it must simply return
+        status[n] = None
+        continue
+    f.restype = C.c_int
+    # The instance, then NULL for every other argument: a freed instance is refused first.
+    status[n] = f(V(inst), *[V(None)] * 7)
+# The freed instance's logger is not called any more (the importer may have released it).
+after = messages[logged:]
+# Another instance is unharmed by all this.
+live = instantiate(b"live")
+for n in ("fmi2SetupExperiment", "fmi2EnterInitializationMode", "fmi2ExitInitializationMode"):
+    getattr(lib, n).restype = C.c_int
+ok = [lib.fmi2SetupExperiment(V(live), 0, C.c_double(0.0), C.c_double(0.0), 0, C.c_double(0.0)),
+      lib.fmi2EnterInitializationMode(V(live)),
+      lib.fmi2ExitInitializationMode(V(live))]
+lib.fmi2FreeInstance(V(live))
+print(json.dumps({"names": names, "status": status, "after": after, "ok": ok}))
+"""
+
+
+@pytest.mark.parametrize("kind", ["cs", "me"])
+@pytest.mark.parametrize("model", ["ReciprocatingDrive", "DriveTrain"])
+def test_a_freed_instance_is_refused_by_every_function(fmu_path, tmp_path, model, kind):
+    """After fmi2FreeInstance, a second fmi2FreeInstance and every other function of the
+    standard's fmi2Functions.h that takes an instance return fmi2Error (3) without touching freed
+    memory: the process lives on, another instance still works, the freed instance's logger is not
+    called again, and one line on standard error names the first function called on it
+    (docs/fmi-interface.md "A freed instance")."""
+    path = pathlib.Path(fmu_path).parent / f"{model}.fmu"
+    md = fmpy.read_model_description(str(path))
+    so = tmp_path / f"{model}.so"
+    with zipfile.ZipFile(path) as z:
+        so.write_bytes(z.read(f"binaries/linux64/{model}.so"))
+    header = pathlib.Path(fmpy.__file__).parent / "c-code" / "fmi2Functions.h"
+    p = subprocess.run(
+        [sys.executable, "-c", _FREED_CHILD, str(so), str(header), md.guid, kind],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert p.returncode == 0, f"exit {p.returncode}: {p.stderr[-2000:]}"
+    r = json.loads(p.stdout)
+    assert len(r["names"]) == 44, len(r["names"])  # FMI 2.0: 44 functions
+    refused = {n: s for n, s in r["status"].items() if s is not None}
+    # 44 less the three without an instance and fmi2FreeInstance (void).
+    assert len(refused) == 40 and all(s == fmi2Error for s in refused.values()), {
+        n: s for n, s in refused.items() if s != fmi2Error
+    }
+    assert "fmi2FreeInstance" in r["status"]
+    assert r["after"] == [] and r["ok"] == [0, 0, 0], r
+    lines = p.stderr.strip().splitlines()
+    first = next(iter(r["status"]))
+    assert len(lines) == 1, lines
+    assert (
+        lines[0].startswith(f"{model}: {first}: instance ")
+        and "was freed by fmi2FreeInstance; no call is allowed on it (fmi2Error)" in lines[0]
+    ), lines

@@ -21,6 +21,7 @@ import pathlib
 import sys
 
 from .. import artifacts
+from ..cli_errors import ArgumentParser, UserError, run_cli
 from . import prefix
 
 FAULTS = ("bad_status", "nan", "wrong_type")
@@ -63,12 +64,53 @@ def positive(text: str) -> float:
     return v
 
 
+def at_sample(option: str, kinds=None):
+    """SAMPLE:SECONDS (a finite number) or, with `kinds`, SAMPLE:KIND."""
+
+    def parse(text: str):
+        try:
+            i, v = text.split(":")
+            i = int(i)
+            if i < 0:
+                raise ValueError
+            if kinds is None:
+                v = float(v)
+                if not math.isfinite(v):
+                    raise ValueError
+            elif v not in kinds:
+                raise ValueError
+            return i, v
+        except ValueError:
+            what = "SECONDS (a finite number)" if kinds is None else "|".join(kinds)
+            raise argparse.ArgumentTypeError(
+                f"{option} {text!r}: give SAMPLE:{what}, SAMPLE a whole number >= 0"
+            ) from None
+
+    return parse
+
+
+def port(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        v = -1
+    if not 0 <= v <= 65535:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a port 0 to 65535 (0: a free one)")
+    return v
+
+
 def main(argv=None, prog: str | None = None) -> int:
-    ap = argparse.ArgumentParser(
+    """The command: its exit code, with every error as one line (cli_errors.run_cli)."""
+    prog = prog or "plc_sim.py"
+    return run_cli(prog, lambda: _main(argv, prog))
+
+
+def _main(argv, prog: str) -> int:
+    ap = ArgumentParser(
         prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("--data", default=str(artifacts.twin_sample()))
-    ap.add_argument("--port", type=int, default=0, help="default: a free port")
+    ap.add_argument("--port", type=port, default=0, help="default: a free port")
     ap.add_argument("--speed", type=positive, default=1.0, help="multiple of real time")
     ap.add_argument("--block-ms", type=positive, default=50.0)
     ap.add_argument("--no-history", action="store_true")
@@ -94,6 +136,31 @@ def main(argv=None, prog: str | None = None) -> int:
         default=LINGER,
         help=f"seconds to stay up after the end (default {LINGER:g}: subscribers get the last "
         "values, then it exits); --linger alone: until stopped",
+    )
+    ap.add_argument(
+        "--clock-glitch",
+        type=at_sample("--clock-glitch"),
+        default=None,
+        help="SAMPLE:SECONDS: that one sample stamped SECONDS ahead (a PLC clock glitch)",
+    )
+    ap.add_argument(
+        "--clock-step",
+        type=at_sample("--clock-step"),
+        default=None,
+        help="SAMPLE:SECONDS: from that sample on, every stamp SECONDS earlier (a step back)",
+    )
+    ap.add_argument(
+        "--duplicate",
+        type=at_sample("--duplicate", ("same", "other")),
+        default=None,
+        help="SAMPLE:same|other: that sample's angle written again after the next sample, with "
+        "its timestamp and the same or another value",
+    )
+    ap.add_argument(
+        "--stamp-apart",
+        type=int,
+        default=0,
+        help="µs between the angle's stamp and the speed's and force's of the same sample",
     )
     ap.add_argument(
         "--stop-cycle",
@@ -138,6 +205,18 @@ def main(argv=None, prog: str | None = None) -> int:
             return 2
     if a.cert_dir:
         pathlib.Path(a.cert_dir).mkdir(parents=True, exist_ok=True)
+    if a.port:
+        # A port taken is one line here (asyncua would log its traceback when it fails to bind).
+        import socket
+
+        with socket.socket() as probe:
+            try:
+                probe.bind(("127.0.0.1", a.port))
+            except OSError as e:
+                raise UserError(
+                    f"--port {a.port}: cannot listen on 127.0.0.1 ({e.strerror or e}); "
+                    "choose another port, or 0 for a free one"
+                ) from None
     from ..plant.plc_sim import PlcSim, serve
 
     try:
@@ -156,6 +235,10 @@ def main(argv=None, prog: str | None = None) -> int:
             origin=a.origin,
             start_delay=a.start_delay,
             written=a.nodes,
+            clock_glitch=a.clock_glitch,
+            clock_step=a.clock_step,
+            duplicate=a.duplicate,
+            stamp_apart_us=a.stamp_apart,
         )
     except (OSError, ValueError) as e:
         print(f"{prefix('plc_sim.py')}: --data {a.data}: {e}", file=sys.stderr)
@@ -164,6 +247,10 @@ def main(argv=None, prog: str | None = None) -> int:
         asyncio.run(serve(sim, a.linger))
     except KeyboardInterrupt:
         pass
+    except OSError as e:  # the port taken by another program, or not ours to bind
+        raise UserError(
+            f"--port {sim.port}: cannot listen on 127.0.0.1 ({e.strerror or e})"
+        ) from None
     return 0
 
 

@@ -18,11 +18,17 @@ import argparse
 import sys
 
 from .. import artifacts
-from . import prefix
+from ..cli_errors import ArgumentParser, UserError, positive_float, run_cli
 
 
 def main(argv=None, prog: str | None = None) -> int:
-    ap = argparse.ArgumentParser(
+    """The command: its exit code, with every error as one line (cli_errors.run_cli)."""
+    prog = prog or "twin_plant.py"
+    return run_cli(prog, lambda: _main(argv, prog))
+
+
+def _main(argv, prog: str) -> int:
+    ap = ArgumentParser(
         prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     g = ap.add_mutually_exclusive_group(required=True)
@@ -32,7 +38,11 @@ def main(argv=None, prog: str | None = None) -> int:
         action="store_true",
         help="start the simulated pump PLC, subscribe the twin to it over OPC UA, write SQLite",
     )
-    ap.add_argument("--seconds", type=float, default=None, help="with --demo: stop after this long")
+    ap.add_argument(
+        "--seconds",
+        default=None,
+        help="with --demo: stop after this long (a finite number > 0; exit 0, the run resumable)",
+    )
     ap.add_argument(
         "--page-port",
         type=int,
@@ -62,12 +72,11 @@ def main(argv=None, prog: str | None = None) -> int:
     )
     a = ap.parse_args(argv)
     if a.stop_cycle is not None and (a.stop_cycle < 1 or not a.demo):
-        print(
-            f"{prefix('twin_plant.py')}: --stop-cycle {a.stop_cycle}: a whole number >= 1, "
-            "with --demo",
-            file=sys.stderr,
-        )
-        return 2
+        raise UserError(f"--stop-cycle {a.stop_cycle}: a whole number >= 1, with --demo")
+    if a.seconds is not None:
+        if not a.demo:
+            raise UserError("--seconds: only with --demo (a configured run ends with its input)")
+        a.seconds = positive_float("--seconds", a.seconds)
     if a.demo:
         from ..plant.demo import FORCE_STEP, demo
 

@@ -60,6 +60,11 @@ def page_from_table(
                 f"{where}: page.token_file = {str(table['token_file'])!r}: cannot read it: "
                 f"{e.strerror}"
             ) from None
+        except ValueError:  # a NUL in the path, or bytes that are not UTF-8
+            raise PageError(
+                f"{where}: page.token_file = {str(table['token_file'])!r}: not a readable UTF-8 "
+                "file name and text"
+            ) from None
         if not token:
             raise PageError(f"{where}: page.token_file = {str(table['token_file'])!r}: empty")
     elif "token_env" in table:

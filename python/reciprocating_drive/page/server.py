@@ -31,6 +31,7 @@ import concurrent.futures
 import errno
 import hmac
 import json
+import logging
 import math
 import secrets
 import sqlite3
@@ -55,6 +56,13 @@ FLUSH = 0.1  # s between two pushes to the pages (bounds both the latency and th
 LOOPBACK = "127.0.0.1"
 COOKIE = "rd_page_session"
 SESSION_LIFE = 86400.0  # s: a login lasts a day (sessions live in memory: a restart ends them)
+#: Wrong logins: at most LOGIN_TRIES per client address in LOGIN_WINDOW seconds; beyond, 429 with
+#: Retry-After, the token not even compared (docs/page.md "Access").
+LOGIN_TRIES, LOGIN_WINDOW = 5, 60.0
+#: Refused requests logged: at most LOG_LINES in LOG_WINDOW seconds, then one line with how many
+#: were left out. A line names the status, method, path (never the query string) and client.
+LOG_LINES, LOG_WINDOW = 10, 60.0
+ACCESS_LOG = logging.getLogger("tornado.access")
 #: The values of the last revolution the page shows, in its order (units: alarms.UNITS).
 SHOWN = tuple(TREND_SQL)
 LABELS = {
@@ -194,6 +202,8 @@ class PageServer:
         self.state = _State(limits)
         self._clients: set = set()
         self.sessions: OrderedDict = OrderedDict()
+        self._wrong_logins: OrderedDict = OrderedDict()  # client address -> deque of times
+        self._log_start, self._log_lines, self._log_left_out = -math.inf, 0, 0
         self.native_thread_id = None
         # Database reads on a thread of their own (SQLite connections stay on the thread that
         # made them), so a long window's query never holds up the pushes to the pages.
@@ -487,6 +497,45 @@ class PageServer:
             self.sessions.popitem(last=False)
         return sid
 
+    def login_wait(self, client: str) -> float:
+        """Seconds until `client` may try to log in again (0: now)."""
+        tries = self._wrong_logins.get(client)
+        now = time.monotonic()
+        while tries and now - tries[0] >= LOGIN_WINDOW:
+            tries.popleft()
+        if not tries or len(tries) < LOGIN_TRIES:
+            return 0.0
+        return LOGIN_WINDOW - (now - tries[0])
+
+    def wrong_login(self, client: str) -> None:
+        self._wrong_logins.setdefault(client, deque()).append(time.monotonic())
+        self._wrong_logins.move_to_end(client)
+        while len(self._wrong_logins) > 10000:  # bounded memory whatever the clients
+            self._wrong_logins.popitem(last=False)
+
+    def log_request(self, handler: tornado.web.RequestHandler) -> None:
+        """Tornado's access log, replaced: only refused or failed requests (status >= 400), by
+        path without the query string (a token put in a URL is never written), at most LOG_LINES
+        per LOG_WINDOW seconds (a flood of wrong requests cannot fill the log)."""
+        status = handler.get_status()
+        if status < 400:
+            return
+        now = time.monotonic()
+        if now - self._log_start >= LOG_WINDOW:
+            if self._log_left_out:
+                ACCESS_LOG.warning(
+                    "page: %d more refused requests in %g s not logged",
+                    self._log_left_out,
+                    LOG_WINDOW,
+                )
+            self._log_start, self._log_lines, self._log_left_out = now, 0, 0
+        if self._log_lines >= LOG_LINES:
+            self._log_left_out += 1
+            return
+        self._log_lines += 1
+        r = handler.request
+        ACCESS_LOG.warning("page: %d %s %s (%s)", status, r.method, r.path, r.remote_ip)
+
     def _app(self) -> tornado.web.Application:
         args = {"page": self}
         return tornado.web.Application(
@@ -500,6 +549,7 @@ class PageServer:
                 (r"/static/(.*)", _Static, {"path": str(STATIC), "page": self}),
             ],
             compress_response=True,
+            log_function=self.log_request,
         )
 
 
@@ -557,9 +607,17 @@ class _Login(_Base):
         self.redirect("/")
 
     def post(self):
+        client = self.request.remote_ip or "?"
+        wait = self.page.login_wait(client)
+        if wait > 0:
+            self.set_status(429)
+            self.set_header("Retry-After", str(math.ceil(wait)))
+            self.finish(LOGIN.format(note=f"Too many wrong tokens: try again in {wait:.0f} s."))
+            return
         given = self.get_body_argument("token", "")
         tok = self.page.token
         if tok is None or not hmac.compare_digest(given.encode(), tok.encode()):
+            self.page.wrong_login(client)
             self.set_status(401)
             self.finish(LOGIN.format(note="Wrong access token."))
             return

@@ -7,10 +7,11 @@ from __future__ import annotations
 import math
 import os
 import pathlib
-import tomllib
+import re
 from dataclasses import dataclass, field
 
 from .. import artifacts
+from ..cli_errors import read_toml
 from ..presets import available_presets
 
 
@@ -19,6 +20,7 @@ class ConfigError(ValueError):
 
 
 _MISSING = object()
+MIN_PACE, MAX_PACE = 1e-3, 1e6  # source.pace: multiples of real time (docs/plant.md "Sources")
 
 
 class _Table:
@@ -46,6 +48,9 @@ class _Table:
             raise self.err(key, v, allowed or f"must be a {getattr(kind, '__name__', kind)}")
         if isinstance(v, float) and not math.isfinite(v):
             raise self.err(key, v, allowed or "must be a finite number")
+        if isinstance(v, str) and "\0" in v:
+            # The operating system takes no path or name with a NUL in it.
+            raise self.err(key, v, "a NUL character is not allowed")
         if check is not None and not check(v):
             raise self.err(key, v, allowed)
         return v
@@ -142,13 +147,7 @@ def _path(config_path: str, p: str) -> str:
 
 
 def load(path: str) -> Config:
-    try:
-        with open(path, "rb") as f:
-            data = tomllib.load(f)
-    except OSError as e:
-        raise ConfigError(f"{path}: {e.strerror}") from None
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{path}: not valid TOML: {e}") from None
+    data = read_toml(path, ConfigError, "the configuration file")
     return parse(data, str(path))
 
 
@@ -262,15 +261,14 @@ def parse(data: dict, path: str = "<config>") -> Config:
         elif stype_ == "csv":
             settings_ = _csv_sink_settings(s, path)
         else:
-            settings_ = {
-                "dsn": s.get(
-                    "dsn",
-                    str,
-                    allowed="a libpq connection string without password, e.g. "
-                    '"host=127.0.0.1 port=5432 dbname=twin user=twin"',
-                    check=lambda v: "password" not in v.lower(),
-                )
-            }
+            dsn = s.get(
+                "dsn",
+                str,
+                allowed="a libpq connection string without password, e.g. "
+                '"host=127.0.0.1 port=5432 dbname=twin user=twin"',
+            )
+            _dsn_without_password(path, f"sink[{i}]", dsn)
+            settings_ = {"dsn": dsn}
             pw = _secret(s, f"sink[{i}]")
         s.done()
         sinks.append(SinkConfig(stype_, {**settings_, **common}, pw))
@@ -292,6 +290,118 @@ def parse(data: dict, path: str = "<config>") -> Config:
     )
 
 
+def mask_dsn(dsn: str) -> str:
+    """A connection string as a message may show it: any password replaced by ***, in a URI's
+    user-info (postgresql://user:***@host/db), as a key (password=***) or a URI parameter."""
+    dsn = re.sub(r"(://[^/@:?#]*:)[^@/?#]*@", r"\1***@", dsn)
+    dsn = re.sub(r"(?i)(password\s*=\s*)('(?:[^'\\]|\\.)*'|[^\s&]*)", r"\1***", dsn)
+    return dsn
+
+
+def _service_files() -> list[pathlib.Path]:
+    """The connection service files libpq reads (PGSERVICEFILE or ~/.pg_service.conf, then
+    PGSYSCONFDIR/pg_service.conf): the PostgreSQL manual, "The Connection Service File"."""
+    out = [pathlib.Path(os.environ.get("PGSERVICEFILE", "~/.pg_service.conf")).expanduser()]
+    if os.environ.get("PGSYSCONFDIR"):
+        out.append(pathlib.Path(os.environ["PGSYSCONFDIR"]) / "pg_service.conf")
+    return out
+
+
+def _dsn_without_password(path: str, name: str, dsn: str) -> None:
+    """Refuses a connection string that carries a password in any form libpq reads: the key
+    `password`, a URI's user-info (user:PW@) or parameter (?password=), or the connection service
+    it names (service=NAME) in a service file. libpq's own parser (psycopg.conninfo) reads the
+    string, so every form it accepts is seen."""
+    how = (
+        f"a password is never written in the configuration; remove it and give it with "
+        f"{name}.password_file or {name}.password_env"
+    )
+    from psycopg import ProgrammingError
+    from psycopg.conninfo import conninfo_to_dict
+
+    try:
+        parts = conninfo_to_dict(dsn)
+    except ProgrammingError as e:
+        raise ConfigError(
+            f"{path}: {name}.dsn = {mask_dsn(dsn)!r}: not a libpq connection string "
+            f"({str(e).splitlines()[0] if str(e) else 'unreadable'})"
+        ) from None
+    if "password" in parts:
+        where = "in the URI's user-info" if re.search(r"://[^/@]*:[^@/]*@", dsn) else "as a key"
+        raise ConfigError(
+            f"{path}: {name}.dsn = {mask_dsn(dsn)!r}: holds a password ({where}); {how}"
+        )
+    service = parts.get("service")
+    if service:
+        import configparser
+
+        for f in _service_files():
+            cp = configparser.ConfigParser(interpolation=None)
+            try:
+                cp.read(f, encoding="utf-8")
+            except (configparser.Error, UnicodeDecodeError, OSError):
+                continue  # libpq reports an unreadable service file when it connects
+            if cp.has_section(service) and cp.has_option(service, "password"):
+                raise ConfigError(
+                    f"{path}: {name}.dsn = {mask_dsn(dsn)!r}: its service {service!r} in {f} holds "
+                    f"a password; {how} (and remove it from the service file)"
+                )
+
+
+def _certificate_in_date(path: str, cert_file: str) -> None:
+    """A server certificate of source.trust that has expired or is not valid yet is refused
+    here, at the configuration check (a certificate that cannot be read is reported when the
+    source connects). The dates are the certificate's own (X.509 notBefore / notAfter)."""
+    import datetime as dt
+
+    from cryptography import x509
+
+    try:
+        data = pathlib.Path(cert_file).read_bytes()
+        cert = (
+            x509.load_pem_x509_certificate(data)
+            if b"-----BEGIN" in data
+            else x509.load_der_x509_certificate(data)
+        )
+    except (OSError, ValueError):
+        return
+    now = dt.datetime.now(dt.UTC)
+    start, end = cert.not_valid_before_utc, cert.not_valid_after_utc
+    span = f"valid from {start:%Y-%m-%d %H:%M} to {end:%Y-%m-%d %H:%M} UTC"
+    if now > end:
+        raise ConfigError(
+            f"{path}: source.trust: {cert_file}: the certificate expired ({span}); refused: "
+            "trust the server's current certificate"
+        )
+    if now < start:
+        raise ConfigError(
+            f"{path}: source.trust: {cert_file}: the certificate is not valid yet ({span}); "
+            "refused: check the server's and this machine's clocks"
+        )
+
+
+def _distinct_nodes(path: str, s: dict, allowed: str) -> None:
+    """Each node id is one (asyncua's parser, the OPC UA string form), and no node is named for
+    two roles (the same node as angle and speed, the time array again as the angle)."""
+    from asyncua import ua
+
+    seen: dict = {}
+    for key in ("angle_node", "speed_node", "force_node", "time_node", "end_node"):
+        v = s.get(key)
+        if v is None:
+            continue
+        try:
+            nid = ua.NodeId.from_string(v)
+        except Exception:  # noqa: BLE001 - asyncua raises several kinds for a bad string
+            raise ConfigError(f"{path}: source.{key} = {v!r}: not a node id; {allowed}") from None
+        if nid in seen:
+            raise ConfigError(
+                f"{path}: source.{key} = {v!r}: the same node as source.{seen[nid]}; "
+                "each role needs its own node"
+            )
+        seen[nid] = key
+
+
 def _opcua_settings(src: _Table, path: str) -> dict:
     mode = src.choice("mode", ("scalar", "block"), "scalar")
     node = 'an OPC UA node id, e.g. "ns=2;s=Pump.CrankAngle"'
@@ -309,14 +419,27 @@ def _opcua_settings(src: _Table, path: str) -> dict:
         "security_mode": src.choice("security_mode", ("Sign", "SignAndEncrypt"), "SignAndEncrypt"),
         "certificate": src.get("certificate", str, None),
         "private_key": src.get("private_key", str, None),
-        "trust": src.get("trust", list, []),
+        "trust": src.get(
+            "trust",
+            list,
+            [],
+            "must be a list of certificate files (strings)",
+            lambda v: all(isinstance(x, str) and x and "\0" not in x for x in v),
+        ),
         "username": src.get("username", str, None),
         "timeout": src.positive("timeout", 5.0),
         "reconnect_max": src.positive("reconnect_max", 5.0),
         "reconnect_for": src.positive("reconnect_for", 300.0),
         "publishing_interval": src.positive("publishing_interval", 0.05),
         "end_node": src.get("end_node", str, None),
+        # docs/plant.md "Timestamps" and "Sample assembly"
+        "clock_tolerance": src.positive("clock_tolerance", 1.0),
+        "join_tolerance": src.positive("join_tolerance", 0.0005, zero=True),
+        "hold_limit": src.positive("hold_limit", 10.0),
+        # The server's application URI: its certificate must name it (checked at connection).
+        "server_uri": src.get("server_uri", str, None),
     }
+    _distinct_nodes(path, s, node)
     if mode == "block" and not s["time_node"]:
         raise ConfigError(
             f'{path}: source.time_node is missing (mode = "block" needs the timestamps\' array)'
@@ -325,6 +448,8 @@ def _opcua_settings(src: _Table, path: str) -> dict:
         if s[k]:
             s[k] = _path(path, s[k])
     s["trust"] = [_path(path, p) for p in s["trust"]]
+    for p in s["trust"]:
+        _certificate_in_date(path, p)
     if s["security_policy"] != "None":
         for k in ("certificate", "private_key"):
             if not s[k]:
@@ -395,7 +520,15 @@ def _csv_source_settings(src: _Table, path: str) -> dict:
     (docs/plant.md "Sources")."""
     p = src.get("path", str, allowed='the CSV file to replay, or "-" for standard input')
     follow = src.get("follow", bool, False)
-    pace = src.positive("pace", 0.0, zero=True)
+    # A pace below MIN_PACE would wait longer than any plant runs between two samples (and
+    # 1e-300 overflows the sleep): 0 (as fast as possible) or MIN_PACE to MAX_PACE.
+    pace = src.get(
+        "pace",
+        float,
+        0.0,
+        f"must be a number >= 0: 0 (as fast as possible) or {MIN_PACE:g} to {MAX_PACE:g}",
+        lambda v: v == 0 or MIN_PACE <= v <= MAX_PACE,
+    )
     if p == "-" and follow:
         raise src.err("follow", True, 'follows a file, not standard input (path = "-")')
     if pace > 0 and (follow or p == "-"):

@@ -21,6 +21,7 @@ import tempfile
 import time
 import traceback
 
+from ..cli_errors import one_line
 from ..fmu import FmuError
 from ..twin import DataError, Options, Twin
 from .config import Config, ConfigError, load
@@ -46,7 +47,9 @@ def make_source(cfg: Config):
         return CsvSource(s.settings["path"], pace=s.settings["pace"])
     from .sources.opcua import OpcUaSource
 
-    return OpcUaSource(s.settings, password=s.password)
+    src = OpcUaSource(s.settings, password=s.password, config_path=cfg.path)
+    src.gap_limit = cfg.options["gap_limit"]  # a clock step back ends in a gap (docs/plant.md)
+    return src
 
 
 def make_sinks(cfg: Config) -> list:
@@ -98,11 +101,27 @@ def make_page(cfg: Config, on_alarm):
         raise ConfigError(str(e)) from None
 
 
+def _make_twin(cfg: Config, opts: dict) -> Twin:
+    """The twin of the configuration. The twin names what it refuses as its command's options
+    (--machine, --fmu); here they are the keys run.machine and run.fmu of the file (exit 2)."""
+    try:
+        return Twin(cfg.fmu, cfg.machine, Options(**opts))
+    except ValueError as e:
+        text = str(e)
+        for option, key in (("--machine ", "run.machine = "), ("--fmu ", "run.fmu = ")):
+            if text.startswith(option):
+                text = key + text[len(option) :]
+        raise ConfigError(f"{cfg.path}: {text}") from None
+
+
 class Pipeline:
-    def __init__(self, cfg: Config, log=None):
+    def __init__(self, cfg: Config, log=None, stop_after: float | None = None):
         self.cfg = cfg
         self.log = log or (lambda m: print(m, file=sys.stderr, flush=True))
         self.stop_signal = None
+        # `rdrive plant --demo --seconds S`: the run stops after S seconds as asked (exit 0).
+        self.stop_after = stop_after
+        self.timed_out = False
         self.commits = 0
         self.page = None
         self.page_origin = None
@@ -116,6 +135,9 @@ class Pipeline:
     def _event(self, ev: Event) -> None:
         self.events.append((self.c.events, time.time(), ev))
         self.c.events += 1
+        if ev.kind == "dropped":
+            why = ev.reason or "other"
+            self.drops[why] = self.drops.get(why, 0) + ev.count
 
     def _hand(self, rows, summaries) -> None:
         first = self.twin.rows_out - len(rows)
@@ -248,7 +270,7 @@ class Pipeline:
             # A live source's reconnect can leave a sample or two between two gaps: dropped and
             # reported (an event), not a reason to stop a twin that runs for months.
             opts.setdefault("short_segments", "drop")
-        twin = Twin(cfg.fmu, cfg.machine, Options(**opts))
+        twin = _make_twin(cfg, opts)
         info = RunInfo(
             cfg.run_id,
             cfg.machine_id,
@@ -272,9 +294,19 @@ class Pipeline:
             return 0
         self.c = Counters()
         self.events: list = []
+        self.drops: dict = {}  # reason -> samples dropped (this process's share of the run)
         self.dups_seen = 0
         if state is not None:
-            twin = Twin.from_checkpoint(cfg.fmu, state["twin"])
+            try:
+                twin = Twin.from_checkpoint(cfg.fmu, state["twin"])
+            except (KeyError, TypeError, ValueError, IndexError) as e:
+                # The counters were checked (sinks/base.py parse_state); the twin's part too.
+                raise SinkError(
+                    f"{', '.join(s.name for s in self.sinks)}: the checkpoint of run "
+                    f"{cfg.run_id!r} is damaged: the twin's state is not readable "
+                    f"({type(e).__name__}: {one_line(e, 80)}); restore the database from a copy, "
+                    "or name a new run"
+                ) from None
             c = state["counters"]
             self.c = Counters(c["samples"], c["revolutions"], c["events"], 0, c.get("rev_upto"))
             self.dups_seen = state.get("duplicates_reported", 0)
@@ -312,9 +344,15 @@ class Pipeline:
             self.stop_signal = signal.Signals(signum).name
 
         old = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGTERM, signal.SIGINT)}
+        deadline = None if self.stop_after is None else time.monotonic() + self.stop_after
         try:
             while self.stop_signal is None:
+                if deadline is not None and time.monotonic() >= deadline:
+                    self.timed_out = True
+                    break
                 wait = max(0.0, cfg.commit_interval - (time.monotonic() - self.last_commit))
+                if deadline is not None:
+                    wait = min(wait, max(0.0, deadline - time.monotonic()))
                 try:
                     chunk = self.source.get(wait)
                 except DataError as e:  # a followed file truncated, replaced or removed
@@ -356,6 +394,15 @@ class Pipeline:
                         or self.lines_since_checkpoint >= cfg.commit_samples
                         or now - self.last_checkpoint >= cfg.checkpoint_interval
                     )
+            if self.timed_out:
+                # Stopped after the time asked for: complete as asked, and resumable.
+                self._commit()
+                self.log(
+                    f"stopped after {self.stop_after:g} s as asked (--seconds), after input line "
+                    f"{lineno}: {twin.rows_out} samples, {self.c.revolutions} revolutions "
+                    f"committed to {', '.join(s.name for s in self.sinks)}"
+                )
+                return 0
             if self.stop_signal is not None:
                 self._commit()
                 hint = getattr(
@@ -380,6 +427,20 @@ class Pipeline:
                 self.log(f"{self._source_name()}: the input holds no sample")
                 self._page_end("failed", "the input holds no sample")
                 return 1
+            acct = getattr(self.source, "accounting", None)
+            if acct is not None:
+                received, out, dropped = acct()
+                if received != out + dropped:
+                    # Never "finished" with a sample neither stored nor counted (docs/plant.md
+                    # "Final status").
+                    msg = (
+                        f"{received} samples received, {out} handed to the twin and {dropped} "
+                        f"dropped: {received - out - dropped} unaccounted for"
+                    )
+                    self._event(Event("data_error", msg))
+                    self._commit("failed")
+                    self.log(f"{self._source_name()}: {msg}")
+                    return 1
             self._event(Event("finished", f"finished: {twin.rows_out} samples"))
             self._commit("finished")
             self._page_end("finished", f"{twin.rows_out} samples, {self.c.revolutions} revolutions")
@@ -388,9 +449,13 @@ class Pipeline:
                 signal.signal(sig, h)
         for m in dict.fromkeys(twin.messages):
             self.log(f"twin: {m}")
+        n_drop = sum(self.drops.values())
+        why = "; ".join(f"{k}: {v}" for k, v in sorted(self.drops.items()))
+        lost = sum(t1 - t0 for t0, t1 in twin.gaps)
         self.log(
-            f"run {cfg.run_id!r}: {twin.rows_out} samples, {self.c.revolutions} revolutions, "
-            f"{twin.duplicates} duplicate timestamps dropped, {self.gap_count} gap(s); "
+            f"run {cfg.run_id!r}: {twin.rows_out} samples stored, {n_drop} dropped"
+            f"{f' ({why})' if why else ''}, {twin.duplicates} duplicate timestamps dropped, "
+            f"{self.gap_count} gap(s) ({lost:.6g} s lost); {self.c.revolutions} revolutions; "
             f"{self.commits} commits to {', '.join(s.name for s in self.sinks)}"
         )
         return 0
@@ -417,7 +482,7 @@ class Pipeline:
         return src.get("path") or src.get("endpoint") or "twin"
 
 
-def run_config(path: str, log=None) -> int:
+def run_config(path: str, log=None, stop_after: float | None = None) -> int:
     """The whole pipeline of a configuration file; returns the exit status (messages are one line
     each on standard error; an unexpected failure writes its traceback to a file and says where)."""
     log = log or (lambda m: print(m, file=sys.stderr, flush=True))
@@ -427,7 +492,7 @@ def run_config(path: str, log=None) -> int:
         log(str(e))
         return 2
     try:
-        return Pipeline(cfg, log).run()
+        return Pipeline(cfg, log, stop_after).run()
     except ConfigError as e:  # the [page] table, its limits file, its port
         log(str(e))
         return 2

@@ -113,6 +113,11 @@ class PlcSim:
     start_delay: float = 0.0  # seconds between listening and the first sample
     written: str = "both"  # which nodes are written: "scalar", "block" or "both"
     log: object = print
+    # Behaviours of other PLCs, for the tests (docs/plant.md "Simulated PLC"):
+    clock_glitch: tuple | None = None  # (sample, seconds): that one sample stamped ahead
+    clock_step: tuple | None = None  # (sample, seconds): from that sample on, stamped earlier
+    duplicate: tuple | None = None  # (sample, "same" | "other"): its angle written again later
+    stamp_apart_us: int = 0  # speed and force stamped this many µs after the angle
 
     def __post_init__(self):
         self.port = self.port or free_port()
@@ -245,7 +250,7 @@ class PlcSim:
                 asyncio.get_running_loop().create_task(self._outage(self.outage[1]))
             scalar = self.written in ("scalar", "both")
             while i < n and self.t[i] <= now:
-                ts = self._stamp(origin, self.t[i])
+                ts = self._stamp_of(origin, i)
                 if not scalar:
                     i += 1
                     if self.t[i - 1] >= next_block or i == n:
@@ -253,10 +258,11 @@ class PlcSim:
                         block_start = i
                         next_block = self.t[i - 1] + self.block_ms / 1000.0
                     continue
+                other_ts = ts + dt.timedelta(microseconds=self.stamp_apart_us)
                 if self.speed_col is not None:
-                    await self._write("Pump.CrankSpeed", float(self.speed_col[i]), D, ts)
+                    await self._write("Pump.CrankSpeed", float(self.speed_col[i]), D, other_ts)
                 if self.force_col is not None:
-                    await self._write("Pump.ProcessForce", float(self.force_col[i]), D, ts)
+                    await self._write("Pump.ProcessForce", float(self.force_col[i]), D, other_ts)
                 fault = self.faults.get(i)
                 if fault == "bad_status":
                     await self._write(
@@ -276,6 +282,16 @@ class PlcSim:
                     self._clear("Pump.CrankAngle")
                 else:
                     await self._write("Pump.CrankAngle", float(self.angle[i]), D, ts)
+                if self.duplicate is not None and i == self.duplicate[0] + 1:
+                    # The previous sample's angle again, with its timestamp: a late duplicate.
+                    k = self.duplicate[0]
+                    extra = 0.0 if self.duplicate[1] == "same" else 1.0
+                    await self._write(
+                        "Pump.CrankAngle",
+                        float(self.angle[k]) + extra,
+                        D,
+                        self._stamp_of(origin, k),
+                    )
                 i += 1
                 if self.written == "both" and (self.t[i - 1] >= next_block or i == n):
                     await self._block(block_start, i, origin, ts)
@@ -285,6 +301,15 @@ class PlcSim:
         ts = self._stamp(origin, self.t[-1])
         await self._write("Pump.Finished", True, ua.VariantType.Boolean, ts)
         self.log("plc_sim: finished playing", flush=True)
+
+    def _stamp_of(self, origin: float, i: int) -> dt.datetime:
+        """Sample i's timestamp, with the clock's glitch or step when one is asked for."""
+        ts = self._stamp(origin, self.t[i])
+        if self.clock_step is not None and i >= self.clock_step[0]:
+            ts -= dt.timedelta(seconds=self.clock_step[1])
+        if self.clock_glitch is not None and i == self.clock_glitch[0]:
+            ts += dt.timedelta(seconds=self.clock_glitch[1])
+        return ts
 
     @staticmethod
     def _stamp(origin: float, t: float) -> dt.datetime:

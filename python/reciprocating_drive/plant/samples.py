@@ -29,6 +29,7 @@ class Event:
     message: str
     t: float | None = None
     count: int = 1
+    reason: str | None = None  # a `dropped` event's reason (the run's summary counts by it)
 
 
 @dataclass

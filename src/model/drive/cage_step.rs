@@ -53,13 +53,8 @@ impl Model {
         rhs.start = Some((crank0, start));
         let mut integ = state.integrator;
         let y0 = [state.cage.theta - g0[0], state.cage.rate - g0[1]];
-        let tolerance = Tolerance::from_solver_tolerance(tol, rod.omega0);
-        // Up to SINGLE_STEP_MAX one internal step covers the step: the pair with fewer stages.
-        let y = if h <= integrator::SINGLE_STEP_MAX {
-            integrator::advance_single_step(&mut rhs, 0.0, y0, h, &tolerance, &mut integ, stats)?
-        } else {
-            integrator::advance(&mut rhs, 0.0, y0, h, &tolerance, &mut integ, stats)?
-        };
+        let tolerance = Tolerance::from_solver_tolerance(tol, rate_scale(crank.speed));
+        let y = integrator::advance(&mut rhs, 0.0, y0, h, &tolerance, &mut integ, stats)?;
         let (crank1, end) = rhs.link_at(h);
         let g1 = rhs.offset(&crank1, &end);
         Ok(RodState {
@@ -69,13 +64,29 @@ impl Model {
     }
 }
 
+/// The frequency [rad/s] that turns `solver.tolerance` into the absolute tolerance on ϑ̇
+/// (docs/model.md §6 "Integration"): the crank's speed |ω|, not below RATE_SCALE_FLOOR. WHY: the
+/// cage follows the crank, so ϑ̇'s amplitude is about |ω| times ϑ's, and an error of tol·|ω| on
+/// ϑ̇ is the same share of its amplitude as tol on ϑ is of ϑ's. The integration errors are free
+/// oscillations of the cage, Ω0 times larger in ϑ̇ than in ϑ; with the natural frequency Ω0 as
+/// the scale (10 to 100 times |ω| for kvo630's spring and a 2 mm thin rod) ϑ̇ erred up to
+/// 3 000·tol of its amplitude (tests/python/test_tolerance_proportionality.py).
+#[inline]
+pub(super) fn rate_scale(crank_speed: f64) -> f64 {
+    crank_speed.abs().max(RATE_SCALE_FLOOR)
+}
+
+/// Lower bound [rad/s] of [`rate_scale`]: a crank at rest still gives ϑ̇ an absolute tolerance
+/// (then 1 rad/s·tol, tighter than a moving crank's; only a free transient is left to integrate).
+const RATE_SCALE_FLOOR: f64 = 1.0;
+
 /// Relative tolerance on P inside the integrator's stages, as a fraction of the integrator
 /// tolerance `tol` (§4 and §6 "Integration"). WHY 1e-3: an error δP changes ϑ̈ by about
 /// (K_Δ'·Δ − K_ϑ'·ϑ + e_P)·δP/J_m. For kvo630 at P = 14.7 N (K_Δ' = −0.88 N/N,
 /// K_ϑ' = −0.033 N·m/(rad·N), Δ ≤ 1 mm, |ϑ| ≤ 0.04 rad, J_m = 5e-7 kg·m²) a relative δP of
-/// 1e-3·tol = 1e-11 at tol = 1e-8 (1.5e-10 N) is |δϑ̈| ≤ 7e-7 rad/s²: below 1 % of what the
+/// 1e-3·tol = 1e-11 at tol = 1e-8 (1.5e-10 N) is |δϑ̈| ≤ 7e-7 rad/s²: below 10 % of what the
 /// error estimate h·Σ|e_j|·|δϑ̈| (Σ|e_j| ≈ 353, h ≈ 0.5 ms) may contain before it reaches the
-/// tolerance on ϑ̇ (tol·Ω0 ≈ 1.5e-5 rad/s), and a static error of |δϑ̈|/Ω0² ≈ 3e-13 rad in ϑ.
+/// tolerance on ϑ̇ (tol·|ω| ≈ 1.6e-6 rad/s at 1 500 strokes/min), and a static error of |δϑ̈|/Ω0² ≈ 3e-13 rad in ϑ.
 /// P is still solved at every stage from that stage's crank angle and ϑ (no lag, nothing frozen).
 pub(super) const STAGE_P_TOLERANCE_FACTOR: f64 = 1e-3;
 /// Smallest integrator tolerance at which the stages use the stiffness table (its accuracy

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...cli_errors import one_line
 from ..samples import Event
 
 
@@ -220,6 +221,33 @@ class Sink:
                 time.sleep(delay)
                 delay = min(delay * 2, self.retry_max)
                 reconnect = True
+
+
+def parse_state(text, where: str, run: str) -> dict:
+    """A checkpoint row's state, checked before anything is resumed from it: JSON, an object
+    with the twin's state and the counters of what it covers (Counters). A row edited or damaged
+    by hand is one line naming the database and the run (SinkError), not a parser's message."""
+    fix = "restore the database from a copy, or name a new run"
+    try:
+        state = json.loads(text)
+    except (TypeError, ValueError) as e:
+        raise SinkError(
+            f"{where}: the checkpoint of run {run!r} is not JSON ({one_line(e, 80)}); {fix}"
+        ) from None
+    c = state.get("counters") if isinstance(state, dict) else None
+    ints = ("samples", "revolutions", "events", "commits")
+    bad = None
+    if not isinstance(c, dict):
+        bad = "it has no counters"
+    elif set(c) - {*ints, "rev_upto"} or any(type(c.get(k)) is not int or c[k] < 0 for k in ints):
+        bad = f"its counters {one_line(c, 120)} are not {', '.join(ints)} (integers >= 0)"
+    elif c.get("rev_upto") is not None and type(c["rev_upto"]) is not int:
+        bad = f"its counter rev_upto = {c['rev_upto']!r} is not an integer"
+    elif not isinstance(state.get("twin"), dict):
+        bad = "it has no state of the twin"
+    if bad:
+        raise SinkError(f"{where}: the checkpoint of run {run!r} is damaged: {bad}; {fix}")
+    return state
 
 
 def uncovered(state: dict | None, run: int) -> list:

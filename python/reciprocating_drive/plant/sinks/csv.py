@@ -20,7 +20,7 @@ import numpy as np
 
 from ...batch import format_csv
 from ...twin import SUMMARY_FIELDS, summary_header
-from .base import RunInfo, Sink, SinkError
+from .base import RunInfo, Sink, SinkError, parse_state
 
 FORMAT = "rdrive-plant-csv-sink"
 VERSION = 1
@@ -133,7 +133,10 @@ class CsvSink(Sink):
                 "status": None,
                 "state": None,
             }
-            _atomic_write(self.sidecar, json.dumps(meta))
+            try:
+                _atomic_write(self.sidecar, json.dumps(meta))
+            except OSError as e:
+                raise SinkError(self._cannot(self.sidecar, e)) from None
         for key, p in paths.items():
             size = int(meta["sizes"][key])
             have = p.stat().st_size if p.is_file() else None
@@ -146,22 +149,38 @@ class CsvSink(Sink):
                     f"{p}: {have} bytes, shorter than the {size} the checkpoint {self.sidecar} "
                     "covers: it was changed since; start afresh with new files"
                 )
-            f = open(p, "r+b" if have is not None else "w+b")
-            # What follows the checkpoint's size was written after it: computed again.
-            f.truncate(size)
-            f.seek(size)
-            if size == 0:
-                head = run.header if key == "samples" else summary_header()
-                f.write((",".join(head) + "\n").encode())
-                f.flush()  # the headers are out before the first sample, as rdrive twin's
-            self.files[key] = f
+            try:
+                f = open(p, "r+b" if have is not None else "w+b")
+                self.files[key] = f
+                # What follows the checkpoint's size was written after it: computed again.
+                if have is not None and have != size:
+                    f.truncate(size)
+                f.seek(size)
+                if size == 0:
+                    head = run.header if key == "samples" else summary_header()
+                    f.write((",".join(head) + "\n").encode())
+                    f.flush()  # the headers are out before the first sample, as rdrive twin's
+            except OSError as e:
+                raise SinkError(self._cannot(p, e)) from None
         self.meta = meta
         state = meta["state"]
         if state is not None:
+            state = parse_state(json.dumps(state), str(self.sidecar), run.name)
             state["status"] = meta.get("status")
         return str(self.path), state
 
+    def _cannot(self, p, e: OSError) -> str:
+        """A file that cannot be written (a full disk, no permission): one line naming it."""
+        return f"{self.name}: cannot write {p}: {e.strerror or e}"
+
     def _write(self, batch, state: str | None, c, status) -> None:
+        try:
+            self._write_files(batch, state, status)
+        except OSError as e:
+            p = e.filename or (self.sidecar if state is not None else self.path)
+            raise SinkError(self._cannot(p, e)) from None
+
+    def _write_files(self, batch, state: str | None, status) -> None:
         out, summ = self.files["samples"], self.files["summary"]
         for _first, rows in batch.rows:
             out.write(format_csv(np.asarray(rows), self.text))
@@ -188,6 +207,12 @@ class CsvSink(Sink):
         return self.commits
 
     def close(self) -> None:
+        failed = None
         for f in self.files.values():
-            f.close()
+            try:
+                f.close()  # every row was flushed at its commit; a failure here is the disk's
+            except OSError as e:
+                failed = failed or SinkError(self._cannot(f.name, e))
         self.files = {}
+        if failed is not None:
+            raise failed

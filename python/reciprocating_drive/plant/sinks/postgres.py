@@ -14,8 +14,9 @@ import numpy as np
 import psycopg
 
 from ...twin import SUMMARY_FIELDS
+from ..config import mask_dsn
 from ..schema import SCHEMA_VERSION, column, ddl, insert_events, upsert_checkpoint
-from .base import RunInfo, Sink, SinkError, uncovered
+from .base import RunInfo, Sink, SinkError, parse_state, uncovered
 
 _COPY_HEADER = b"PGCOPY\n\xff\r\n\x00" + (0).to_bytes(4, "big") + (0).to_bytes(4, "big")
 _COPY_TRAILER = (-1).to_bytes(2, "big", signed=True)
@@ -42,8 +43,7 @@ class PostgresSink(Sink):
         super().__init__(**kw)
         self.dsn, self.password, self.connect_timeout = dsn, password, connect_timeout
         # The name shown in messages: the connection string without any password in it.
-        shown = " ".join(p for p in dsn.split() if not p.lower().startswith("password"))
-        self.name = f"postgres {shown}"
+        self.name = f"postgres {mask_dsn(dsn)}"
         self.conn = None
         self.outputs: list[str] = []
 
@@ -127,7 +127,7 @@ class PostgresSink(Sink):
                         "SELECT state FROM checkpoints WHERE run = %s", (key,)
                     ).fetchone()
                     if cp is not None and cp[0]:
-                        state = json.loads(cp[0])
+                        state = parse_state(cp[0], self.name, run.name)
                         state["status"] = status
                     # What the last checkpoint does not cover is computed again (base.py).
                     for stmt, args in uncovered(state, key):

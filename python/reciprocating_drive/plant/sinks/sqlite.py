@@ -16,7 +16,7 @@ import numpy as np
 
 from ...twin import SUMMARY_FIELDS
 from ..schema import SCHEMA_VERSION, column, ddl, insert_events, upsert_checkpoint
-from .base import RunInfo, Sink, SinkError, uncovered
+from .base import RunInfo, Sink, SinkError, parse_state, uncovered
 
 
 class SqliteSink(Sink):
@@ -101,7 +101,11 @@ class SqliteSink(Sink):
                     )
                 cp = db.execute("SELECT state FROM checkpoints WHERE run = ?", (key,)).fetchone()
                 if cp is not None and cp[0]:
-                    state = json.loads(cp[0])
+                    try:
+                        state = parse_state(cp[0], self.name, run.name)
+                    except SinkError:
+                        db.execute("ROLLBACK")
+                        raise
                     state["status"] = status
                 # What the last checkpoint does not cover is computed again (base.py).
                 for stmt, args in uncovered(state, key):

@@ -23,6 +23,8 @@ through a queue, so a slow database never stalls the subscription (the queue buf
 from __future__ import annotations
 
 import asyncio
+import bisect
+import collections
 import datetime as dt
 import logging
 import math
@@ -38,6 +40,18 @@ _NUMERIC = None  # the numeric VariantTypes (set on first use: asyncua imported 
 
 class _Fatal(Exception):
     pass
+
+
+class _BadNode(_Fatal):
+    """A configured node the server does not have as the role needs it (a configuration error)."""
+
+
+#: Node classes and data types for the start-up check (OPC UA Part 3 and Part 6: the standard
+#: DataType node ids of namespace 0). Numbers: Boolean excluded; the abstract Number, Integer,
+#: UInteger and BaseDataType are accepted (the value's own type is checked on every sample).
+_NUMBER_TYPES = {2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 26, 27, 28, 24}
+_TIME_TYPES = {13, 294, 24}  # DateTime, UtcTime, BaseDataType
+_BOOLEAN_TYPES = {1, 24}
 
 
 def _numeric_types():
@@ -71,6 +85,18 @@ def _der(path: str) -> bytes:
     return x509.load_der_x509_certificate(data).public_bytes(Encoding.DER)
 
 
+def _cert_uri(cert) -> str | None:
+    """The application URI in a certificate's subject alternative names (None if absent)."""
+    from cryptography import x509
+
+    try:
+        san = cert.extensions.get_extension_for_class(x509.SubjectAlternativeName).value
+    except x509.ExtensionNotFound:
+        return None
+    uris = san.get_values_for_type(x509.UniformResourceIdentifier)
+    return uris[0] if uris else None
+
+
 def _application_uri(path: str) -> str | None:
     """The application URI in a certificate's subject alternative names (None if absent)."""
     from cryptography import x509
@@ -92,11 +118,12 @@ def _application_uri(path: str) -> str | None:
 class OpcUaSource:
     rewindable = False
 
-    def __init__(self, settings: dict, password: str | None = None):
+    def __init__(self, settings: dict, password: str | None = None, config_path: str = "<config>"):
         # asyncua logs warnings and tracebacks of its own; the twin reports in one line instead.
         logging.getLogger("asyncua").setLevel(logging.CRITICAL)
         self.s = settings
         self._password = password
+        self.config_path = config_path
         self.ended = False
         self.time_origin = None
         self.q: queue.Queue = queue.Queue()
@@ -111,6 +138,10 @@ class OpcUaSource:
         if settings["mode"] == "block":
             self.roles["time"] = settings["time_node"]
         self.block = settings["mode"] == "block"
+        self._recent: dict = {}  # SourceTimestamp -> values of samples handed out (bounded)
+        self._gone: dict = {}  # the same for samples dropped by the clock's rules
+        self._recent_order: collections.deque = collections.deque()
+        self.gap_limit = 0.05  # conditioning.gap_limit (set by the pipeline)
 
     # ---- the pipeline's side --------------------------------------------------------------------
     def start(self, lines_read: int = 0, last_t=None, time_origin=None) -> None:
@@ -141,8 +172,11 @@ class OpcUaSource:
             self._raise(self.q.get())
 
     def _raise(self, e):
+        from ..config import ConfigError
         from ..pipeline import SourceError
 
+        if isinstance(e, ConfigError):  # a configured node the server does not have: exit 2
+            raise ConfigError(str(e)) from None
         raise SourceError(str(e)) from None
 
     def get(self, timeout: float) -> Chunk | None:
@@ -172,8 +206,12 @@ class OpcUaSource:
 
     # ---- the client's thread --------------------------------------------------------------------
     def _thread(self) -> None:
+        from ..config import ConfigError
+
         try:
             asyncio.run(self._main())
+        except _BadNode as e:
+            self.q.put(ConfigError(str(e)))
         except _Fatal as e:
             self.q.put(RuntimeError(str(e)))
         except Exception as e:  # noqa: BLE001 - reported by the pipeline as one line
@@ -205,6 +243,17 @@ class OpcUaSource:
                 await asyncio.sleep(delay)
                 delay = min(delay * 2, s["reconnect_max"])
                 continue
+            if first:
+                try:
+                    await self._check_nodes(client)
+                except _BadNode:
+                    try:
+                        await asyncio.wait_for(client.disconnect(), 2.0)
+                    except Exception:  # noqa: BLE001 - refused anyway
+                        pass
+                    raise
+                except (TimeoutError, OSError, ConnectionError):
+                    continue  # the connection went: retried as any lost connection
             self.connected.set()
             delay = 0.2
             try:
@@ -226,6 +275,59 @@ class OpcUaSource:
                 self.q.put(None)
                 return
             return  # stopped by the pipeline
+
+    async def _check_nodes(self, client) -> None:
+        """Every configured node read once before subscribing (docs/plant.md "Start-up
+        checks"): it exists, is a Variable, and its DataType and ValueRank fit its role (a number,
+        DateTime[] for block times, Boolean for the end node; scalar in scalar mode, an array in
+        block mode). Otherwise one line, and the run stops with exit status 2: a subscription to
+        a node that never notifies would wait for ever."""
+        from asyncua import ua
+        from asyncua.ua.object_ids import ObjectIdNames
+
+        s = self.s
+        block = self.block
+        keys = {"angle": "angle_node", "speed": "speed_node", "force": "force_node"}
+        keys["time"] = "time_node"
+        checks = [(keys[role], nid, role) for role, nid in self.roles.items()]
+        if s.get("end_node"):
+            checks.append(("end_node", s["end_node"], "end"))
+        for key, nid, role in checks:
+            where = f"{self.config_path}: source.{key} = {nid!r}"
+            node = client.get_node(nid)
+            try:
+                cls = await asyncio.wait_for(node.read_node_class(), s["timeout"])
+            except ua.UaStatusCodeError as e:
+                raise _BadNode(
+                    f"{where}: no such node on {s['endpoint']} ({type(e).__name__}); check the "
+                    "namespace index and the name"
+                ) from None
+            if cls != ua.NodeClass.Variable:
+                raise _BadNode(f"{where}: a node of class {cls.name}, not a Variable")
+            try:
+                dtype = await asyncio.wait_for(node.read_data_type(), s["timeout"])
+                rank = await asyncio.wait_for(node.read_value_rank(), s["timeout"])
+            except ua.UaStatusCodeError as e:
+                raise _BadNode(
+                    f"{where}: its data type cannot be read ({type(e).__name__})"
+                ) from None
+            tid = dtype.Identifier if dtype.NamespaceIndex == 0 else None
+            tname = ObjectIdNames.get(tid, dtype.to_string())
+            array = rank >= 0  # -1 scalar, -2 any, -3 scalar or 1-D; 0 one or more dimensions
+            if role == "end":
+                want, ok = "a Boolean", tid in _BOOLEAN_TYPES and not array
+            elif role == "time":
+                want, ok = "an array of DateTime", tid in _TIME_TYPES and rank in (1, 0, -2, -3)
+            elif block:
+                want = "an array of numbers (block mode)"
+                ok = tid in _NUMBER_TYPES and rank in (1, 0, -2, -3)
+            else:
+                want, ok = "a number (scalar mode)", tid in _NUMBER_TYPES and not array
+            if not ok:
+                shape = {-1: "scalar", -2: "any shape", -3: "scalar or 1-D", 0: "array"}.get(
+                    rank, f"{rank}-D array"
+                )
+                raise _BadNode(f"{where}: of type {tname}, {shape}; allowed: {want}")
 
     async def _connect(self):
         from asyncua import Client, ua
@@ -255,6 +357,12 @@ class OpcUaSource:
                     raise _Fatal(
                         f"{where}: the server's certificate ({cert.subject.rfc4514_string()}, "
                         f"SHA-256 {fp}) is not in the trust list (source.trust); refused"
+                    )
+                want = s.get("server_uri")
+                if want and _cert_uri(cert) != want:
+                    raise _Fatal(
+                        f"{where}: the server's certificate names the application URI "
+                        f"{_cert_uri(cert)!r}, not {want!r} (source.server_uri); refused"
                     )
 
             client.certificate_validator = check
@@ -328,16 +436,20 @@ class OpcUaSource:
                 notes.append((by_node[node.nodeid], data.monitored_item.Value))
 
         sub = await client.create_subscription(self.s["publishing_interval"] * 1000, Handler())
-        # Every sample, also one whose value repeats (a pump at standstill, docs/plant.md
-        # "Machine states"): the trigger includes the SourceTimestamp. subscribe_data_change
-        # takes no filter, so its own helper is called with one (the same request otherwise).
-        changed = ua.DataChangeFilter(Trigger=ua.DataChangeTrigger.StatusValueTimestamp)
-        await sub._subscribe(
-            list(nodes.values()), mfilter=changed, queuesize=10000, sampling_interval=50.0
-        )
+        # Notifications when the SourceTimestamp changes too, not only the value: a PLC that
+        # writes the same speed or force every cycle then notifies every sample (OPC UA Part 4,
+        # DataChangeTrigger StatusValueTimestamp). asyncua's public subscribe_data_change takes
+        # no filter; its _subscribe does. A node that refuses the filter is subscribed without.
+        trigger = ua.DataChangeFilter(Trigger=ua.DataChangeTrigger.StatusValueTimestamp)
+        handles = await sub._subscribe(list(nodes.values()), mfilter=trigger, queuesize=10000)
+        refused = [
+            n for n, h in zip(nodes.values(), handles, strict=True) if isinstance(h, ua.StatusCode)
+        ]
+        if refused:
+            await sub.subscribe_data_change(refused, queuesize=10000)
         if end_node is not None:
             await sub.subscribe_data_change(end_node)
-        self.join = _Joiner(self)
+        self.join = _Joiner(self) if self.block else _ScalarJoiner(self)
         events = []
         if lost is None and getattr(self, "_resumed", False):
             lost = (None, "the twin was restarted")
@@ -389,7 +501,7 @@ class OpcUaSource:
                 self._emit([], events)
             events = []
             if finished and (
-                (self.last_dt is not None and self.last_dt >= finished[0])
+                (self.newest_dt is not None and self.newest_dt >= finished[0])
                 or time.monotonic() - quiet > 2.0
             ):
                 # Every sample up to the PLC's end is out (or nothing came for 2 s after it).
@@ -415,35 +527,42 @@ class OpcUaSource:
         return (ts - self._origin_dt).total_seconds()
 
     def _process(self, batch, events, flush=False) -> None:
-        out_t, out_a, out_w, out_f = [], [], [], []
+        """Joined samples through the clock's rules (docs/plant.md "Timestamps"): every sample is
+        handed out or dropped with its reason, counted in a `dropped` event."""
+        out = ([], [], [], [])
         dropped: dict = {}
-        for ts, t_dt, a, w, f, bad in self.join.feed(batch, flush):
+
+        def drop(why, ts):
+            dropped.setdefault(why, []).append(ts)
+
+        for ts, _t_dt, a, w, f, bad in self.join.feed(batch, flush):
+            self.received += 1
             if bad:
-                dropped.setdefault(bad, []).append(ts)
+                drop(bad, ts)
                 continue
-            if self.time_origin is None:
-                self.time_origin = float(math.floor((t_dt - EPOCH).total_seconds()))
-            if not hasattr(self, "_origin_dt"):
-                self._origin_dt = EPOCH + dt.timedelta(seconds=self.time_origin)
-            t = self._t(t_dt)
-            if self.last_t is not None and t <= self.last_t:
-                continue  # already handed out (history overlap, or before a resume)
-            self.last_t, self.last_dt = t, t_dt
-            out_t.append(t)
-            out_a.append(a)
-            out_w.append(w)
-            out_f.append(f)
+            self._admit(ts, (a, w, f), out, drop, events)
+        if flush and self._held is not None:
+            hts, hvals, _ = self._held
+            self._held = None
+            if self.last_dt is None or hts > self.last_dt:
+                self._hand(hts, hvals, out)
+            else:
+                drop(_BACK, hts)
         for why, stamps in dropped.items():
-            first = stamps[0]
-            at = self._t(first) if hasattr(self, "_origin_dt") else None
+            self.dropped += len(stamps)
+            first = next((x for x in stamps if x is not None), None)
+            at = self._t(first) if first is not None and hasattr(self, "_origin_dt") else None
+            when = f" (first at {first.isoformat()})" if first is not None else ""
             events.append(
                 Event(
                     "dropped",
-                    f"{len(stamps)} sample(s) dropped: {why} (first at {first.isoformat()})",
+                    f"{len(stamps)} sample(s) dropped: {why}{when}",
                     t=at,
                     count=len(stamps),
+                    reason=why,
                 )
             )
+        out_t, out_a, out_w, out_f = out
         self.samples_out += len(out_t)
         lines = sample_lines(
             out_t,
@@ -454,12 +573,241 @@ class OpcUaSource:
         self._emit(lines, events)
         events.clear()
 
+    # The clock's state: a sample held for one more (the first, or one after a forward jump
+    # beyond clock_tolerance), samples handed out recently (duplicates), samples before the last.
+    _held = None
+    _back_streak = 0
+    _resync = None
+    received = dropped = 0
+
+    def _admit(self, ts, vals, out, drop_, events) -> None:
+        tol = dt.timedelta(seconds=self.s.get("clock_tolerance", 1.0))
+
+        def drop(why, when, v=vals):
+            # Remembered (bounded, with the samples handed out): the same sample delivered again
+            # (subscription and history) is then counted as such, not twice under its reason.
+            drop_(why, when)
+            if why != _SAME:
+                self._remember(self._gone, when, v)
+
+        gone = self._gone.get(ts)
+        if gone is not None and ts not in self._recent and _dup(vals, gone) == _SAME:
+            drop_(_SAME, ts)
+            return
+        if self._held is not None:
+            hts, hvals, _kind = self._held
+            if ts > hts:
+                self._held = None
+                self._hand(hts, hvals, out)
+            elif ts == hts:
+                drop(_dup(vals, hvals), ts)
+                return
+            elif self.last_dt is None or ts > self.last_dt:
+                # Ahead of the samples before and after it: the PLC clock glitched for it.
+                self._held = None
+                ahead = (hts - ts).total_seconds()
+                drop(_GLITCH, hts, hvals)
+                events.append(
+                    Event(
+                        "clock_jump",
+                        f"a sample stamped {hts.isoformat()}, {ahead:.6g} s ahead of the next "
+                        "one, dropped as a glitch of the PLC clock; the samples after it go on",
+                        t=self._t(ts) if hasattr(self, "_origin_dt") else None,
+                    )
+                )
+            else:
+                drop(_BACK, ts)
+                return
+        last = self.last_dt
+        if last is None:
+            self._held = (ts, vals, "first")
+            return
+        if ts <= last:
+            prev = self._recent.get(ts)
+            if prev is not None:
+                why = _dup(vals, prev)
+                drop(why, ts)
+                if why == _SAME:
+                    return  # the same sample delivered again: nothing about the clock
+            else:
+                drop(_BACK, ts)
+            # A stamp at or before the last one (a time reused with other values counts too).
+            self._back_streak += 1
+            if self._back_streak == 2:
+                # Two in a row before the last sample: the PLC clock stepped back. The samples
+                # stamped before the last one are dropped, and after it until the clock has passed
+                # it by more than gap_limit, so that the core sees a gap and restarts after it.
+                gap = self.gap_limit
+                self._resync = last + dt.timedelta(seconds=gap)
+                events.append(
+                    Event(
+                        "clock_jump",
+                        f"the PLC clock stepped back {(last - ts).total_seconds():.6g} s (a sample "
+                        f"stamped {ts.isoformat()} after {last.isoformat()}): samples are dropped "
+                        f"until the clock passes {self._resync.isoformat()} (gap_limit {gap:g} s "
+                        "beyond the last sample), then the run goes on after a gap",
+                        t=self._t(last),
+                    )
+                )
+            return
+        self._back_streak = 0
+        if self._resync is not None and ts <= self._resync:
+            drop(_BACK, ts)
+            return
+        if ts - last > tol:
+            self._held = (ts, vals, "jump")
+            return
+        self._hand(ts, vals, out)
+
+    def _hand(self, ts, vals, out) -> None:
+        if self.time_origin is None:
+            self.time_origin = float(math.floor((ts - EPOCH).total_seconds()))
+        if not hasattr(self, "_origin_dt"):
+            self._origin_dt = EPOCH + dt.timedelta(seconds=self.time_origin)
+        t = self._t(ts)
+        self.last_t, self.last_dt = t, ts
+        if self._resync is not None and ts > self._resync:
+            self._resync = None  # past a step back: only a sample handed out ends the wait
+        self._remember(self._recent, ts, vals)
+        for col, v in zip(out, (t, *vals), strict=True):
+            col.append(v)
+
+    def accounting(self) -> tuple[int, int, int]:
+        """(samples received, handed to the twin, dropped and counted) in this process."""
+        held = int(self._held is not None)
+        return self.received, self.samples_out + held, self.dropped
+
+    def _remember(self, table: dict, ts, vals) -> None:
+        table[ts] = vals
+        self._recent_order.append((table, ts))
+        if len(self._recent_order) > 40000:  # bounded: a sample comes again within seconds
+            t, k = self._recent_order.popleft()
+            t.pop(k, None)
+
+    @property
+    def newest_dt(self):
+        """The newest sample time handed out or held (the end node's test)."""
+        if self._held is not None and (self.last_dt is None or self._held[0] > self.last_dt):
+            return self._held[0]
+        return self.last_dt
+
+
+_GLITCH = "a glitch of the PLC clock (one sample stamped ahead)"
+_BACK = "stamped before the last sample handed out (out of order, or a clock step back)"
+
+
+def _dup(vals, prev) -> str:
+    """The reason of a sample whose timestamp was handed out already."""
+    if prev is None or all(
+        (a == b) or (a != a and b != b) for a, b in zip(vals, prev, strict=True)
+    ):
+        return _SAME
+    return "duplicate timestamp with other values (the first kept)"
+
+
+_SAME = "duplicate timestamp, same values"
+
 
 _WAITING = 0x80320000  # BadWaitingForInitialData
 
 
 class _Lost(Exception):
     pass
+
+
+def _stamp(item):
+    return item[0]
+
+
+class _ScalarJoiner:
+    """Scalar mode (docs/plant.md "Sample assembly"): the angle node is the clock. Each angle
+    value is a sample; speed and force take the value of their node stamped at most
+    `join_tolerance` after the angle's stamp, or the latest before it (sample and hold), if it
+    is at most `hold_limit` s older than the angle. An angle waits until every other node has a
+    value stamped after it (+ join_tolerance), or until an angle stamped JOIN_WAIT s later has
+    come (a node whose value does not change may not notify), so nothing waits for ever; what
+    waits is bounded (MAX_PENDING angles, then the oldest goes out with the values held)."""
+
+    JOIN_WAIT = 0.2  # s of PLC time
+    MAX_PENDING = 20000
+
+    def __init__(self, src: OpcUaSource):
+        self.src = src
+        self.others = [r for r in ("speed", "force") if r in src.roles]
+        self.values: dict = {r: [] for r in self.others}  # (ts, value, bad) in time order
+        self.angles: collections.deque = collections.deque()
+        self.tol = dt.timedelta(seconds=src.s.get("join_tolerance", 0.0005))
+        self.hold = dt.timedelta(seconds=src.s.get("hold_limit", 10.0))
+        self.wait = dt.timedelta(seconds=self.JOIN_WAIT)
+        self.clock = dt.timedelta(seconds=src.s.get("clock_tolerance", 1.0))
+        self.check = _Joiner(src)._check
+
+    def feed(self, batch, flush=False):
+        out = []
+        for role, dv in batch:
+            if dv.StatusCode.value == _WAITING:
+                continue  # the PLC has measured nothing yet: no sample
+            ts = dv.SourceTimestamp
+            value, bad = self.check(role, dv, False)
+            if role == "angle":
+                if ts is None:
+                    out.append((None, None, None, None, None, "no SourceTimestamp on angle"))
+                else:
+                    self.angles.append((ts, value, bad))
+            elif ts is not None:
+                q = self.values[role]
+                if q and ts < q[-1][0]:  # late: kept in time order
+                    bisect.insort_right(q, (ts, value, bad), key=_stamp)
+                else:
+                    q.append((ts, value, bad))
+        while self.angles:
+            ts, a, bad = self.angles[0]
+            last = self.angles[-1][0]
+            ready = (
+                flush
+                or len(self.angles) > self.MAX_PENDING
+                or all(
+                    self.values[r] and self.values[r][-1][0] > ts + self.tol for r in self.others
+                )
+                or ts + self.wait <= last <= ts + self.clock
+                # An angle came stamped before this one: this one is ahead of the clock (the
+                # clock's rules decide); waiting for values after it would hold up the rest.
+                or last < ts
+            )
+            if not ready:
+                break
+            self.angles.popleft()
+            if bad:
+                out.append((ts, ts, None, None, None, bad))
+                continue
+            got, why = {}, None
+            for r in self.others:
+                got[r], w = self._at(r, ts)
+                why = why or w
+            out.append((ts, ts, a, got.get("speed"), got.get("force"), why))
+        # Bounded memory: of the values before the oldest angle still to come, only the latest
+        # is needed (it is the one held); at most MAX_PENDING are kept whatever the server sends.
+        upto = min(x[0] for x in self.angles) if self.angles else None
+        for q in self.values.values():
+            k = bisect.bisect_right(q, upto, key=_stamp) - 1 if upto is not None else 0
+            k = max(k, len(q) - self.MAX_PENDING)
+            if k > 0:
+                del q[:k]
+        return out
+
+    def _at(self, role, ts):
+        """The value of `role` for an angle stamped `ts`, or (None, why)."""
+        q = self.values[role]
+        k = bisect.bisect_right(q, ts + self.tol, key=_stamp)
+        best = q[k - 1] if k > 0 else None
+        if best is None:
+            return None, f"no value of {role} at or before the angle's time"
+        if best[2]:
+            return None, best[2]
+        if ts - best[0] > self.hold:
+            age = (ts - best[0]).total_seconds()
+            return None, f"{role} stale: its last value is {age:.3g} s old (hold_limit)"
+        return best[1], None
 
 
 class _Joiner:
@@ -493,7 +841,11 @@ class _Joiner:
         if block:
             if not isinstance(var.Value, list):
                 return None, f"{role} is not an array"
+            if any(isinstance(x, list) for x in var.Value):
+                return None, f"{role} is an array of more than one dimension"
             return [float(x) for x in var.Value], None
+        if isinstance(var.Value, list):
+            return None, f"{role} is an array ({len(var.Value)} values), not a number"
         v = float(var.Value)
         if not math.isfinite(v):
             return None, f"{role} not finite ({v})"
@@ -503,10 +855,15 @@ class _Joiner:
         """(ts, sample time, angle, speed, force, why dropped or None) of completed samples."""
         block = self.src.block
         done = []
+        out_now: list = []
         for role, dv in batch:
             if dv.StatusCode.value == _WAITING:
                 continue  # the PLC has measured nothing yet: no sample
             ts = dv.SourceTimestamp
+            if ts is None:
+                # Without a SourceTimestamp a value has no sample time: dropped and counted.
+                out_now.append((None, None, None, None, None, f"no SourceTimestamp on {role}"))
+                continue
             g = self.groups.setdefault(ts, {})
             value, bad = self._check(role, dv, block)
             g[role] = value
@@ -514,7 +871,7 @@ class _Joiner:
                 g.setdefault("_bad", bad)
             if self.roles <= set(g):
                 done.append(ts)
-        out = []
+        out = out_now
         if done:
             newest = max(done)
             for ts in sorted(t for t in self.groups if t <= newest or flush):
