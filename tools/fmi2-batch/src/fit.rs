@@ -1,22 +1,65 @@
 //! The digital twin's speed and acceleration estimate (docs/twin.md "Conditioning"): at each
 //! centre sample, the first and second derivative of a cubic fitted by least squares to the
 //! samples of its window, on the measured timestamps (a Savitzky–Golay smoother). The same
-//! algorithm as python/reciprocating_drive/conditioning.py `fit` (which the tests compare it
-//! with): a window of 2·half+1 samples (fewer if the segment is shorter) shifted inward at the
-//! ends, τ scaled to x ∈ [−1, 1], the normal equations solved by Gaussian elimination with
-//! partial pivoting. Each centre is computed on its own, so the result for a sample does not
-//! depend on which other samples share the call.
+//! algorithm as python/reciprocating_drive/conditioning.py (`window` and `fit`, which the tests
+//! compare it with).
+//!
+//! The window is a time: the samples within ±half of the centre's time, shifted inward at the
+//! segment's start and end so that it keeps its width in time (the whole segment if it is
+//! shorter). Which samples it holds depends only on the times around the centre, never on the
+//! interval between the first two samples of a run, so a record and any slice of it give the
+//! same window, and the same numbers bit for bit, to every sample whose window lies inside the
+//! slice. A window holding fewer than `MIN_SAMPLES` samples (a sparse stretch) takes the
+//! `MIN_SAMPLES` samples nearest in time to the centre instead; the caller reports it. τ is scaled to x ∈ [−1, 1] and the normal equations solved by Gaussian
+//! elimination with partial pivoting. Each centre is computed on its own, so the result for a
+//! sample does not depend on which other samples share the call.
 
 const DEGREE: usize = 3;
 const N: usize = DEGREE + 1;
 
-/// ω and ε at centre `c` of a segment (times `t`, unwrapped angles `theta`); None when the normal
-/// equations are singular (fewer than four distinct times in the window).
-pub fn at(t: &[f64], theta: &[f64], half: usize, c: usize) -> Option<(f64, f64)> {
+/// The fewest samples a window may hold: one more than the cubic's coefficients, so that the
+/// fit has at least one residual and does not interpolate the noise.
+pub const MIN_SAMPLES: usize = DEGREE + 2;
+
+/// The window of centre `c` of a segment whose samples `t` (strictly increasing) span the
+/// times `t_start` .. `t_end` (`t_end` infinite while the segment goes on; the caller holds
+/// every sample of the window): the index range `lo..hi` the fit uses, and the number of
+/// samples within the window's time span (below `MIN_SAMPLES`: a sparse window, whose range
+/// is then the `MIN_SAMPLES` samples nearest in time to `c`).
+pub fn window(t: &[f64], c: usize, half: f64, t_start: f64, t_end: f64) -> (usize, usize, usize) {
     let n = t.len();
-    let width = (2 * half + 1).min(n);
-    let lo = c.saturating_sub(half).min(n - width);
-    let (tw, thw) = (&t[lo..lo + width], &theta[lo..lo + width]);
+    let (mut a, mut b) = (t[c] - half, t[c] + half);
+    if a < t_start {
+        (a, b) = (t_start, t_start + 2.0 * half);
+    }
+    if b > t_end {
+        (a, b) = ((t_end - 2.0 * half).max(t_start), t_end);
+    }
+    let lo = t.partition_point(|&x| x < a);
+    let hi = t.partition_point(|&x| x <= b);
+    let inside = hi - lo;
+    if inside >= MIN_SAMPLES {
+        return (lo, hi, inside);
+    }
+    // Sparse: widened around the centre, one sample at a time, to the nearer of the next
+    // sample before and the next after (the earlier on a tie), to MIN_SAMPLES samples or the
+    // whole segment. It reaches at most MIN_SAMPLES - 1 samples to either side.
+    let tc = t[c];
+    let (mut lo, mut hi) = (c, c + 1);
+    while hi - lo < MIN_SAMPLES && (lo > 0 || hi < n) {
+        if hi == n || (lo > 0 && tc - t[lo - 1] <= t[hi] - tc) {
+            lo -= 1;
+        } else {
+            hi += 1;
+        }
+    }
+    (lo, hi, inside)
+}
+
+/// ω and ε at centre `c` from the samples `lo..hi` of a segment (times `t`, unwrapped angles
+/// `theta`); None when the normal equations are singular (fewer than four distinct times).
+pub fn at(t: &[f64], theta: &[f64], lo: usize, hi: usize, c: usize) -> Option<(f64, f64)> {
+    let (tw, thw) = (&t[lo..hi], &theta[lo..hi]);
     let (tc, thc) = (t[c], theta[c]);
     let mut scale = tw.iter().fold(0.0f64, |m, &ti| m.max((ti - tc).abs()));
     if scale == 0.0 {
@@ -85,7 +128,8 @@ mod tests {
         let th: Vec<f64> =
             t.iter().map(|&x| 1.0 + 2.0 * x + 3.0 * x * x + 4.0 * x * x * x).collect();
         for c in [0, 5, 20, 39] {
-            let (w, e) = at(&t, &th, 6, c).unwrap();
+            let (lo, hi, _) = window(&t, c, 6e-3, t[0], t[39]);
+            let (w, e) = at(&t, &th, lo, hi, c).unwrap();
             let x = t[c];
             assert!((w - (2.0 + 6.0 * x + 12.0 * x * x)).abs() < 1e-9, "{c}: {w}");
             assert!((e - (6.0 + 24.0 * x)).abs() < 1e-5, "{c}: {e}");
@@ -93,8 +137,31 @@ mod tests {
     }
 
     #[test]
+    fn the_window_is_a_time_shifted_inward_at_the_ends() {
+        // Samples every 1 ms (in ms: exact doubles) but a 7 ms interval after 10 ms: ±3 ms holds
+        // 7 samples in the middle, keeps 6 ms at the ends, and is widened to the 5 nearest
+        // samples where it holds fewer.
+        let mut t: Vec<f64> = (0..=10).map(f64::from).collect();
+        t.extend((0..20).map(|k| 17.0 + f64::from(k)));
+        let (s, e) = (t[0], *t.last().unwrap());
+        assert_eq!(window(&t, 5, 3.0, s, e), (2, 9, 7));
+        assert_eq!(window(&t, 0, 3.0, s, e), (0, 7, 7));
+        assert_eq!(window(&t, 30, 3.0, s, e), (24, 31, 7));
+        // While the segment goes on, its end does not shift the window.
+        assert_eq!(window(&t, 28, 3.0, s, f64::INFINITY), (25, 31, 6));
+        assert_eq!(window(&t, 28, 3.0, s, e), (24, 31, 7));
+        // Sample 10 (t = 10 ms) sees 7..10 and nothing after: 4 samples, sparse; the nearest
+        // fifth is sample 6 (4 ms before), not sample 11 (7 ms after).
+        assert_eq!(window(&t, 10, 3.0, s, e), (6, 11, 4));
+        // Sample 11 (t = 17 ms) sees 11..14: the nearest five are 11..15.
+        assert_eq!(window(&t, 11, 3.0, s, e), (11, 16, 4));
+        // A segment of four samples is one window.
+        assert_eq!(window(&t[..4], 1, 0.5, 0.0, 3.0), (0, 4, 1));
+    }
+
+    #[test]
     fn equal_times_are_singular() {
         let t = [0.0, 0.0, 0.0, 0.0, 0.0];
-        assert_eq!(at(&t, &[0.0, 1.0, 2.0, 3.0, 4.0], 2, 2), None);
+        assert_eq!(at(&t, &[0.0, 1.0, 2.0, 3.0, 4.0], 0, 5, 2), None);
     }
 }
