@@ -82,18 +82,33 @@ def window(
 ) -> tuple[int, int, int]:
     """The window of sample c of a segment of strictly increasing times t spanning t_start ..
     t_end (infinite while it goes on): the index range lo..hi its fit uses and the number of
-    samples within ±half seconds of t[c] (shifted inward at the ends, keeping its width in time;
-    the whole segment if it is shorter). Below MIN_SAMPLES the window is sparse and the range is
-    the MIN_SAMPLES samples nearest in time to t[c] (at most SPARSE_REACH to either side)."""
+    samples in it before a sparse one is widened. The samples within ±half seconds of t[c],
+    shifted inward at the ends keeping its width in time (the whole segment if it is shorter);
+    where a dropout cuts a side short (not shifted: the longest interval from t[c] to the first
+    sample beyond the window on that side is longer than half of half and than twice the other
+    side's), that side reaches further by that interval.
+    Below MIN_SAMPLES the window is sparse and the range is the MIN_SAMPLES samples nearest in
+    time to t[c] (at most SPARSE_REACH to either side)."""
     n = len(t)
     a, b = t[c] - half, t[c] + half
+    shifted = False
     if a < t_start:
-        a, b = t_start, t_start + 2.0 * half
+        a, b, shifted = t_start, t_start + 2.0 * half, True
     if b > t_end:
-        a, b = max(t_end - 2.0 * half, t_start), t_end
+        a, b, shifted = max(t_end - 2.0 * half, t_start), t_end, True
     lo = int(np.searchsorted(t, a, side="left"))
     hi = int(np.searchsorted(t, b, side="right"))
     inside = hi - lo
+    if not shifted and lo > 0 and hi < n:
+        right = float(np.max(np.diff(t[c : hi + 1])))
+        left = float(np.max(np.diff(t[lo - 1 : c + 1])))
+        if right > 0.5 * half and right > 2.0 * left:
+            b += right
+            hi = int(np.searchsorted(t, b, side="right"))
+        elif left > 0.5 * half and left > 2.0 * right:
+            a -= left
+            lo = int(np.searchsorted(t, a, side="left"))
+    inside = max(inside, hi - lo)
     if inside >= MIN_SAMPLES:
         return lo, hi, inside
     # Sparse: widened one sample at a time to the nearer neighbour (the earlier on a tie).
@@ -109,29 +124,56 @@ def window(
 
 def complete(t: np.ndarray, half: float, t_start: float, first: int = 0) -> int:
     """How many of the samples t[first:] of a segment that goes on (its first sample at
-    t_start), counted from `first`, have a window that no later sample can change: the window's
-    end (t + half, or t_start + 2·half where it is shifted inward at the start) is not after
-    the last sample, and SPARSE_REACH samples follow (the reach of a sparse window)."""
+    t_start), counted from `first`, have a window (`window`) that no later sample can change:
+    a sample beyond its end has arrived (t + half; t_start + 2·half where it is shifted inward
+    at the start; further by the longest interval where a dropout cuts it short) and
+    SPARSE_REACH samples follow (the reach of a sparse window)."""
     n = len(t)
     if n < MIN_SAMPLES:
         return 0
     tc = t[first:]
-    end = np.where(tc - half < t_start, t_start + 2.0 * half, tc + half)
-    late = np.flatnonzero(end > t[-1])
+    shifted = tc - half < t_start
+    end = np.where(shifted, t_start + 2.0 * half, tc + half)
+    hi = np.searchsorted(t, tc + half, side="right")
+    # Not shifted: the first sample beyond the window decides whether a dropout widens it.
+    end[~shifted & (hi >= n)] = math.inf
+    d = np.diff(t)
+    big = np.concatenate(([0], np.cumsum(d > 0.5 * half)))
+    idx = np.arange(first, n)
+    maybe = ~shifted & (hi < n) & (big[np.minimum(hi, n - 1)] - big[idx] > 0)
+    for k in np.flatnonzero(maybe).tolist():
+        c, h = first + k, int(hi[k])
+        lo = int(np.searchsorted(t, tc[k] - half, side="left"))
+        if lo == 0:
+            continue
+        right, left = float(np.max(d[c:h])), float(np.max(d[lo - 1 : c]))
+        if right > 0.5 * half and right > 2.0 * left:
+            end[k] = end[k] + right
+    late = np.flatnonzero(end >= t[-1])
     k = int(late[0]) if late.size else len(tc)
     return max(0, min(k, n - SPARSE_REACH - first))
 
 
 def window_counts(t: np.ndarray, half: float) -> np.ndarray:
-    """The number of samples within the window (`window`, before a sparse one is widened) of
-    every sample of a whole segment, vectorised: the same doubles as `window` and fit.rs."""
+    """The `inside` count of `window` for every sample of a whole segment (vectorised but for
+    the windows a dropout widens): the same doubles as `window` and fit.rs."""
     a, b = t - half, t + half
     start = a < t[0]
     a, b = np.where(start, t[0], a), np.where(start, t[0] + 2.0 * half, b)
     end = b > t[-1]
     a = np.where(end, np.maximum(t[-1] - 2.0 * half, t[0]), a)
     b = np.where(end, t[-1], b)
-    return np.searchsorted(t, b, side="right") - np.searchsorted(t, a, side="left")
+    lo = np.searchsorted(t, a, side="left")
+    hi = np.searchsorted(t, b, side="right")
+    n = len(t)
+    out = hi - lo
+    # Where a dropout may widen the window (an interval longer than half of half in reach).
+    big = np.concatenate(([0], np.cumsum(np.diff(t) > 0.5 * half)))
+    maybe = ~start & ~end & (lo > 0) & (hi < n)
+    maybe[maybe] = big[hi[maybe]] - big[lo[maybe] - 1] > 0
+    for c in np.flatnonzero(maybe).tolist():
+        out[c] = window(t, c, half, float(t[0]), float(t[-1]))[2]
+    return out
 
 
 def derivatives(

@@ -337,14 +337,15 @@ def scan(
     )
 
 
-def exact_tail(t: np.ndarray, half: float, m: int, a: int, b: int) -> int:
+def exact_tail(t: np.ndarray, half: float, gap_limit: float, m: int, a: int, b: int) -> int:
     """The end f (<= b, the end of the segment a..b) of a piece whose rows up to sample m must be
-    exact: the window of m (conditioning.window: shifted inward at the segment's start, it ends
-    a window after it) ends at or before the piece's last sample, which then shifts none of
-    them, and SPARSE_REACH samples follow m (a sparse window)."""
-    end = t[a] + 2.0 * half if t[m] - half < t[a] else t[m] + half
+    exact: the window of m (conditioning.window: a window after the segment's start where it is
+    shifted inward there, or half a window after m and at most the gap limit further where a
+    dropout left that side short, with a sample beyond) ends before the piece's last sample,
+    which then shifts none of them, and SPARSE_REACH samples follow m (a sparse window)."""
+    end = t[a] + 2.0 * half if t[m] - half < t[a] else t[m] + half + gap_limit
     j = int(np.searchsorted(t, end, side="left"))
-    return min(b, max(j + 1, m + SPARSE_REACH + 1))
+    return min(b, max(j + 2, m + SPARSE_REACH + 1))
 
 
 def exact_rows(t: np.ndarray, half: float, seg_end: bool) -> int:
@@ -368,7 +369,7 @@ def plan(sc: Scanned, revolutions_per_piece: int | None, overlap: float | None, 
     gap_at = (np.flatnonzero((t[1:] - t[:-1]) > sc.options.gap_limit) + 1).tolist()
     bounds = [0, *gap_at, n]
     warm_s = warm_up_time(sc.sigma) if overlap is None else overlap
-    half = 0.5 * sc.options.window
+    half, gap = 0.5 * sc.options.window, sc.options.gap_limit
     pieces = []
     extra = sorted(int(c) for c in cuts)
     for a, b in zip(bounds[:-1], bounds[1:]):
@@ -391,12 +392,14 @@ def plan(sc: Scanned, revolutions_per_piece: int | None, overlap: float | None, 
         for s, e in zip(cuts_here[:-1], cuts_here[1:]):
             # Warm-up (docs/twin.md "Conditioning"): the rows from a few samples before s are
             # exact (a revolution starting at s needs the row before it): their windows reach
-            # back half a window, a whole window before the segment's end (shifted inward
-            # there), and SPARSE_REACH samples (a sparse window). The piece starts at the last
-            # sample at or before that, so its own start shifts none of them. Then the cage's.
+            # back half a window, and at most the gap limit and a sample further where a
+            # dropout left that side short, a whole window before the segment's end (shifted
+            # inward there), and SPARSE_REACH samples (a sparse window). The piece starts a
+            # sample before the last one at or before that, so its own start shifts none of
+            # them. Then the cage's.
             x = max(a, s - SPARSE_REACH)
-            reach = min(t[x] - half, t[b - 1] - 2.0 * half)
-            w = int(np.searchsorted(t, reach, side="right")) - 1
+            reach = min(t[x] - half - gap, t[b - 1] - 2.0 * half)
+            w = int(np.searchsorted(t, reach, side="right")) - 2
             w = max(a, min(w, x - SPARSE_REACH))
             if warm_s > 0 and s > a:
                 w = min(w, max(a, int(np.searchsorted(t, t[s] - warm_s, side="right")) - 1))
@@ -409,7 +412,7 @@ def plan(sc: Scanned, revolutions_per_piece: int | None, overlap: float | None, 
             elif e < b:
                 m = int(np.searchsorted(th[a:b], th[e - 1] + TWO_PI, side="right")) + a + 2
                 m = max(e, m)
-            f = b if e >= b else exact_tail(t, half, min(m, b - 1), a, b)
+            f = b if e >= b else exact_tail(t, half, gap, min(m, b - 1), a, b)
             pieces.append([s, e, w, f, f == b])
     return pieces
 

@@ -693,18 +693,19 @@ class Twin:
         return b.done + cond.complete(b.t, 0.5 * self.o.window, b.t0, b.done)
 
     def _keep_from(self) -> int:
-        """The first sample of the buffer that a window not yet computed can reach: the window
-        of a sample to come starts at least half a window before it, or a window before the last
-        sample read (shifted inward at the segment's end), or SPARSE_REACH samples before it
-        (sparse)."""
+        """The first sample of the buffer that a window not yet computed can reach
+        (cond.window): the window of a sample to come starts half a window before it, or the
+        longest interval (at most the gap limit) and the sample before further where a dropout
+        left that side short, or a window before the last sample read (shifted inward at the
+        segment's end), or SPARSE_REACH samples before it (sparse)."""
         b = self.buf
         n = len(b.t)
         if n == 0:
             return 0
         half = 0.5 * self.o.window
         ref = float(b.t[min(b.done, n - 1)])
-        reach = min(ref - half, float(b.t[-1]) - 2.0 * half)
-        k = int(np.searchsorted(b.t, reach, side="left"))
+        reach = min(ref - half - self.o.gap_limit, float(b.t[-1]) - 2.0 * half)
+        k = int(np.searchsorted(b.t, reach, side="left")) - 1
         return max(0, min(k, b.done - cond.SPARSE_REACH))
 
     def _drain(self, final: bool, rows: list) -> None:
@@ -742,6 +743,19 @@ class Twin:
             self._note_sparse(inside, b.line[centres], b.t[centres])
             w_meas = b.speed[centres]
             err = None
+            # Samples too close in time for a double (1e-300 s apart: a wrong time unit) give
+            # no finite estimate; refused, as a time a double cannot resolve is.
+            nonfinite = np.flatnonzero(~(np.isfinite(w_est) & np.isfinite(e_est)))
+            if nonfinite.size:
+                k = int(nonfinite[0])
+                err = DataError(
+                    f"line {int(b.line[centres[k]])}: the speed and acceleration at "
+                    f"t = {float(b.t[centres[k]])!r} s are not finite numbers: the samples of "
+                    "its smoothing window lie too close in time (check the time unit)"
+                )
+                centres, w_est, e_est, w_meas = (x[:k] for x in (centres, w_est, e_est, w_meas))
+                if k == 0:
+                    raise err
             # A measured speed is checked against the angle's own rate (docs/twin.md "Measured
             # speed"): a wrong unit or sign would otherwise go straight into the loads.
             with np.errstate(invalid="ignore"):

@@ -558,7 +558,7 @@ def test_idle_limit_bounds_the_wait_on_standard_input(fmu_path, tmp_path):
     [
         ("0,1e300\n0.001,1e300\n0.002,1e300\n", "line 2: crank_angle = 1e+300 rad is beyond"),
         ("1e300,0\n2e300,0\n", "line 2: time = 1e+300 s is beyond"),
-        ("0,0\n1e-300,0\n2e-300,0\n3e-300,0\n", "line 3: the first interval, 1e-300 s"),
+        ("0,0\n1e-300,0\n2e-300,0\n3e-300,0\n", "line 2: the speed and acceleration at t = 0.0 s"),
     ],
 )
 def test_numbers_a_double_cannot_resolve_are_refused_without_a_hang(

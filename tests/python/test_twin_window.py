@@ -109,14 +109,20 @@ def variant(t, angle, kind):
     return t, angle
 
 
+def first_window(t, t0, w, gap_limit=0.05):
+    """Beyond the run's first window: the samples whose window cannot reach the run's first
+    sample, half a window and the gap limit after it (a window widened across a dropout)."""
+    return t >= t0 + 0.5 * w + gap_limit
+
+
 def away(t, t0, t1, w):
-    """Beyond a window from the run's start and end (and from the encoder record's gap)."""
-    return (t >= t0 + w) & (t <= t1 - w) & (np.abs(t - 6.1) > 0.1 + w)
+    """Beyond the first window, and a window from the run's end and the encoder record's gap."""
+    return first_window(t, t0, w) & (t <= t1 - w) & (np.abs(t - 6.1) > 0.1 + w)
 
 
 def edges(t, t0, t1, w):
-    """Beyond the run's first window: the edges of its segments (its end, a gap) included."""
-    return t >= t0 + w
+    """Beyond the first window: the edges of the run's segments (its end, a gap) included."""
+    return first_window(t, t0, w)
 
 
 #: Rows of the table: record, window.
@@ -210,10 +216,14 @@ def continuous_record(seed=39):
     return t, np.floor(truth(t)[0] / TWO_PI * 16384) * (TWO_PI / 16384)
 
 
-def beyond_first_window(full, rows, window):
+def beyond_first_window(full, rows, window, gap_limit=0.05):
     """Rows of the full record's run at the times of `rows` (a slice's run), and those rows,
-    beyond the slice's first window (and its first samples, which a sparse window may reach)."""
-    keep = (rows[:, 0] >= rows[0, 0] + window) & (np.arange(len(rows)) >= SPARSE_REACH)
+    beyond the slice's first window: half a window and the gap limit (the reach of a window
+    widened across a dropout) after its first sample, and its first samples (which a sparse
+    window may reach)."""
+    keep = (rows[:, 0] >= rows[0, 0] + 0.5 * window + gap_limit + 1e-9) & (
+        np.arange(len(rows)) >= SPARSE_REACH + 1
+    )
     at = np.searchsorted(full[:, 0], rows[keep, 0])
     return full[at], rows[keep]
 
@@ -294,10 +304,9 @@ def test_any_slice_of_any_timestamps_gives_the_records_numbers(fmu, rec):
 
 
 def sparse_record():
-    """1 kHz exact angles with a 20 ms dropout at 1 s (below the 50 ms gap limit): a 6 ms window
-    around it holds fewer than 5 samples."""
-    t = np.arange(2001) / 1000.0
-    t = t[(t <= 1.0) | (t >= 1.02)]
+    """1 kHz exact angles but every 4 ms from 1.0 s to 1.1 s (below the 50 ms gap limit): a
+    6 ms window there holds 1 or 2 samples."""
+    t = np.concatenate([np.arange(1000), 1000 + 4 * np.arange(25), np.arange(1100, 2001)]) / 1e3
     return t, np.mod(truth(t)[0], TWO_PI)
 
 
@@ -305,20 +314,7 @@ def test_a_sparse_window_is_reported_and_fitted_to_the_samples_around_it(fmu, fm
     t, angle = sparse_record()
     src = tmp_path / "sparse.csv"
     src.write_text("\n".join(lines_of(t, angle)) + "\n")
-    # The samples whose ±3 ms hold fewer than 5 samples (counted here; the record's ends,
-    # where the window shifts inward, hold 7), and their report.
-    inside = np.array([np.count_nonzero((t >= x - 0.003) & (t <= x + 0.003)) for x in t])
-    inside[(t < t[0] + 0.003) | (t > t[-1] - 0.003)] = 7
-    sparse = np.flatnonzero(inside < MIN_SAMPLES)
-    assert len(sparse) >= 2 and np.all(np.diff(sparse) == 1)
-    fewest = int(inside[sparse].min())
-    msg = (
-        f"sparse data: the smoothing window (±0.003 s) of {len(sparse)} sample(s) from "
-        f"t = {float(t[sparse[0]])!r} s to {float(t[sparse[-1]])!r} s (line {sparse[0] + 2}) "
-        f"holds as few as {fewest} sample(s), fewer than 5: their speed and acceleration come "
-        "from the 5 samples nearest to each"
-    )
-    # The command line reports it once, at the end of the run.
+    # The command line reports one stretch, at the end of the run.
     p = subprocess.run(
         [sys.executable, str(ROOT / "scripts" / "twin.py"), src, "--window", "0.006"]
         + ["--out", tmp_path / "o.csv", "--fmu", fmu_path],
@@ -327,19 +323,56 @@ def test_a_sparse_window_is_reported_and_fitted_to_the_samples_around_it(fmu, fm
         timeout=300,
     )
     assert p.returncode == 0, p.stderr
-    assert [m for m in p.stderr.splitlines() if "sparse" in m] == [f"twin.py: {msg}"]
+    reported = [m for m in p.stderr.splitlines() if "sparse" in m]
+    assert len(reported) == 1 and reported[0].startswith("twin.py: sparse data: "), p.stderr
+    # The samples whose window holds fewer than 5 samples: those of the slow stretch (counted
+    # here: ±3 ms holds at most 2 samples 4 ms apart) and, by the numpy reference, a few at its
+    # edges; their report.
+    w_ref, _, in_ref = cond.derivatives(t, np.unwrap(angle), 0.003)
+    sparse = np.flatnonzero(in_ref < MIN_SAMPLES)
+    slow = np.flatnonzero((t > 1.003) & (t < 1.093))
+    assert set(slow) <= set(sparse) and np.all(np.diff(sparse) == 1)
+    fewest = int(in_ref[sparse].min())
+    msg = (
+        f"sparse data: the smoothing window (±0.003 s) of {len(sparse)} sample(s) from "
+        f"t = {float(t[sparse[0]])!r} s to {float(t[sparse[-1]])!r} s (line {sparse[0] + 2}) "
+        f"holds as few as {fewest} sample(s), fewer than 5: their speed and acceleration come "
+        "from the 5 samples nearest to each"
+    )
+    assert reported == [f"twin.py: {msg}"]
     # So does the twin (for the plant's events), and the numbers there are the reference's.
     rows, tw = run(fmu, lines_of(t, angle), 0.006)
     assert tw.sparse == [[int(sparse[0]) + 2, t[sparse[0]], t[sparse[-1]], len(sparse), fewest]]
     assert [m for m in tw.messages if "sparse" in m] == [msg]
-    w_ref, _, in_ref = cond.derivatives(t, np.unwrap(angle), 0.003)  # the numpy reference
-    assert np.array_equal(np.flatnonzero(in_ref < MIN_SAMPLES), sparse)
     i_w = 1 + tw.outputs.index("crank.model_speed")
     assert np.allclose(rows[:, i_w], w_ref, rtol=0, atol=1e-9 * np.abs(w_ref).max())
     # The distributed replay's scan reports it too (its pieces' twins are not heard).
     assert msg in R.scan(str(src), fmu_path, "default", Options(window=0.006)).messages
-    # A record without a dropout has no sparse window.
+    # A record without a slow stretch has no sparse window.
     assert run(fmu, lines_of(*exact_record(jitter=0.3)), 0.006)[1].sparse == []
+
+
+def test_the_plant_pipeline_stores_a_sparse_event(fmu_path, tmp_path):
+    """The same record through the plant pipeline (CSV source, SQLite sink): one `sparse`
+    data-health event, the twin's message, counting the stretch's samples."""
+    import plant_util as pu
+
+    t, angle = sparse_record()
+    src = tmp_path / "sparse.csv"
+    src.write_text("\n".join(lines_of(t, angle)) + "\n")
+    db = tmp_path / "plant.db"
+    cfg = pu.write_config(
+        tmp_path / "plant.toml",
+        source=pu.csv_source(src, counts=False),
+        sinks=pu.sqlite_sink(db),
+        fmu=fmu_path,
+        conditioning="window = 0.006",
+    )
+    p = pu.run(cfg)
+    assert p.returncode == 0, p.stderr
+    sparse = [(kind, count, msg) for _, kind, count, msg in pu.events(db) if kind == "sparse"]
+    assert len(sparse) == 1 and sparse[0][2].startswith("sparse data: "), sparse
+    assert sparse[0][1] == int(sparse[0][2].split(" of ")[1].split()[0])
 
 
 def test_a_checkpoint_of_the_window_in_samples_is_refused(fmu):

@@ -9,8 +9,10 @@
 //! shorter). Which samples it holds depends only on the times around the centre, never on the
 //! interval between the first two samples of a run, so a record and any slice of it give the
 //! same window, and the same numbers bit for bit, to every sample whose window lies inside the
-//! slice. A window holding fewer than `MIN_SAMPLES` samples (a sparse stretch) takes the
-//! `MIN_SAMPLES` samples nearest in time to the centre instead; the caller reports it. τ is scaled to x ∈ [−1, 1] and the normal equations solved by Gaussian
+//! slice. A dropout (an interval shorter than a gap) that cuts one side of the window short
+//! widens that side by its length. A window holding fewer than `MIN_SAMPLES` samples (a
+//! sparse stretch) takes the `MIN_SAMPLES` samples nearest in time to the centre instead; the
+//! caller reports it. τ is scaled to x ∈ [−1, 1] and the normal equations solved by Gaussian
 //! elimination with partial pivoting. Each centre is computed on its own, so the result for a
 //! sample does not depend on which other samples share the call.
 
@@ -29,15 +31,33 @@ pub const MIN_SAMPLES: usize = DEGREE + 2;
 pub fn window(t: &[f64], c: usize, half: f64, t_start: f64, t_end: f64) -> (usize, usize, usize) {
     let n = t.len();
     let (mut a, mut b) = (t[c] - half, t[c] + half);
+    let mut shifted = false;
     if a < t_start {
-        (a, b) = (t_start, t_start + 2.0 * half);
+        (a, b, shifted) = (t_start, t_start + 2.0 * half, true);
     }
     if b > t_end {
-        (a, b) = ((t_end - 2.0 * half).max(t_start), t_end);
+        (a, b, shifted) = ((t_end - 2.0 * half).max(t_start), t_end, true);
     }
-    let lo = t.partition_point(|&x| x < a);
-    let hi = t.partition_point(|&x| x <= b);
+    let mut lo = t.partition_point(|&x| x < a);
+    let mut hi = t.partition_point(|&x| x <= b);
     let inside = hi - lo;
+    if !shifted && lo > 0 && hi < n {
+        // A dropout (an interval shorter than a gap) that cuts a side of the window short: the
+        // longest interval from the sample to the first one beyond the window on a side,
+        // longer than a quarter of the window and than twice the other side's; that side then
+        // reaches further by it, so that the sample stays inside its fit (docs/twin.md
+        // "Conditioning").
+        let longest = |w: &[f64]| w.windows(2).fold(0.0f64, |m, p| m.max(p[1] - p[0]));
+        let (right, left) = (longest(&t[c..=hi]), longest(&t[lo - 1..=c]));
+        if right > 0.5 * half && right > 2.0 * left {
+            b += right;
+            hi = t.partition_point(|&x| x <= b);
+        } else if left > 0.5 * half && left > 2.0 * right {
+            a -= left;
+            lo = t.partition_point(|&x| x < a);
+        }
+    }
+    let inside = if hi - lo > inside { hi - lo } else { inside };
     if inside >= MIN_SAMPLES {
         return (lo, hi, inside);
     }
@@ -139,8 +159,7 @@ mod tests {
     #[test]
     fn the_window_is_a_time_shifted_inward_at_the_ends() {
         // Samples every 1 ms (in ms: exact doubles) but a 7 ms interval after 10 ms: ±3 ms holds
-        // 7 samples in the middle, keeps 6 ms at the ends, and is widened to the 5 nearest
-        // samples where it holds fewer.
+        // 7 samples in the middle and keeps 6 ms at the ends.
         let mut t: Vec<f64> = (0..=10).map(f64::from).collect();
         t.extend((0..20).map(|k| 17.0 + f64::from(k)));
         let (s, e) = (t[0], *t.last().unwrap());
@@ -150,11 +169,13 @@ mod tests {
         // While the segment goes on, its end does not shift the window.
         assert_eq!(window(&t, 28, 3.0, s, f64::INFINITY), (25, 31, 6));
         assert_eq!(window(&t, 28, 3.0, s, e), (24, 31, 7));
-        // Sample 10 (t = 10 ms) sees 7..10 and nothing after: 4 samples, sparse; the nearest
-        // fifth is sample 6 (4 ms before), not sample 11 (7 ms after).
-        assert_eq!(window(&t, 10, 3.0, s, e), (6, 11, 4));
-        // Sample 11 (t = 17 ms) sees 11..14: the nearest five are 11..15.
-        assert_eq!(window(&t, 11, 3.0, s, e), (11, 16, 4));
+        // Sample 10 (t = 10 ms) sees 7..10 and nothing after: the 7 ms interval (longer than
+        // 1.5 ms and twice the 1 ms before) widens the window's end by 7 ms, to 20 ms.
+        assert_eq!(window(&t, 10, 3.0, s, e), (7, 15, 8));
+        // Sample 11 (t = 17 ms): the same interval widens its start, to 7 ms.
+        assert_eq!(window(&t, 11, 3.0, s, e), (7, 15, 8));
+        // ±0.5 ms holds one sample: sparse, the 5 nearest (the earlier on a tie) instead.
+        assert_eq!(window(&t, 5, 0.5, s, e), (3, 8, 1));
         // A segment of four samples is one window.
         assert_eq!(window(&t[..4], 1, 0.5, 0.0, 3.0), (0, 4, 1));
     }
