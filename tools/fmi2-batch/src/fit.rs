@@ -29,6 +29,32 @@ pub const MIN_SAMPLES: usize = DEGREE + 2;
 /// samples within the window's time span (below `MIN_SAMPLES`: a sparse window, whose range
 /// is then the `MIN_SAMPLES` samples nearest in time to `c`).
 pub fn window(t: &[f64], c: usize, half: f64, t_start: f64, t_end: f64) -> (usize, usize, usize) {
+    window_in(t, &long_intervals(t, half), c, half, t_start, t_end)
+}
+
+/// `long[i]`: how many of the intervals between the samples `0..=i` are longer than a quarter
+/// of the window (`half / 2`), the only ones that can widen a window (`window_in`): computed
+/// once for many centres, so that a window without one costs no scan of its intervals.
+pub fn long_intervals(t: &[f64], half: f64) -> Vec<u32> {
+    let mut long = Vec::with_capacity(t.len());
+    let mut k = 0u32;
+    long.push(0);
+    for w in t.windows(2) {
+        k += u32::from(w[1] - w[0] > 0.5 * half);
+        long.push(k);
+    }
+    long
+}
+
+/// `window` with `long` = `long_intervals(t, half)`.
+pub fn window_in(
+    t: &[f64],
+    long: &[u32],
+    c: usize,
+    half: f64,
+    t_start: f64,
+    t_end: f64,
+) -> (usize, usize, usize) {
     let n = t.len();
     let (mut a, mut b) = (t[c] - half, t[c] + half);
     let mut shifted = false;
@@ -41,7 +67,7 @@ pub fn window(t: &[f64], c: usize, half: f64, t_start: f64, t_end: f64) -> (usiz
     let mut lo = t.partition_point(|&x| x < a);
     let mut hi = t.partition_point(|&x| x <= b);
     let inside = hi - lo;
-    if !shifted && lo > 0 && hi < n {
+    if !shifted && lo > 0 && hi < n && long[hi] > long[lo - 1] {
         // A dropout (an interval shorter than a gap) that cuts a side of the window short: the
         // longest interval from the sample to the first one beyond the window on a side,
         // longer than a quarter of the window and than twice the other side's; that side then

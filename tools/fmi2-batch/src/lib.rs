@@ -385,10 +385,11 @@ pub unsafe extern "C" fn fmi2_batch_local_cubic(
         ) else {
             return BAD_ARGUMENTS;
         };
+        let long = fit::long_intervals(t, half);
         let mut singular = None;
         for j in 0..count {
             let c = first + j;
-            let (lo, hi, inside) = fit::window(t, c, half, t_start, t_end);
+            let (lo, hi, inside) = fit::window_in(t, &long, c, half, t_start, t_end);
             k[j] = inside as u64;
             (w[j], e[j]) = fit::at(t, theta, lo, hi, c).unwrap_or_else(|| {
                 singular.get_or_insert(j);
