@@ -129,28 +129,33 @@ def complete(t: np.ndarray, half: float, t_start: float, first: int = 0) -> int:
     at the start; further by the longest interval where a dropout cuts it short) and
     SPARSE_REACH samples follow (the reach of a sparse window)."""
     n = len(t)
-    if n < MIN_SAMPLES:
+    if n < MIN_SAMPLES or first >= n:
         return 0
     tc = t[first:]
+    end = tc + half
     shifted = tc - half < t_start
-    end = np.where(shifted, t_start + 2.0 * half, tc + half)
-    hi = np.searchsorted(t, tc + half, side="right")
-    # Not shifted: the first sample beyond the window decides whether a dropout widens it.
-    end[~shifted & (hi >= n)] = math.inf
-    d = np.diff(t)
-    big = np.concatenate(([0], np.cumsum(d > 0.5 * half)))
-    idx = np.arange(first, n)
-    maybe = ~shifted & (hi < n) & (big[np.minimum(hi, n - 1)] - big[idx] > 0)
-    for k in np.flatnonzero(maybe).tolist():
-        c, h = first + k, int(hi[k])
-        lo = int(np.searchsorted(t, tc[k] - half, side="left"))
-        if lo == 0:
-            continue
-        right, left = float(np.max(d[c:h])), float(np.max(d[lo - 1 : c]))
-        if right > 0.5 * half and right > 2.0 * left:
-            end[k] = end[k] + right
-    late = np.flatnonzero(end >= t[-1])
-    k = int(late[0]) if late.size else len(tc)
+    if shifted[0]:  # only near the segment's start (a live run calls this for every line)
+        end = np.where(shifted, t_start + 2.0 * half, end)
+    # A window whose end has no sample after it yet (end >= the last sample) waits for one: it
+    # decides whether a dropout widens the window (`window`), by an interval of t[first:].
+    d = np.diff(tc)
+    if d.size and float(d.max()) > 0.5 * half:
+        hi = np.searchsorted(t, tc + half, side="right")
+        # Those with a long interval between them and the first sample beyond their window.
+        big = np.concatenate(([0], np.cumsum(d > 0.5 * half)))
+        ks = np.arange(len(tc))
+        cand = ~shifted & (hi < n)
+        cand[cand] = big[hi[cand] - first] > big[ks[cand]]
+        for k in np.flatnonzero(cand).tolist():
+            c, h = first + k, int(hi[k])
+            right = float(np.max(d[k : h - first]))
+            lo = int(np.searchsorted(t, tc[k] - half, side="left"))
+            if lo == 0 or right <= 0.5 * half:
+                continue
+            if right > 2.0 * float(np.max(np.diff(t[lo - 1 : c + 1]))):
+                end[k] = end[k] + right
+    late = end >= t[-1]
+    k = int(late.argmax()) if late.any() else len(tc)
     return max(0, min(k, n - SPARSE_REACH - first))
 
 
