@@ -873,6 +873,13 @@ JSON_VALUES = st.recursive(
 )
 
 
+def _same_json(a: bytes, b: bytes) -> bool:
+    try:
+        return json.loads(a) == json.loads(b)
+    except (ValueError, UnicodeDecodeError):
+        return False
+
+
 @GENERATED
 @given(
     st.lists(
@@ -907,7 +914,9 @@ def test_generated_damaged_checkpoints(fmu_path, clean, checkpointed, tmp_path_f
                 del doc[key]
             data = json.dumps(doc).encode()
         cp.write_bytes(data)
-        changed.append(data != cp_bytes)
+        # A flipped last digit of a float can name the same double ("...436" and "...437"):
+        # the checkpoint's content, and its checksum, are then unchanged, and it is used.
+        changed.append(not _same_json(data, cp_bytes))
         out = d / f"p{j}.csv"
         out.write_bytes(out_bytes)
         summary_of(out).write_bytes(summary_bytes)
