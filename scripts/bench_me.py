@@ -13,7 +13,7 @@ target/release/libReciprocatingDrive.so with dlopen (one binary, both interfaces
 Runs of the three alternate; each figure is the median of ROUNDS runs. With --instructions each
 mode runs alone under valgrind's callgrind, which counts the instructions the FMU's functions
 execute per time point: repeatable to the instruction, whatever else the machine is doing. The
-target of the issue: me ≤ cs for a rigid mechanism.
+target: me ≤ cs and rhs ≤ cs, rigid and elastic.
 
     python3 scripts/bench_me.py [--steps 200000] [--rounds 9] [--instructions] [filter]
 """
@@ -38,11 +38,14 @@ from bench_ratio import (  # noqa: E402
     preset,
 )
 
-# (name, preset or None, overrides); the rigid mechanisms of scripts/bench_ratio.py.
+# (name, preset or None, overrides); the scenarios of scripts/bench_ratio.py: three rigid
+# mechanisms, and an elastic rod (its co-simulation step integrates the cage, about 15 right-hand
+# sides per step; Model Exchange's rhs is one of them).
 SCENARIOS = [
     ("crank-slider, friction off", None, NO_SUPPORTS),
     ("beam unit sk8-3.5-4000", "sk8-3.5-4000", {}),
     ("default machine, friction on", None, {}),
+    ("kvo630, elastic rod, tolerance 1e-8", "kvo630", {}),
 ]
 
 
@@ -103,7 +106,7 @@ def main(argv=None) -> int:
         print(f"FMU: {lib.relative_to(ROOT)}; {a.rounds} alternating runs of {a.steps} time points")
     print(
         f"| scenario | cs {unit} (set 3, step, get 8) | me {unit} (time, set 3, get 8) | me / cs "
-        f"| target | rhs {unit} (+ states, derivatives) | rhs / cs |"
+        f"| rhs {unit} (+ states, derivatives) | rhs / cs | target (both) |"
     )
     print("|---|---|---|---|---|---|---|")
     for name, pre, overrides in SCENARIOS:
@@ -128,10 +131,10 @@ def main(argv=None) -> int:
                 mode, ns = line.split()
                 res[mode] = float(ns)
         cs, me, rhs = res["cs"], res["me"], res["rhs"]
-        mark = "met" if me <= cs else "NOT met"
+        mark = "met" if max(me, rhs) <= cs else "NOT met"
         print(
-            f"| {name} | {cs:.1f} | {me:.1f} | **{me / cs:.2f}** | ≤ 1 ({mark}) | {rhs:.1f} "
-            f"| {rhs / cs:.2f} |",
+            f"| {name} | {cs:.1f} | {me:.1f} | **{me / cs:.2f}** | {rhs:.1f} | **{rhs / cs:.2f}** "
+            f"| ≤ 1 ({mark}) |",
             flush=True,
         )
     return 0

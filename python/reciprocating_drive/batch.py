@@ -13,6 +13,7 @@ build.
 from __future__ import annotations
 
 import ctypes
+import math
 import os
 import pathlib
 
@@ -125,7 +126,8 @@ def library() -> ctypes.CDLL:
         lib.fmi2_batch_format_csv.argtypes = [dp, sz, sz, sz, vp, sz]
         lib.fmi2_batch_format_csv.restype = ctypes.c_ssize_t
         lib.fmi2_batch_max_number_len.restype = sz
-        lib.fmi2_batch_local_cubic.argtypes = [dp, dp, sz, sz, sz, sz, dp, dp]
+        d = ctypes.c_double
+        lib.fmi2_batch_local_cubic.argtypes = [dp, dp, sz, d, d, d, sz, sz, dp, dp, vp]
         lib.fmi2_batch_local_cubic.restype = ctypes.c_ssize_t
         lib.fmi2_batch_parse_csv.argtypes = [ctypes.c_char_p, sz, sz, sz, vp, vp, vp, vp, sz]
         lib.fmi2_batch_parse_csv.restype = ctypes.c_ssize_t
@@ -229,24 +231,45 @@ def format_csv(rows: np.ndarray, buffer: bytearray | None = None) -> bytes | mem
 
 
 def local_cubic(
-    t: np.ndarray, theta: np.ndarray, half: int, first: int, count: int
-) -> tuple[np.ndarray, np.ndarray]:
-    """ω and ε at samples first .. first + count - 1 of a segment (conditioning.fit's estimate:
-    a cubic fitted by least squares to the 2·half+1 samples around each, shifted inward at the
-    ends). Raises ValueError naming the sample whose window is singular."""
+    t: np.ndarray,
+    theta: np.ndarray,
+    half: float,
+    first: int,
+    count: int,
+    t_start: float,
+    t_end: float = math.inf,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """ω and ε at samples first .. first + count - 1 of a segment spanning t_start .. t_end
+    (infinite while it goes on), and the number of samples within each one's window
+    (conditioning.window and conditioning.fit: a cubic fitted by least squares to the samples
+    within ±half seconds of each, shifted inward at the ends; fewer than
+    conditioning.MIN_SAMPLES make a sparse window, fitted to the samples nearest in time).
+    Raises ValueError naming the sample whose window is singular."""
     t = np.ascontiguousarray(t, dtype=np.float64)
     theta = np.ascontiguousarray(theta, dtype=np.float64)
     w, e = np.empty(count), np.empty(count)
+    inside = np.empty(count, dtype=np.uint64)
     k = library().fmi2_batch_local_cubic(
-        t.ctypes.data, theta.ctypes.data, len(t), half, first, count, w.ctypes.data, e.ctypes.data
+        t.ctypes.data,
+        theta.ctypes.data,
+        len(t),
+        half,
+        t_start,
+        t_end,
+        first,
+        count,
+        w.ctypes.data,
+        e.ctypes.data,
+        inside.ctypes.data,
     )
     if k < 0:
         raise ValueError(
-            f"local_cubic: bad arguments (n = {len(t)}, half = {half}, samples {first}..{first + count})"
+            f"local_cubic: bad arguments (n = {len(t)}, half = {half!r} s, "
+            f"samples {first}..{first + count})"
         )
     if k < count:
         raise ValueError(f"the smoothing window of sample {first + k} is singular")
-    return w, e
+    return w, e, inside
 
 
 def parse_csv(

@@ -3,15 +3,16 @@
 * Angles in rad, deg or encoder counts, wrapped (every revolution) or continuous, are unwrapped to
   a continuous angle in rad: each step is taken as the smallest one modulo a revolution.
 * Speed ω and acceleration ε, where they are not measured, are the first and second derivative
-  at each sample of a local cubic fitted by least squares to the samples within ±window/2 of it
-  (the Savitzky–Golay smoother, on the measured timestamps, so that timestamp jitter does not
-  bias it). A sample near the edge of a segment (the start, the end, a gap) takes the same number
-  of neighbours from one side. The estimate at a sample depends only on the samples of its window,
-  so a live run, which sees the data piece by piece, gives the same numbers as a replay.
+  at each sample of a local cubic fitted by least squares to the samples within ±window/2 of its
+  time (the Savitzky–Golay smoother, on the measured timestamps, so that timestamp jitter does
+  not bias it). Near the edge of a segment (the start, the end, a gap) the window keeps its
+  width in time and shifts inward. A window holding fewer than MIN_SAMPLES samples is sparse: it
+  takes the MIN_SAMPLES samples nearest in time to its centre instead, and the twin reports it. The estimate
+  at a sample depends only on the samples of its window, so a live run, which sees the data piece
+  by piece, a run started later or resumed, and a replay give the same numbers.
 
-Accuracy (measured with scripts/twin_accuracy.py, docs/twin.md): exact angles at 1 kHz give
-ω and ε to rounding; an encoder of 4096 counts/rev at 1 kHz with 65 strokes/min and a window of
-0.1 s gives the suspension acceleration within 1 % of its peak.
+This module is the reference in numpy; the twin runs the same algorithm natively
+(tools/fmi2-batch/src/fit.rs, `batch.local_cubic`). Accuracy: docs/twin.md "Conditioning".
 """
 
 from __future__ import annotations
@@ -25,6 +26,11 @@ TWO_PI = 2.0 * math.pi
 #: Polynomial degree of the local fit: a cubic differentiates a smooth angle to O(window³) in ω
 #: and O(window²) in ε, and is exact for constant acceleration.
 DEGREE = 3
+#: The fewest samples a window may hold (one residual beyond the cubic's four coefficients);
+#: a window with fewer is sparse.
+MIN_SAMPLES = DEGREE + 2
+#: The most samples a sparse window reaches to either side of its centre.
+SPARSE_REACH = MIN_SAMPLES - 1
 
 
 def to_radians(values: np.ndarray, unit: str, counts_per_rev: float | None = None) -> np.ndarray:
@@ -71,26 +77,124 @@ def fit(
     return c[:, 1] / sc, 2.0 * c[:, 2] / (sc * sc)
 
 
-def windows(n: int, half: int, centres: np.ndarray) -> np.ndarray:
-    """Index rows of the windows of `centres` in a segment of n samples: 2·half+1 samples around
-    each (fewer if the segment is shorter), shifted inward at the ends."""
-    width = min(2 * half + 1, n)
-    lo = np.clip(centres - half, 0, n - width)
-    return lo[:, None] + np.arange(width)[None, :]
+def window(
+    t: np.ndarray, c: int, half: float, t_start: float, t_end: float = math.inf
+) -> tuple[int, int, int]:
+    """The window of sample c of a segment of strictly increasing times t spanning t_start ..
+    t_end (infinite while it goes on): the index range lo..hi its fit uses and the number of
+    samples in it before a sparse one is widened. The samples within ±half seconds of t[c],
+    shifted inward at the ends keeping its width in time (the whole segment if it is shorter);
+    where a dropout cuts a side short (not shifted: the longest interval from t[c] to the first
+    sample beyond the window on that side is longer than half of half and than twice the other
+    side's), that side reaches further by that interval.
+    Below MIN_SAMPLES the window is sparse and the range is the MIN_SAMPLES samples nearest in
+    time to t[c] (at most SPARSE_REACH to either side)."""
+    n = len(t)
+    a, b = t[c] - half, t[c] + half
+    shifted = False
+    if a < t_start:
+        a, b, shifted = t_start, t_start + 2.0 * half, True
+    if b > t_end:
+        a, b, shifted = max(t_end - 2.0 * half, t_start), t_end, True
+    lo = int(np.searchsorted(t, a, side="left"))
+    hi = int(np.searchsorted(t, b, side="right"))
+    inside = hi - lo
+    if not shifted and lo > 0 and hi < n:
+        right = float(np.max(np.diff(t[c : hi + 1])))
+        left = float(np.max(np.diff(t[lo - 1 : c + 1])))
+        if right > 0.5 * half and right > 2.0 * left:
+            b += right
+            hi = int(np.searchsorted(t, b, side="right"))
+        elif left > 0.5 * half and left > 2.0 * right:
+            a -= left
+            lo = int(np.searchsorted(t, a, side="left"))
+    inside = max(inside, hi - lo)
+    if inside >= MIN_SAMPLES:
+        return lo, hi, inside
+    # Sparse: widened one sample at a time to the nearer neighbour (the earlier on a tie).
+    tc = t[c]
+    lo, hi = c, c + 1
+    while hi - lo < MIN_SAMPLES and (lo > 0 or hi < n):
+        if hi == n or (lo > 0 and tc - t[lo - 1] <= t[hi] - tc):
+            lo -= 1
+        else:
+            hi += 1
+    return lo, hi, inside
 
 
-def derivatives(t: np.ndarray, theta: np.ndarray, half: int) -> tuple[np.ndarray, np.ndarray]:
-    """ω and ε at every sample of one segment (no gaps inside)."""
+def complete(t: np.ndarray, half: float, t_start: float, first: int = 0) -> int:
+    """How many of the samples t[first:] of a segment that goes on (its first sample at
+    t_start), counted from `first`, have a window (`window`) that no later sample can change:
+    a sample beyond its end has arrived (t + half; t_start + 2·half where it is shifted inward
+    at the start; further by the longest interval where a dropout cuts it short) and
+    SPARSE_REACH samples follow (the reach of a sparse window)."""
+    n = len(t)
+    if n < MIN_SAMPLES or first >= n:
+        return 0
+    tc = t[first:]
+    end = tc + half
+    shifted = tc - half < t_start
+    if shifted[0]:  # only near the segment's start (a live run calls this for every line)
+        end = np.where(shifted, t_start + 2.0 * half, end)
+    # A window whose end has no sample after it yet (end >= the last sample) waits for one: it
+    # decides whether a dropout widens the window (`window`), by an interval of t[first:].
+    d = np.diff(tc)
+    if d.size and float(d.max()) > 0.5 * half:
+        hi = np.searchsorted(t, tc + half, side="right")
+        # Those with a long interval between them and the first sample beyond their window.
+        big = np.concatenate(([0], np.cumsum(d > 0.5 * half)))
+        ks = np.arange(len(tc))
+        cand = ~shifted & (hi < n)
+        cand[cand] = big[hi[cand] - first] > big[ks[cand]]
+        for k in np.flatnonzero(cand).tolist():
+            c, h = first + k, int(hi[k])
+            right = float(np.max(d[k : h - first]))
+            lo = int(np.searchsorted(t, tc[k] - half, side="left"))
+            if lo == 0 or right <= 0.5 * half:
+                continue
+            if right > 2.0 * float(np.max(np.diff(t[lo - 1 : c + 1]))):
+                end[k] = end[k] + right
+    late = end >= t[-1]
+    k = int(late.argmax()) if late.any() else len(tc)
+    return max(0, min(k, n - SPARSE_REACH - first))
+
+
+def window_counts(t: np.ndarray, half: float) -> np.ndarray:
+    """The `inside` count of `window` for every sample of a whole segment (vectorised but for
+    the windows a dropout widens): the same doubles as `window` and fit.rs."""
+    a, b = t - half, t + half
+    start = a < t[0]
+    a, b = np.where(start, t[0], a), np.where(start, t[0] + 2.0 * half, b)
+    end = b > t[-1]
+    a = np.where(end, np.maximum(t[-1] - 2.0 * half, t[0]), a)
+    b = np.where(end, t[-1], b)
+    lo = np.searchsorted(t, a, side="left")
+    hi = np.searchsorted(t, b, side="right")
+    n = len(t)
+    out = hi - lo
+    # Where a dropout may widen the window (an interval longer than half of half in reach).
+    big = np.concatenate(([0], np.cumsum(np.diff(t) > 0.5 * half)))
+    maybe = ~start & ~end & (lo > 0) & (hi < n)
+    maybe[maybe] = big[hi[maybe]] - big[lo[maybe] - 1] > 0
+    for c in np.flatnonzero(maybe).tolist():
+        out[c] = window(t, c, half, float(t[0]), float(t[-1]))[2]
+    return out
+
+
+def derivatives(
+    t: np.ndarray, theta: np.ndarray, half: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """ω and ε at every sample of one segment (no gaps inside) from the samples within ±half
+    seconds of it, and the number of samples within each window (one fit per sample: a
+    reference, not fast)."""
     n = len(t)
     if n < DEGREE + 1:
         raise ValueError(
             f"a segment of {n} samples is too short to estimate the speed (needs {DEGREE + 1})"
         )
-    k = np.arange(n)
-    idx = windows(n, half, k)
-    return fit(t[idx], theta[idx], t[k][:, None], theta[k][:, None])
-
-
-def window_samples(window: float, dt: float) -> int:
-    """Half-width in samples of a smoothing window of `window` seconds at sample spacing dt."""
-    return max(2, int(round(0.5 * window / dt)))
+    w, e, inside = np.empty(n), np.empty(n), np.empty(n, dtype=np.int64)
+    for c in range(n):
+        lo, hi, inside[c] = window(t, c, half, float(t[0]), float(t[-1]))
+        wc, ec = fit(t[None, lo:hi], theta[None, lo:hi], t[c : c + 1, None], theta[c : c + 1, None])
+        w[c], e[c] = wc[0], ec[0]
+    return w, e, inside

@@ -43,12 +43,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from .batch import format_csv
+from .conditioning import SPARSE_REACH, complete, window_counts
 from .fmu import Fmu, FmuError
 from .line_input import chunks_of
 from .revolution import TWO_PI
 from .twin import SUMMARY_FIELDS, DataError, Options, Twin, _Segment
 
-MANIFEST_VERSION = 2
+#: 3: the smoothing window is a time (pieces of a version 2 work folder were planned and computed
+#: with a window of samples; they are not reused).
+MANIFEST_VERSION = 3
 
 #: Error in rad the elastic rod's cage angle may keep from its quasi-static start at the end of
 #: a piece's warm-up (docs/twin.md "Distributed replay"), and the bound on the start's error.
@@ -119,12 +122,14 @@ class _Scan(Twin):
         self.parts: list = []
         self.seg_n = 0
         self.seg_line = None
+        self.seg_part = 0
 
     def _drain(self, final: bool, rows: list) -> None:
         b = self.buf
         if len(b.t):
             if self.seg_n == 0:
                 self.seg_line = int(b.line[0])
+                self.seg_part = len(self.parts)
             self.parts.append((b.line, b.t, b.theta, b.speed, b.force))
             self.seg_n += len(b.t)
             self.buf = _Segment()
@@ -134,6 +139,13 @@ class _Scan(Twin):
                     f"line {self.seg_line}: a segment of {self.seg_n} sample(s) between gaps is "
                     "too short (at least 4 are needed)"
                 )
+            if self.seg_n:
+                # The sparse windows of the segment, reported as the sequential twin does.
+                seg = self.parts[self.seg_part :]
+                t = np.concatenate([p[1] for p in seg])
+                line = np.concatenate([p[0] for p in seg])
+                self._note_sparse(window_counts(t, 0.5 * self.o.window), line, t)
+                self._close_sparse()
             self.seg_n = 0
 
     def arrays(self) -> dict:
@@ -145,7 +157,6 @@ class _Scan(Twin):
 @dataclass
 class Scanned:
     data: dict  # line, t, theta, speed, force of every accepted sample
-    half: int
     cols: dict
     gaps: list
     duplicates: int
@@ -311,7 +322,6 @@ def scan(
     starts = {n: v.start for n, v in tw.fmu.variables.items()}
     return Scanned(
         data=tw.arrays(),
-        half=int(tw.half),
         cols=tw.cols,
         gaps=list(tw.gaps),
         duplicates=tw.duplicates,
@@ -327,6 +337,26 @@ def scan(
     )
 
 
+def exact_tail(t: np.ndarray, half: float, gap_limit: float, m: int, a: int, b: int) -> int:
+    """The end f (<= b, the end of the segment a..b) of a piece whose rows up to sample m must be
+    exact: the window of m (conditioning.window: a window after the segment's start where it is
+    shifted inward there, or half a window after m and at most the gap limit further where a
+    dropout left that side short, with a sample beyond) ends before the piece's last sample,
+    which then shifts none of them, and SPARSE_REACH samples follow m (a sparse window)."""
+    end = t[a] + 2.0 * half if t[m] - half < t[a] else t[m] + half + gap_limit
+    j = int(np.searchsorted(t, end, side="left"))
+    return min(b, max(j + 2, m + SPARSE_REACH + 1))
+
+
+def exact_rows(t: np.ndarray, half: float, seg_end: bool) -> int:
+    """How many leading rows of a piece computed from the samples at times t are exact: all of
+    them if its last sample ends the segment; else those whose window no later sample changes
+    (conditioning.complete, Twin._ready's rule; the piece's twin starts its segment at t[0])."""
+    if seg_end:
+        return len(t)
+    return complete(t, half, float(t[0]))
+
+
 def plan(sc: Scanned, revolutions_per_piece: int | None, overlap: float | None, cuts=()) -> list:
     """Pieces [s, e, w, f, f ends its segment] in sample indices: rows s..e-1 computed from
     samples w..f-1. Cuts at every gap, every `revolutions_per_piece` revolutions of a segment,
@@ -339,7 +369,7 @@ def plan(sc: Scanned, revolutions_per_piece: int | None, overlap: float | None, 
     gap_at = (np.flatnonzero((t[1:] - t[:-1]) > sc.options.gap_limit) + 1).tolist()
     bounds = [0, *gap_at, n]
     warm_s = warm_up_time(sc.sigma) if overlap is None else overlap
-    half = sc.half
+    half, gap = 0.5 * sc.options.window, sc.options.gap_limit
     pieces = []
     extra = sorted(int(c) for c in cuts)
     for a, b in zip(bounds[:-1], bounds[1:]):
@@ -362,24 +392,30 @@ def plan(sc: Scanned, revolutions_per_piece: int | None, overlap: float | None, 
         aligned = set(cuts_at)
         cuts_here = sorted({*cuts_at, *(c for c in extra if a < c < b), b})
         for s, e in zip(cuts_here[:-1], cuts_here[1:]):
-            # Warm-up: the window's half-width and the sample before, and the cage's time. Near
-            # the segment's end the window shifts inward (docs/twin.md "Conditioning"): the
-            # last sample's window starts 2·half samples before the end.
-            w = max(a, min(s - half - 4, b - 2 * half - 3))
+            # Warm-up (docs/twin.md "Conditioning"): the rows from a few samples before s are
+            # exact (a revolution starting at s needs the row before it): their windows reach
+            # back half a window, and at most the gap limit and a sample further where a
+            # dropout left that side short, a whole window before the segment's end (shifted
+            # inward there), and SPARSE_REACH samples (a sparse window). The piece starts a
+            # sample before the last one at or before that, so its own start shifts none of
+            # them. Then the cage's.
+            x = max(a, s - SPARSE_REACH)
+            reach = min(t[x] - half - gap, t[b - 1] - 2.0 * half)
+            w = int(np.searchsorted(t, reach, side="right")) - 2
+            w = max(a, min(w, x - SPARSE_REACH))
             if warm_s > 0 and s > a:
                 w = min(w, max(a, int(np.searchsorted(t, t[s] - warm_s, side="right")) - 1))
-            # Tail: the revolution in progress at e completes within 2π of the angle reached at
-            # e-1 (model angle = crank angle + a constant; the running maximum, as the crank may
-            # stand or turn back), then the window's half-width.
+            # Tail: the rows to sample m must be exact, and the revolution in progress at e
+            # completes within 2π of the angle reached at e-1 (model angle = crank angle + a
+            # constant; the running maximum, as the crank may stand or turn back).
             if e < b and e in aligned:
                 # A boundary found from the crank angle may be a sample off the FMU's own.
-                f = min(b, max(e + half + 5, a + 2 * half + 3))
+                m = e + 2
             elif e < b:
                 reached = np.maximum.accumulate(th[a:b])
-                x = int(np.searchsorted(reached, reached[e - 1 - a] + TWO_PI, side="right")) + a + 1
-                f = min(b, max(max(e, x) + half + 2, a + 2 * half + 3))
-            else:
-                f = b
+                m = int(np.searchsorted(reached, reached[e - 1 - a] + TWO_PI, side="right")) + a + 2
+                m = max(e, m)
+            f = b if e >= b else exact_tail(t, half, gap, min(m, b - 1), a, b)
             # The angle reached before the piece: a revolution first reached there belongs to
             # an earlier piece even if the crank, having turned back, reaches it again here.
             prior = float(np.max(th[a:s]) + sc.offset) if s > a else None
@@ -408,7 +444,7 @@ def warm_worker(fmu_key_or_path) -> None:
     load_fmu(fmu_key_or_path)
 
 
-def piece_text(fmu_key_or_path, values, options: dict, half: int, cols: dict, offset: float,
+def piece_text(fmu_key_or_path, values, options: dict, cols: dict, offset: float,
                piece, arrays, buffer: bytearray | None = None):  # fmt: skip
     """On a worker: one piece's rows and summaries as CSV text: (rows, summaries, number of rows).
     The rows are bytes, or with `buffer` a memoryview into it (formatted in place: a piece's
@@ -421,7 +457,7 @@ def piece_text(fmu_key_or_path, values, options: dict, half: int, cols: dict, of
     line, t, theta, speed, force = arrays
     o = Options(**options)
     tw = Twin(fmu, "default", o, values)
-    tw.half, tw.cols = half, cols
+    tw.cols = cols
     rows = [tw._empty()]
     try:
         err = tw._accept(line, t, theta, speed, force, rows)
@@ -437,7 +473,7 @@ def piece_text(fmu_key_or_path, values, options: dict, half: int, cols: dict, of
     ang = allrows[:, tw.i_angle]
     # Rows are exact up to half a window before f, unless f ends the segment (docs/twin.md).
     seg_end = bool(piece[4]) if len(piece) > 4 else False
-    exact_end = f - w if seg_end else f - w - half - 1
+    exact_end = exact_rows(t, 0.5 * o.window, seg_end)
     # A revolution belongs to the piece where the crank angle + offset first reaches its start:
     # the rule the planner cuts by (the same doubles), so each is written exactly once.
     model = theta + offset
@@ -460,22 +496,22 @@ def piece_text(fmu_key_or_path, values, options: dict, half: int, cols: dict, of
     return (bytes(out) if buffer is None else out), summ, e - s
 
 
-def run_piece(fmu_key_or_path, values, options: dict, half: int, cols: dict, offset: float,
+def run_piece(fmu_key_or_path, values, options: dict, cols: dict, offset: float,
               piece, arrays):  # fmt: skip
     """On a worker: the formatted rows and summaries of one piece (bytes, bytes, rows, CPU
     seconds of this thread)."""
     cpu = time.thread_time()
-    out, summ, n = piece_text(fmu_key_or_path, values, options, half, cols, offset, piece, arrays)
+    out, summ, n = piece_text(fmu_key_or_path, values, options, cols, offset, piece, arrays)
     return out, summ, n, time.thread_time() - cpu
 
 
-def run_group(fmu_key_or_path, values, options, half, cols, offset, items):
+def run_group(fmu_key_or_path, values, options, cols, offset, items):
     """On a worker of a cluster that shares no disk: consecutive pieces, one Dask task
     (docs/twin.md "Distributed replay", Speed: the scheduler's cost is per task, not per
     sample). `items` holds (index, piece, arrays) in order; the result is the list of each
     piece's (bytes, bytes, rows, CPU seconds)."""
     return [
-        run_piece(fmu_key_or_path, values, options, half, cols, offset, piece, arrays)
+        run_piece(fmu_key_or_path, values, options, cols, offset, piece, arrays)
         for _, piece, arrays in items
     ]
 
@@ -553,7 +589,7 @@ class _Offsets:
         return self.starts[i]
 
 
-def run_claimed(fmu_key_or_path, values, options, half, cols, offset, items, work: str,
+def run_claimed(fmu_key_or_path, values, options, cols, offset, items, work: str,
                 first: int) -> int:  # fmt: skip
     """On a worker of a LocalCluster: takes the pieces `items` ((index, piece) in order) that no
     other worker has claimed, one at a time in order, computes each from the mapped input
@@ -583,7 +619,7 @@ def run_claimed(fmu_key_or_path, values, options, half, cols, offset, items, wor
             w, f = piece[2], piece[3]
             mine = tuple(np.array(x[w:f]) for x in arrays)  # writable copies, as Dask's would be
             out, summ, _ = piece_text(
-                fmu_key_or_path, values, options, half, cols, offset, piece, mine, buffer
+                fmu_key_or_path, values, options, cols, offset, piece, mine, buffer
             )
             try:
                 _atomic_write(_len_path(folder, i), str(len(out)).encode(), sync=False)

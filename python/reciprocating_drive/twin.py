@@ -59,8 +59,13 @@ SPEED_SLACK = 0.1
 #: 2 µs at best, beyond 1e9 revolutions 1 µrad.
 TIME_LIMIT = 1e10
 ANGLE_LIMIT = 1e9 * 2.0 * math.pi
-#: Largest half-width of the smoothing window in samples (a window of 200 001 samples).
-MAX_HALF = 100_000
+#: Most samples a smoothing window may hold: more means a wrong time unit or --window (docs/twin.md
+#: "Input"), and would cost memory and time for nothing.
+MAX_WINDOW_SAMPLES = 200_001
+
+#: Format of `Twin.checkpoint` (3: the smoothing window is a time; the buffer holds its
+#: segment's start time and the sparse stretches).
+CHECKPOINT_VERSION = 3
 
 #: Samples conditioned and sent to the FMU per call at most (bounds the memory of the windows).
 BLOCK = 4096
@@ -399,10 +404,13 @@ class _Segment:
     line: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
     done: int = 0  # samples of the buffer already sent to the FMU
     segment_start: bool = True
+    t0: float = math.nan  # time of the segment's first sample (the buffer may start later)
 
     NAMES = ("t", "theta", "speed", "force", "line")
 
     def append(self, **arrays) -> None:
+        if math.isnan(self.t0) and len(arrays["t"]):
+            self.t0 = float(arrays["t"][0])
         for name in self.NAMES:
             setattr(self, name, np.concatenate((getattr(self, name), arrays[name])))
 
@@ -473,7 +481,6 @@ class Twin:
         self.time_kind: str | None = None
         self.clock: Clock | None = None
         self.iso_line = None  # the line of the first timestamp
-        self.half = None
         self._slack_tables: dict = {}
         self.buf = _Segment()
         self.last_raw = None  # previous accepted raw angle (rad), unwrapped angle, time
@@ -501,6 +508,11 @@ class Twin:
         self.gap_notes: dict = {}
         #: (first line, samples) of each segment left out as too short (Options.short_segments).
         self.short_dropped: list = []
+        #: Sparse stretches, consecutive samples whose smoothing window holds fewer than
+        #: cond.MIN_SAMPLES samples: [first line, first time, last time, samples, fewest in a
+        #: window], the last one still growing while `sparse_open`.
+        self.sparse: list = []
+        self.sparse_open = False
 
     @property
     def header(self) -> list[str]:
@@ -727,25 +739,12 @@ class Twin:
                 self.buf.append(
                     t=t[lo:hi], theta=theta[lo:hi], speed=w[lo:hi], force=f[lo:hi], line=ln[lo:hi]
                 )
-                if self.half is None and (self.last_t is not None or hi - lo > 1):
-                    # The smoothing window in samples, from the first interval.
-                    d = float(t[1] - t[0]) if first else float(t[0]) - self.last_t
-                    half = cond.window_samples(o.window, d)
-                    if half > MAX_HALF:
-                        raise DataError(
-                            f"line {ln[lo + 1] if first else ln[lo]}: the first interval, "
-                            f"{d:.6g} s, makes the --window {o.window:g} s smoothing window "
-                            f"{2 * half + 1:.6g} samples wide (at most {2 * MAX_HALF + 1}): check "
-                            "the time unit or --window"
-                        )
-                    self.half = half
                 self.last_raw, self.last_unwrapped, self.last_t = (
                     float(a[hi - 1]),
                     float(theta[hi - 1]),
                     float(t[hi - 1]),
                 )
-        if self.half is not None:
-            self._drain(False, rows)
+        self._drain(False, rows)
         return err
 
     def finish(self) -> tuple[np.ndarray, list]:
@@ -755,8 +754,6 @@ class Twin:
             raise DataError("the input is empty (no header, no sample)")
         if self.last_t is None:
             raise DataError("the input has no sample (only the header)")
-        if self.half is None:
-            self.half = 2
         rows, err = [self._empty()], None
         try:
             self._drain(True, rows)
@@ -838,17 +835,44 @@ class Twin:
 
     # ---- conditioning and the FMU ---------------------------------------------------------------
 
+    def _ready(self, final: bool) -> int:
+        """The number of leading samples of the buffer whose smoothing window is complete: all
+        of them when the segment ends; else those whose window no later sample can change
+        (cond.complete, docs/twin.md "Conditioning")."""
+        b = self.buf
+        n = len(b.t)
+        if final or n == 0:
+            return n
+        return b.done + cond.complete(b.t, 0.5 * self.o.window, b.t0, b.done)
+
+    def _keep_from(self) -> int:
+        """The first sample of the buffer that a window not yet computed can reach
+        (cond.window): the window of a sample to come starts half a window before it, or the
+        longest interval (at most the gap limit) and the sample before further where a dropout
+        left that side short, or a window before the last sample read (shifted inward at the
+        segment's end), or SPARSE_REACH samples before it (sparse)."""
+        b = self.buf
+        n = len(b.t)
+        if n == 0:
+            return 0
+        half = 0.5 * self.o.window
+        ref = float(b.t[min(b.done, n - 1)])
+        reach = min(ref - half - self.o.gap_limit, float(b.t[-1]) - 2.0 * half)
+        k = int(np.searchsorted(b.t, reach, side="left")) - 1
+        return max(0, min(k, b.done - cond.SPARSE_REACH))
+
     def _drain(self, final: bool, rows: list) -> None:
         """Emits into `rows` the outputs of the samples whose smoothing window is complete (all of
         them when the segment ends), in blocks of at most BLOCK. When the FMU fails, the samples
         before the failing one are emitted before the error goes on."""
         b = self.buf
         n = len(b.t)
-        half = self.half or 2
-        width = 2 * half + 1
-        # A sample's window is complete when `half` samples follow it (or the segment ended).
-        ready = n if final else (max(0, n - half) if n >= width else 0)
+        ready = self._ready(final)
         if ready <= b.done:
+            if not final and n - b.done > MAX_WINDOW_SAMPLES:
+                self._too_wide(int(b.line[b.done]), n - b.done)
+            if final:
+                self._close_sparse()
             return
         if n < cond.DEGREE + 1 and final and self.o.short_segments == "drop":
             self.short_dropped.append((int(b.line[0]), n))
@@ -859,14 +883,37 @@ class Twin:
                 f"line {b.line[0]}: a segment of {n} sample(s) between gaps is too short "
                 f"(at least {cond.DEGREE + 1} are needed)"
             )
+        half = 0.5 * self.o.window
+        t_end = float(b.t[-1]) if final else math.inf
         for lo in range(b.done, ready, BLOCK):
             centres = np.arange(lo, min(ready, lo + BLOCK))
-            w_est, e_est = local_cubic(b.t, b.theta, half, lo, len(centres))
+            # Refused before the fits, which cost the window's samples each.
+            tc = b.t[centres]
+            wide = np.searchsorted(b.t, tc + half, "right") - np.searchsorted(b.t, tc - half)
+            if int(wide.max()) > MAX_WINDOW_SAMPLES:
+                self._too_wide(int(b.line[lo]), int(wide.max()))
+            w_est, e_est, inside = local_cubic(b.t, b.theta, half, lo, len(centres), b.t0, t_end)
+            self._note_sparse(inside, b.line[centres], b.t[centres])
             w_meas = b.speed[centres]
             err = None
+            # Samples too close in time for a double (1e-300 s apart: a wrong time unit) give
+            # no finite estimate; refused, as a time a double cannot resolve is.
+            nonfinite = np.flatnonzero(~(np.isfinite(w_est) & np.isfinite(e_est)))
+            if nonfinite.size:
+                k = int(nonfinite[0])
+                err = DataError(
+                    f"line {int(b.line[centres[k]])}: the speed and acceleration at "
+                    f"t = {float(b.t[centres[k]])!r} s are not finite numbers: the samples of "
+                    "its smoothing window lie too close in time (check the time unit)"
+                )
+                centres, w_est, e_est, w_meas = (x[:k] for x in (centres, w_est, e_est, w_meas))
+                if k == 0:
+                    raise err
             # A measured speed is checked against the angle's own rate (docs/twin.md "Measured
             # speed"): a wrong unit or sign would otherwise go straight into the loads.
-            slack = SPEED_SLACK + self._resolution_slack(centres, half)
+            slack = SPEED_SLACK + self._resolution_slack(
+                b.t[centres], inside[: len(centres)], float(b.t0), t_end
+            )
             with np.errstate(invalid="ignore"):
                 off = np.abs(w_meas - w_est) > self.o.speed_tolerance * np.abs(w_est) + slack
             bad = np.flatnonzero(off)
@@ -909,42 +956,84 @@ class Twin:
             b.done = int(centres[-1]) + 1
             if err is not None:
                 raise err
+        if final:
+            self._close_sparse()
         # Keep only what later windows can still reach.
-        keep_from = max(0, b.done - width)
+        keep_from = self._keep_from()
         if keep_from > 0:
             b.drop(keep_from)
             b.segment_start = False
 
-    def _resolution_slack(self, centres: np.ndarray, half: int) -> np.ndarray:
-        """What the angle's resolution can add to ω̂ at these samples [rad/s] (docs/twin.md
-        "Measured speed"): an encoder's angle is within half a count of the truth, so the local
+    def _resolution_slack(self, tc: np.ndarray, inside: np.ndarray, t0: float, t_end: float):
+        """What the angle's resolution can add to ω̂ at samples at times tc [rad/s] (docs/twin.md
+        "Measured speed"): an encoder's angle is within half a count h of the truth, so the local
         cubic's ω̂ is within (h/2)·Σ|c_j| of the truth's, c_j the weights of ω̂ at the sample's
-        place in its window (uniform spacing window/(2·half); larger near a segment's ends, where
-        the window shifts inward). 0 for angles in rad or deg (no known resolution)."""
+        place in its window: `inside` samples spread evenly over the window, which shifts inward
+        near a segment's ends (from t0 to t_end), where the sum is largest. 0 for angles in rad or
+        deg (no known resolution)."""
         if self.o.angle_unit != "counts":
-            return np.zeros(len(centres))
-        n = len(self.buf.t)
-        width = min(2 * half + 1, n)
-        # The windows' placement of conditioning.windows (and the native fit's).
-        pos = centres - np.clip(centres - half, 0, n - width)
-        dt = 0.5 * self.o.window / half
-        key = (width, dt)
-        table = self._slack_tables.get(key)
-        if table is None:
-            h = TWO_PI / self.o.counts_per_rev
-            j = np.arange(width, dtype=float)
+            return np.zeros(len(tc))
+        w = self.o.window
+        start = np.maximum(t0, np.minimum(tc - 0.5 * w, t_end - w))
+        m = np.maximum(inside, cond.MIN_SAMPLES).astype(np.int64)
+        pos = np.clip(np.rint((tc - start) / w * (m - 1)), 0, m - 1).astype(np.int64)
+        h = TWO_PI / self.o.counts_per_rev
+        out = np.empty(len(tc))
+        for key in set(zip(m.tolist(), pos.tolist())):
+            if key not in self._slack_tables:
+                mm, p = key
+                # ω̂ = c1 of the cubic fitted on x = j - p (in sample spacings): its weights are
+                # row 1 of (VᵀV)⁻¹Vᵀ, scaled by the spacing w/(m-1); x scaled to [-1, 1] first.
+                x = np.arange(mm, dtype=float) - p
+                sc = max(1.0, float(np.max(np.abs(x))))
+                v = np.vander(x / sc, 4, True)
+                c = np.linalg.solve(v.T @ v, v.T)[1] / sc
+                if len(self._slack_tables) > 4096:
+                    self._slack_tables.clear()
+                self._slack_tables[key] = 0.5 * h * float(np.sum(np.abs(c)))
+            sel = (m == key[0]) & (pos == key[1])
+            out[sel] = self._slack_tables[key] * (m[sel] - 1) / w
+        return out
 
-            def bound(p):
-                x = (j - p) * dt
-                return 0.5 * h * float(np.sum(np.abs(np.linalg.pinv(np.vander(x, 4, True))[1])))
+    def _too_wide(self, line: int, samples: int) -> None:
+        raise DataError(
+            f"line {line}: the --window {self.o.window:g} s smoothing window holds {samples} "
+            f"samples or more (at most {MAX_WINDOW_SAMPLES}): check the time unit or --window"
+        )
 
-            if width <= 2001:
-                table = np.array([bound(p) for p in range(width)])
-            else:  # a wide window: the edge's bound (the largest) wherever it shifts
-                table = np.full(width, max(bound(0), bound(width - 1)))
-                table[width // 2] = bound(width // 2)
-            self._slack_tables = {key: table}
-        return table[np.clip(pos, 0, width - 1)]
+    def _note_sparse(self, inside: np.ndarray, line: np.ndarray, t: np.ndarray) -> None:
+        """Records the samples (in order) whose window holds fewer than cond.MIN_SAMPLES samples
+        as sparse stretches (docs/twin.md "Conditioning"): consecutive ones, across calls, make
+        one, reported in `messages` once it ends."""
+        k = np.flatnonzero(inside < cond.MIN_SAMPLES)
+        if k.size == 0 or k[0] > 0:
+            self._close_sparse()
+        for run in np.split(k, np.flatnonzero(np.diff(k) > 1) + 1) if k.size else []:
+            i, j = int(run[0]), int(run[-1])
+            fewest = int(inside[run].min())
+            if self.sparse_open:  # continues the stretch of the previous call
+                last = self.sparse[-1]
+                last[2], last[3], last[4] = float(t[j]), last[3] + len(run), min(last[4], fewest)
+            else:
+                self.sparse.append([int(line[i]), float(t[i]), float(t[j]), len(run), fewest])
+                self.sparse_open = True
+            if j < len(inside) - 1:
+                self._close_sparse()
+
+    def _close_sparse(self) -> None:
+        if self.sparse_open:
+            self.sparse_open = False
+            self.messages.append(self.sparse_message(self.sparse[-1]))
+
+    def sparse_message(self, s: list) -> str:
+        """The data-health message of a sparse stretch (an entry of `sparse`)."""
+        line, t0, t1, n, fewest = s
+        return (
+            f"sparse data: the smoothing window (±{0.5 * self.o.window:g} s) of {n} sample(s) "
+            f"from t = {t0!r} s to {t1!r} s (line {line}) holds as few as {fewest} sample(s), "
+            f"fewer than {cond.MIN_SAMPLES}: their speed and acceleration come from the "
+            f"{cond.MIN_SAMPLES} samples nearest to each"
+        )
 
     def _fmu_rows(self, rows, inputs, new_segment) -> None:
         """Outputs into rows[:, 1:] for the inputs at the times rows[:, 0]."""
@@ -1062,7 +1151,7 @@ class Twin:
         b = self.buf
         rev = np.concatenate(self.rev_parts) if self.rev_parts else self._empty()
         return {
-            "version": 2,
+            "version": CHECKPOINT_VERSION,
             "fmu_guid": self.fmu.model_description.guid,
             "machine": self.machine,
             "options": self.o.to_dict(),
@@ -1073,7 +1162,6 @@ class Twin:
             "lines_read": self.lines_read,
             "rows_out": self.rows_out,
             "cols": self.cols,
-            "half": self.half,
             "buf": {
                 "t": b.t.tolist(),
                 "theta": b.theta.tolist(),
@@ -1082,7 +1170,10 @@ class Twin:
                 "line": b.line.tolist(),
                 "done": b.done,
                 "segment_start": b.segment_start,
+                "t0": None if math.isnan(b.t0) else b.t0,
             },
+            "sparse": self.sparse,
+            "sparse_open": self.sparse_open,
             "last": [self.last_raw, self.last_unwrapped, self.last_t],
             "duplicates": self.duplicates,
             "speed_ignored": self.speed_ignored,
@@ -1111,9 +1202,18 @@ class Twin:
             raise CheckpointError(
                 "the checkpoint was damaged or edited (its checksum does not match)"
             )
-        if cp.get("version") != 2:
+        if cp.get("version") in (1, 2):
+            # Version 2 kept the smoothing window as a number of samples, set by the first
+            # interval of the run; its buffer may not hold what a window in time needs.
             raise CheckpointError(
-                f"checkpoint version {cp.get('version')!r}; this twin reads version 2"
+                f"checkpoint version {cp['version']!r} was written by an earlier twin, whose "
+                f"smoothing window was a number of samples; this twin reads version "
+                f"{CHECKPOINT_VERSION}: run again from the start of the input"
+            )
+        if cp.get("version") != CHECKPOINT_VERSION:
+            raise CheckpointError(
+                f"checkpoint version {cp.get('version')!r}; this twin reads version "
+                f"{CHECKPOINT_VERSION}"
             )
         try:
             options = Options(**cp["options"])
@@ -1137,11 +1237,10 @@ class Twin:
 
     def _restore(self, cp: dict) -> None:
         tw = self
-        tw.lines_read, tw.rows_out, tw.cols, tw.half = (
+        tw.lines_read, tw.rows_out, tw.cols = (
             int(cp["lines_read"]),
             int(cp["rows_out"]),
             cp["cols"],
-            cp["half"],
         )
         if tw.cols is not None and not isinstance(tw.cols, dict):
             raise TypeError("cols is not a mapping")
@@ -1160,7 +1259,12 @@ class Twin:
             line=np.array(bb["line"], dtype=np.int64),
             done=int(bb["done"]),
             segment_start=bool(bb["segment_start"]),
+            t0=math.nan if bb["t0"] is None else float(bb["t0"]),
         )
+        tw.sparse = [
+            [int(s[0]), float(s[1]), float(s[2]), int(s[3]), int(s[4])] for s in cp["sparse"]
+        ]
+        tw.sparse_open = bool(cp["sparse_open"]) and bool(tw.sparse)
         if len({len(getattr(tw.buf, n)) for n in _Segment.NAMES}) != 1:
             raise ValueError("the buffered samples' columns differ in length")
         tw.last_raw, tw.last_unwrapped, tw.last_t = cp["last"]

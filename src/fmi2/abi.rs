@@ -74,23 +74,30 @@ pub(crate) unsafe fn call<M: FmuModel>(
             (*inst).log(fmi2Status_fmi2OK, Category::Calls, function);
             fmi2Status_fmi2OK
         }
-        Ok(Err(failure)) => {
-            let status = status_of(failure.severity);
-            let category = if failure.severity == Severity::Discard {
-                Category::Warning
-            } else {
-                Category::Error
-            };
-            // Every message names the function that failed.
-            if failure.message.starts_with(function) {
-                (*inst).log(status, category, &failure.message);
-            } else {
-                (*inst).log(status, category, &format!("{function}: {}", failure.message));
-            }
-            status
-        }
+        Ok(Err(failure)) => failed(inst, function, failure),
         Err(_) => panicked(inst, function),
     }
+}
+
+/// `function` refused or failed: its status, and its message to the logger. Out of line (cold):
+/// the successful path of every call stays short (docs/performance.md "Model Exchange").
+#[cold]
+#[inline(never)]
+unsafe fn failed<M: FmuModel>(
+    inst: *mut Instance<M>,
+    function: &str,
+    failure: Failure,
+) -> fmi2Status {
+    let status = status_of(failure.severity);
+    let category =
+        if failure.severity == Severity::Discard { Category::Warning } else { Category::Error };
+    // Every message names the function that failed.
+    if failure.message.starts_with(function) {
+        (*inst).log(status, category, &failure.message);
+    } else {
+        (*inst).log(status, category, &format!("{function}: {}", failure.message));
+    }
+    status
 }
 
 /// A panic was caught in `function`: it left the instance in an unknown state, which must not be
@@ -109,6 +116,8 @@ unsafe fn panicked<M: FmuModel>(inst: *mut Instance<M>, function: &str) -> fmi2S
     fmi2Status_fmi2Fatal
 }
 
+#[cold]
+#[inline(never)]
 pub(crate) fn null_argument(function: &str, what: &str) -> Failure {
     Failure::error(format!("{function}: {what} is NULL"))
 }

@@ -44,6 +44,8 @@ enum Allowed {
 }
 
 /// The message of a call a co-simulation instance does not take.
+#[cold]
+#[inline(never)]
 pub fn not_me_instance(function: &str) -> Failure {
     Failure::error(format!(
         "{function}: not an instance for Model Exchange (fmi2Instantiate with fmuType \
@@ -82,16 +84,29 @@ unsafe fn me<M: FmuModel>(
         }
         let ct = inst.me_continuous_time;
         match (allowed, ct) {
-            (Allowed::Event, true) => Err(Failure::error(format!(
-                "{function}: illegal call sequence: not allowed in continuous-time mode, only \
-                 in event mode (fmi2EnterEventMode enters it)"
-            ))),
-            (Allowed::ContinuousTime, false) => Err(Failure::error(format!(
-                "{function}: illegal call sequence: not allowed in event mode, only in \
-                 continuous-time mode (fmi2EnterContinuousTimeMode enters it)"
-            ))),
+            (Allowed::Event, true) | (Allowed::ContinuousTime, false) => {
+                Err(wrong_me_mode(function, ct))
+            }
             _ => f(inst),
         }
+    })
+}
+
+/// The refusal of a call in the other of Model Exchange's two modes (out of line: the checks
+/// run at every evaluation of a solver, the message almost never).
+#[cold]
+#[inline(never)]
+fn wrong_me_mode(function: &str, continuous_time: bool) -> Failure {
+    Failure::error(if continuous_time {
+        format!(
+            "{function}: illegal call sequence: not allowed in continuous-time mode, only in \
+             event mode (fmi2EnterEventMode enters it)"
+        )
+    } else {
+        format!(
+            "{function}: illegal call sequence: not allowed in event mode, only in \
+             continuous-time mode (fmi2EnterContinuousTimeMode enters it)"
+        )
     })
 }
 
@@ -111,14 +126,19 @@ pub fn exit_initialization_mode<M: FmuModel>(inst: &mut Instance<M>) -> Result<(
     Ok(())
 }
 
+#[inline]
 fn state_count<M: FmuModel>(function: &str, nx: usize) -> Result<(), Failure> {
     let n = M::CONTINUOUS_STATES.len();
     if n != nx {
-        return Err(Failure::error(format!(
-            "{function}: nx = {nx}; this FMU has {n} continuous states"
-        )));
+        return Err(wrong_state_count(function, nx, n));
     }
     Ok(())
+}
+
+#[cold]
+#[inline(never)]
+fn wrong_state_count(function: &str, nx: usize, n: usize) -> Failure {
+    Failure::error(format!("{function}: nx = {nx}; this FMU has {n} continuous states"))
 }
 
 unsafe fn out_slice<'a>(
@@ -248,14 +268,16 @@ pub unsafe fn fmi2SetTime<M: FmuModel>(c: fmi2Component, time: fmi2Real) -> fmi2
 }
 
 /// fmi2SetTime and fmi3SetTime: the new time, and what the model carries forward to it
-/// ([`FmuModel::time_moved`]: the pump's crank, as between co-simulation steps).
+/// ([`FmuModel::time_moved`]: the pump's crank, as between co-simulation steps). Inlined into
+/// both callers, its refusals out of line (cold): a solver calls it at every evaluation.
+#[inline(always)]
 pub fn set_time<M: FmuModel>(
     inst: &mut Instance<M>,
     function: &str,
     time: f64,
 ) -> Result<(), Failure> {
     if !time.is_finite() {
-        return Err(Failure::error(format!("{function}: time = {time}; allowed: a finite number")));
+        return Err(time_not_finite(function, time));
     }
     let from = inst.time();
     let mut carried = true;
@@ -266,14 +288,32 @@ pub fn set_time<M: FmuModel>(
         }
     });
     if !carried {
-        return Err(Failure::error(format!(
-            "{function}: time = {}: the crank inputs carried forward from t = {} overflow there; \
-             set them at the new time",
-            crate::model::error::given(time),
-            crate::model::error::num(from)
-        )));
+        return Err(carry_overflows(function, time, from));
     }
     Ok(())
+}
+
+#[cold]
+#[inline(never)]
+fn state_not_finite(function: &str, name: &str, x: f64) -> Failure {
+    Failure::error(format!("{function}: {name} = {x}; allowed: a finite number"))
+}
+
+#[cold]
+#[inline(never)]
+fn time_not_finite(function: &str, time: f64) -> Failure {
+    Failure::error(format!("{function}: time = {time}; allowed: a finite number"))
+}
+
+#[cold]
+#[inline(never)]
+fn carry_overflows(function: &str, time: f64, from: f64) -> Failure {
+    Failure::error(format!(
+        "{function}: time = {}: the crank inputs carried forward from t = {} overflow there; set \
+         them at the new time",
+        crate::model::error::given(time),
+        crate::model::error::num(from)
+    ))
 }
 
 pub unsafe fn fmi2SetContinuousStates<M: FmuModel>(
@@ -286,11 +326,7 @@ pub unsafe fn fmi2SetContinuousStates<M: FmuModel>(
         state_count::<M>(f, nx)?;
         let x = slice(x, nx).ok_or_else(|| null_argument(f, "x"))?;
         if let Some(k) = x.iter().position(|v| !v.is_finite()) {
-            return Err(Failure::error(format!(
-                "{f}: {} = {}; allowed: a finite number",
-                M::CONTINUOUS_STATES[k].0,
-                x[k]
-            )));
+            return Err(state_not_finite(f, M::CONTINUOUS_STATES[k].0, x[k]));
         }
         inst.me_update(|_, state| M::set_continuous_states(state, x));
         Ok(())

@@ -194,24 +194,36 @@ def test_csv_numbers_are_pythons_repr():
         view.release()
 
 
-@pytest.mark.parametrize("half", [2, 3, 50])
+@pytest.mark.parametrize("half", [0.0021, 0.003, 0.05])
 def test_local_cubic_agrees_with_the_numpy_fit(half):
-    """The native estimate of ω and ε against conditioning.fit (numpy's batched LAPACK solver), on
-    jittered timestamps of an encoder-like angle, edges of the segment included."""
+    """The native estimate of ω and ε against conditioning.derivatives (numpy's batched LAPACK
+    solver), windows of ±half seconds, on jittered timestamps of an encoder-like angle with
+    dropouts (sparse windows for the short ones), edges of the segment included."""
     from reciprocating_drive import conditioning as cond
 
-    rng = np.random.default_rng(half)
+    rng = np.random.default_rng(int(half * 1e4))
     n = 600
-    t = np.sort(np.arange(n) * 1e-3 + rng.normal(0, 2e-5, n))
+    t = np.sort(np.arange(n) * 1e-3 + rng.uniform(-3e-4, 3e-4, n))
+    t = t[(t < 0.2) | (t > 0.207)]
+    n = len(t)
     theta = (
         6.8 * t + 0.1 * np.sin(13.6 * t) + np.floor(rng.uniform(0, 1, n) * 4) * (2 * math.pi / 4096)
     )
-    w_ref, e_ref = cond.derivatives(t, theta, half)
-    w, e = batch.local_cubic(t, theta, half, 0, n)
+    w_ref, e_ref, in_ref = cond.derivatives(t, theta, half)
+    w, e, inside = batch.local_cubic(t, theta, half, 0, n, t[0], t[-1])
+    assert np.array_equal(inside, in_ref)
+    assert np.array_equal(cond.window_counts(t, half), inside)  # the vectorised count
+    if half < 0.003:
+        assert np.any(inside < cond.MIN_SAMPLES)  # the dropout makes sparse windows
     assert np.allclose(w, w_ref, rtol=0, atol=1e-9 * np.abs(w_ref).max())
     assert np.allclose(e, e_ref, rtol=0, atol=1e-9 * np.abs(e_ref).max())
-    # A sub-range gives the same numbers bit for bit (each centre on its own).
-    w2, e2 = batch.local_cubic(t, theta, half, 123, 200)
+    # A sub-range gives the same numbers bit for bit (each centre on its own), and so does the
+    # segment's beginning, before its end is known, for the samples whose window it holds.
+    w2, e2, _ = batch.local_cubic(t, theta, half, 123, 200, t[0], t[-1])
     assert np.array_equal(w2, w[123:323]) and np.array_equal(e2, e[123:323])
+    m = 400
+    k = int(np.searchsorted(t[:m] + half, t[m - 1], side="right"))
+    w3, e3, _ = batch.local_cubic(t[:m], theta[:m], half, 0, k - 2, t[0], math.inf)
+    assert np.array_equal(w3, w[: k - 2]) and np.array_equal(e3, e[: k - 2])
     with pytest.raises(ValueError, match="singular"):
-        batch.local_cubic(np.zeros(10), np.arange(10.0), 2, 0, 10)
+        batch.local_cubic(np.zeros(10), np.arange(10.0), 2.0, 0, 10, 0.0, 0.0)

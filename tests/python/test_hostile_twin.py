@@ -558,7 +558,7 @@ def test_idle_limit_bounds_the_wait_on_standard_input(fmu_path, tmp_path):
     [
         ("0,1e300\n0.001,1e300\n0.002,1e300\n", "line 2: crank_angle = 1e+300 rad is beyond"),
         ("1e300,0\n2e300,0\n", "line 2: time = 1e+300 s is beyond"),
-        ("0,0\n1e-300,0\n2e-300,0\n3e-300,0\n", "line 3: the first interval, 1e-300 s"),
+        ("0,0\n1e-300,0\n2e-300,0\n3e-300,0\n", "line 2: the speed and acceleration at t = 0.0 s"),
     ],
 )
 def test_numbers_a_double_cannot_resolve_are_refused_without_a_hang(
@@ -873,6 +873,13 @@ JSON_VALUES = st.recursive(
 )
 
 
+def _same_json(a: bytes, b: bytes) -> bool:
+    try:
+        return json.loads(a) == json.loads(b)
+    except (ValueError, UnicodeDecodeError):
+        return False
+
+
 @GENERATED
 @given(
     st.lists(
@@ -907,7 +914,9 @@ def test_generated_damaged_checkpoints(fmu_path, clean, checkpointed, tmp_path_f
                 del doc[key]
             data = json.dumps(doc).encode()
         cp.write_bytes(data)
-        changed.append(data != cp_bytes)
+        # A flipped last digit of a float can name the same double ("...436" and "...437"):
+        # the checkpoint's content, and its checksum, are then unchanged, and it is used.
+        changed.append(not _same_json(data, cp_bytes))
         out = d / f"p{j}.csv"
         out.write_bytes(out_bytes)
         summary_of(out).write_bytes(summary_bytes)

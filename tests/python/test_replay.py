@@ -55,7 +55,6 @@ def local_pieces(sc, pieces, fmu_path):
             fmu_path,
             sc.values,
             worker_options(sc.options),
-            sc.half,
             sc.cols,
             sc.offset,
             p,
@@ -129,7 +128,7 @@ def test_pieces_placed_by_workers_or_by_the_client_assemble_the_sequential_files
     head = R.header_bytes(sc.header)
     assert R.open_work(work, R.manifest_of(sc, "default", pieces, {}), head) == set()
     R.save_inputs(work, sc.data)
-    common = (fmu_path, sc.values, worker_options(sc.options), sc.half, sc.cols, sc.offset)
+    common = (fmu_path, sc.values, worker_options(sc.options), sc.cols, sc.offset)
     items = [(i, p) for i, p in enumerate(pieces)]
     assert R._claim(work, 1)  # "another worker" has piece 1
     assert R.run_claimed(*common, items, str(work), len(head)) == len(pieces) - 1

@@ -150,7 +150,8 @@ def run(a, opts: Options, stopping: list) -> int:
         warm = warm_up_time(sc.sigma) if a.overlap is None else a.overlap
         print(
             f"replay: {n_samples} samples in {len(pieces)} pieces (scan {time.monotonic() - t0:.1f}"
-            f" s); warm-up {warm:.3g} s and {sc.half + 2} samples before each cut",
+            f" s); warm-up {warm:.3g} s and half the smoothing window, "
+            f"{0.5 * sc.options.window:.3g} s, before each cut",
             file=err,
             flush=True,
         )
@@ -292,7 +293,7 @@ class _Job:
 
     def _common(self) -> tuple:
         sc = self.sc
-        return (self.key, sc.values, self.wopts, sc.half, sc.cols, sc.offset)
+        return (self.key, sc.values, self.wopts, sc.cols, sc.offset)
 
     def abandoned(self, fetched: int) -> int | None:
         """1 (with its message) when the cluster has had no worker for the connect timeout

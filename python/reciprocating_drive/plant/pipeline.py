@@ -189,6 +189,11 @@ class Pipeline:
                 )
             )
         self.short_seen = len(tw.short_dropped)
+        # A sparse stretch once it has ended (the twin extends the last one while it goes on).
+        closed = len(tw.sparse) - tw.sparse_open
+        for sp in tw.sparse[self.sparse_seen : closed]:
+            self._event(Event("sparse", tw.sparse_message(sp), t=sp[1], count=sp[3]))
+        self.sparse_seen = max(self.sparse_seen, closed)
         if tw.duplicates > self.dups_seen:
             n = tw.duplicates - self.dups_seen
             self._event(Event("duplicates", f"{n} duplicate timestamp(s) dropped", count=n))
@@ -313,6 +318,7 @@ class Pipeline:
         self.twin = twin
         self.gaps_seen, self.short_seen = len(twin.gaps), len(twin.short_dropped)
         self.motion_seen = twin.motion_count
+        self.sparse_seen = len(twin.sparse) - twin.sparse_open
         self.last_gap = tuple(twin.gaps[-1]) if twin.gaps else None
         self.gap_count = state.get("gaps_reported", 0) if state else 0
         resumed = state is not None

@@ -268,7 +268,9 @@ impl FmuModel for ReciprocatingDrive {
         state.rod.cage.rate = x[1];
     }
 
-    /// ϑ̇ and ϑ̈ (`Model::cage_acceleration`); 0 and 0 for a rigid mechanism.
+    /// ϑ̇ and ϑ̈ (`Model::cage_acceleration`); 0 and 0 for a rigid mechanism (inlined into
+    /// fmi2GetDerivatives, so that a rigid mechanism's answer costs no call).
+    #[inline]
     fn derivatives(
         model: &Model,
         values: &[f64],
@@ -280,9 +282,7 @@ impl FmuModel for ReciprocatingDrive {
             dx[1] = 0.0;
             return Ok(());
         }
-        dx[0] = state.rod.cage.rate;
-        dx[1] = model.cage_acceleration(&state.crank, &inputs(values), &state.rod.cage)?;
-        Ok(())
+        elastic_derivatives(model, values, state, dx)
     }
 
     /// Exact directional derivatives of the outputs and state derivatives with respect to the
@@ -360,4 +360,18 @@ fn rod_angle_warning(theta: f64) -> String {
         num(theta),
         num(ROD_ANGLE_VALIDITY)
     )
+}
+
+/// The elastic rod's ϑ̇ and ϑ̈ ([`FmuModel::derivatives`] of an elastic machine), out of line so
+/// that the rigid branch inlines into fmi2GetDerivatives.
+#[inline(never)]
+fn elastic_derivatives(
+    model: &Model,
+    values: &[f64],
+    state: &State,
+    dx: &mut [f64],
+) -> Result<(), ModelError> {
+    dx[0] = state.rod.cage.rate;
+    dx[1] = model.cage_acceleration(&state.crank, &inputs(values), &state.rod.cage)?;
+    Ok(())
 }

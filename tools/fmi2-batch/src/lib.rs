@@ -342,38 +342,57 @@ pub extern "C" fn fmi2_batch_max_number_len() -> usize {
     MAX_NUMBER_LEN
 }
 
-/// ω and ε (`fit::at`) at the centres `first .. first + count` of a segment of `n` samples (times
-/// `t`, unwrapped angles `theta`), windows of 2·half+1 samples, into `out_w` and `out_e`. Returns
-/// `count`, or the index of the first centre whose window is singular (its outputs NaN),
-/// `BAD_ARGUMENTS` for null pointers, `n` < 4 or a range outside the segment, `PANICKED` if a
-/// panic was caught.
+/// ω and ε (`fit::at`) at the centres `first .. first + count` of the `n` samples (times `t`,
+/// strictly increasing, unwrapped angles `theta`) of a segment spanning `t_start .. t_end`
+/// (`t_end` infinite while it goes on), each from the samples within ±`half` seconds of it
+/// (`fit::window`), into `out_w` and `out_e`, and the number of samples within that time span
+/// into `out_count` (below `fit::MIN_SAMPLES`: a sparse window, fitted to the samples around
+/// the centre). Returns `count`, or the index of the first centre whose window is singular (its
+/// outputs NaN), `BAD_ARGUMENTS` for null pointers, `n` < 4, a `half` that is not finite and
+/// >= 0, or a range outside the samples, `PANICKED` if a panic was caught.
 ///
 /// # Safety
-/// `t` and `theta` must hold `n` values, `out_w` and `out_e` `count` writable values.
+/// `t` and `theta` must hold `n` values, `out_w`, `out_e` and `out_count` `count` writable
+/// values.
 #[no_mangle]
+#[allow(clippy::too_many_arguments)] // a C ABI: each argument is a pointer or a scalar
 pub unsafe extern "C" fn fmi2_batch_local_cubic(
     t: *const f64,
     theta: *const f64,
     n: usize,
-    half: usize,
+    half: f64,
+    t_start: f64,
+    t_end: f64,
     first: usize,
     count: usize,
     out_w: *mut f64,
     out_e: *mut f64,
+    out_count: *mut u64,
 ) -> isize {
     let result = catch_unwind(AssertUnwindSafe(|| {
-        if n < 4 || half < 2 || first.checked_add(count).is_none_or(|end| end > n) {
+        // A window of width 0 (a subnormal --window halved) is legal: every window is sparse.
+        #[allow(clippy::neg_cmp_op_on_partial_ord)] // `!(half >= 0)` also rejects NaN
+        let bad_half = !(half >= 0.0) || !half.is_finite();
+        if n < 4 || bad_half || first.checked_add(count).is_none_or(|end| end > n) {
             return BAD_ARGUMENTS;
         }
-        let (Some(t), Some(theta), Some(w), Some(e)) =
-            (slice(t, n), slice(theta, n), slice_mut(out_w, count), slice_mut(out_e, count))
-        else {
+        let (Some(t), Some(theta), Some(w), Some(e), Some(k)) = (
+            slice(t, n),
+            slice(theta, n),
+            slice_mut(out_w, count),
+            slice_mut(out_e, count),
+            slice_mut(out_count, count),
+        ) else {
             return BAD_ARGUMENTS;
         };
+        let long = fit::long_intervals(t, half);
         let mut singular = None;
-        for k in 0..count {
-            (w[k], e[k]) = fit::at(t, theta, half, first + k).unwrap_or_else(|| {
-                singular.get_or_insert(k);
+        for j in 0..count {
+            let c = first + j;
+            let (lo, hi, inside) = fit::window_in(t, &long, c, half, t_start, t_end);
+            k[j] = inside as u64;
+            (w[j], e[j]) = fit::at(t, theta, lo, hi, c).unwrap_or_else(|| {
+                singular.get_or_insert(j);
                 (f64::NAN, f64::NAN)
             });
         }
