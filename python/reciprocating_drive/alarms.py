@@ -16,6 +16,9 @@ Two kinds, both evaluated once per completed revolution:
   exceeds the reference mean by `rise` (relative, 0.15 = +15 %), or falls below it by `fall`;
   cleared when it is back within `clear`. Evaluated only once each window holds `min_revolutions`.
 
+A revolution flagged `interrupted` (a stop or a reversal fell inside it) is skipped: it neither
+raises, clears nor counts towards a delay or a trend window.
+
 Each alarm is raised once and cleared once: the engine keeps its state, so a value that stays
 beyond its limit does not raise it again.
 """
@@ -368,7 +371,12 @@ class AlarmEngine:
         return self
 
     def update(self, summary: dict) -> list[AlarmChange]:
-        """One completed revolution: the alarms it raises or clears (usually none)."""
+        """One completed revolution: the alarms it raises or clears (usually none). A revolution
+        in which the machine stopped or turned back (`interrupted`, docs/twin.md "Machine
+        states") is not evaluated: its mean speed and extremes describe the stop, not the pump
+        running, and the delays count revolutions of the pump running, not its stops."""
+        if summary.get("interrupted"):
+            return []
         vals = derived_values(summary)
         rev = summary.get("revolution")
         t = summary.get("start_time")

@@ -378,7 +378,9 @@ def plan(sc: Scanned, revolutions_per_piece: int | None, overlap: float | None, 
             # At the model angle's revolution boundaries (crank angle + crank.angle_offset,
             # docs/fmi-interface.md): the last revolution of a piece then ends at its cut, and
             # the tail is only the smoothing window's half-width.
-            ma = th[a:b] + sc.offset
+            # The running maximum: revolutions are bounded by the first sample reaching 2πk
+            # whichever way the crank turned before (docs/twin.md "Machine states").
+            ma = np.maximum.accumulate(th[a:b] + sc.offset)
             r = math.ceil(ma[0] / TWO_PI) + revolutions_per_piece
             while True:
                 c = int(np.searchsorted(ma, TWO_PI * r, side="left")) + a
@@ -404,16 +406,20 @@ def plan(sc: Scanned, revolutions_per_piece: int | None, overlap: float | None, 
             if warm_s > 0 and s > a:
                 w = min(w, max(a, int(np.searchsorted(t, t[s] - warm_s, side="right")) - 1))
             # Tail: the rows to sample m must be exact, and the revolution in progress at e
-            # completes within 2π of angle after e-1 (model angle = crank angle + a constant;
-            # the angle only grows within a segment).
+            # completes within 2π of the angle reached at e-1 (model angle = crank angle + a
+            # constant; the running maximum, as the crank may stand or turn back).
             if e < b and e in aligned:
                 # A boundary found from the crank angle may be a sample off the FMU's own.
                 m = e + 2
             elif e < b:
-                m = int(np.searchsorted(th[a:b], th[e - 1] + TWO_PI, side="right")) + a + 2
+                reached = np.maximum.accumulate(th[a:b])
+                m = int(np.searchsorted(reached, reached[e - 1 - a] + TWO_PI, side="right")) + a + 2
                 m = max(e, m)
             f = b if e >= b else exact_tail(t, half, gap, min(m, b - 1), a, b)
-            pieces.append([s, e, w, f, f == b])
+            # The angle reached before the piece: a revolution first reached there belongs to
+            # an earlier piece even if the crank, having turned back, reaches it again here.
+            prior = float(np.max(th[a:s]) + sc.offset) if s > a else None
+            pieces.append([s, e, w, f, f == b, prior])
     return pieces
 
 
@@ -471,9 +477,12 @@ def piece_text(fmu_key_or_path, values, options: dict, cols: dict, offset: float
     # A revolution belongs to the piece where the crank angle + offset first reaches its start:
     # the rule the planner cuts by (the same doubles), so each is written exactly once.
     model = theta + offset
+    prior = piece[5] if len(piece) > 5 else None
     keep = []
     for sm in sums + sums2:
         r = sm["revolution"]
+        if prior is not None and prior >= TWO_PI * r:
+            continue  # first reached before this piece (the crank turned back since)
         j = int(np.argmax(model >= TWO_PI * r))
         if s <= w + j < e:
             done = int(np.argmax(ang >= TWO_PI * (r + 1)))

@@ -103,11 +103,12 @@ def _degrees(a: np.ndarray) -> np.ndarray:
 
 
 def _crossing_times(
-    t: np.ndarray, theta: np.ndarray, target: np.ndarray
+    t: np.ndarray, theta: np.ndarray, target: np.ndarray, reached: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """For each target (inside theta's range): the first sample index j with θ_j ≥ target and the
-    interpolated time of θ = target."""
-    j = np.searchsorted(theta, target, side="left")
+    interpolated time of θ = target. `reached`: the running maximum of theta (theta itself when
+    it never decreases), so θ_(j-1) < target ≤ θ_j whichever way the crank turned before."""
+    j = np.searchsorted(theta if reached is None else reached, target, side="left")
     t0, t1, a0, a1 = t[j - 1], t[j], theta[j - 1], theta[j]
     with np.errstate(all="ignore"):
         return j, np.where(a1 != a0, t0 + (t1 - t0) * (target - a0) / (a1 - a0), t1)
@@ -120,11 +121,11 @@ def summarize_revolutions(
     speed: Sequence[float] | None = None,
     quantities: Sequence[str] = DEFAULT_QUANTITIES,
 ) -> list[RevolutionSummary]:
-    """Summaries of every complete revolution. `angle` is the model angle [rad], continuous and
-    non-decreasing (forward rotation); `series` maps output names to sampled values (quantities
-    missing from it are skipped; link.friction_total with suspension.position gives the friction
-    work, rod.angle the ϑ amplitude, rod.stress_max the largest stress). The numbers are those of
-    `revolution_table`, one object per revolution."""
+    """Summaries of every complete revolution. `angle` is the model angle [rad], continuous
+    (unwrapped; it may stand still or turn back, see `revolution_table`); `series` maps output
+    names to sampled values (quantities missing from it are skipped; link.friction_total with
+    suspension.position gives the friction work, rod.angle the ϑ amplitude, rod.stress_max the
+    largest stress). The numbers are those of `revolution_table`, one object per revolution."""
     tab = {
         k: v.tolist() for k, v in revolution_table(time, angle, series, speed, quantities).items()
     }
@@ -160,6 +161,7 @@ def revolution_table(
     series: Mapping[str, Sequence[float]],
     speed: Sequence[float] | None = None,
     quantities: Sequence[str] = DEFAULT_QUANTITIES,
+    stop_speed: float | None = None,
 ) -> dict[str, np.ndarray]:
     """`summarize_revolutions` as columns, one element per complete revolution: 'revolution'
     (int), 'start_time', 'duration', 'mean_speed', and where their inputs are given
@@ -168,7 +170,15 @@ def revolution_table(
     revolution: the digital twin summarises some 25 revolutions a second this way.
 
     Vectorised over the revolutions: a revolution's numbers depend only on its own samples and
-    their two neighbours, so they are the same whichever other revolutions share the call."""
+    their two neighbours, so they are the same whichever other revolutions share the call.
+
+    The angle may stand still and turn back (a pump that stops and rocks back, a crank jogged
+    backwards; docs/twin.md "Machine states"): revolution k runs from the first sample at which
+    the angle reaches 2πk to the first at which it reaches 2π(k+1), i.e. it is bounded by the
+    running maximum of the angle, so only complete forward revolutions are summarised and every
+    sample in between, forwards or backwards, belongs to one. 'samples' counts a revolution's
+    samples; with `speed` and `stop_speed` [rad/s], 'interrupted' is 1 for a revolution in which
+    the speed fell below `stop_speed` (a stop or a reversal fell inside it), else 0."""
     t = np.asarray(time, dtype=float)
     th = np.asarray(angle, dtype=float)
     none = {
@@ -176,24 +186,27 @@ def revolution_table(
         "start_time": np.empty(0),
         "duration": np.empty(0),
         "mean_speed": np.empty(0),
+        "samples": np.empty(0, dtype=int),
     }
     if t.shape != th.shape or t.ndim != 1:
         raise ValueError("time and angle must be 1-D arrays of equal length")
     if len(t) < 3:
         return none
-    if np.any(np.diff(th) < 0):
-        raise ValueError("the crank angle must not decrease (unwrap it; forward rotation only)")
+    # The angle reached so far: the revolutions' bounds (for a crank that only turns forward it
+    # is the angle itself, and the numbers are those of that case bit for bit).
+    reached = np.maximum.accumulate(th)
+    top = float(reached[-1])
     # Revolutions k with 2π(k+1) reached by the data.
     k0 = math.ceil(th[0] / TWO_PI - 1e-12)
-    ks = np.arange(k0, max(k0, math.floor(th[-1] / TWO_PI) + 1))
-    ks = ks[TWO_PI * (ks + 1).astype(float) <= th[-1]]
+    ks = np.arange(k0, max(k0, math.floor(top / TWO_PI) + 1))
+    ks = ks[TWO_PI * (ks + 1).astype(float) <= top]
     if len(ks) == 0:
         return none
     lo, hi = TWO_PI * ks.astype(float), TWO_PI * (ks + 1).astype(float)
     inside = th[0] < lo
-    ja, ta = _crossing_times(t, th, np.where(inside, lo, th[-1]))
+    ja, ta = _crossing_times(t, th, np.where(inside, lo, top), reached)
     ja, ta = np.where(inside, ja, 0), np.where(inside, ta, t[0])
-    jb, tb = _crossing_times(t, th, hi)
+    jb, tb = _crossing_times(t, th, hi, reached)
     keep = jb - ja >= 3
     ks, ja, jb, ta, tb = ks[keep], ja[keep], jb[keep], ta[keep], tb[keep]
     if len(ks) == 0:
@@ -219,8 +232,11 @@ def revolution_table(
     cols = {k: np.asarray(v, dtype=float) for k, v in series.items()}
     dur = tb - ta
     tab = {"revolution": ks, "start_time": ta, "duration": dur, "mean_speed": TWO_PI / dur}
+    tab["samples"] = n
     if speed is not None:
         w = np.asarray(speed, dtype=float)
+        if stop_speed is not None:
+            tab["interrupted"] = (seg_min(w) < stop_speed).astype(int)
         # The mean by numpy's (pairwise) sum of each revolution, as ws.mean() would.
         means = np.array(
             [np.add.reduce(w[a:b]) / (b - a) for a, b in zip(ja.tolist(), jb.tolist())]

@@ -8,8 +8,9 @@ same numbers bit for bit.
 
 1. **Reader** (`parse_lines`): a CSV with a header naming `time`, `crank_angle` and optionally
    `crank_speed` and `process_force`. A bad field, time going backwards, a duplicate timestamp
-   (dropped and counted, or an error), an angle step faster than `max_speed` or a crank turning
-   backwards stops the run with the line number (`DataError`), after the samples before it.
+   (dropped and counted, or an error) or an angle step faster than `max_speed` stops the run with
+   the line number (`DataError`), after the samples before it. The crank may stand still and
+   turn either way (docs/twin.md "Machine states"): every sample is computed.
 2. **Conditioning** (`conditioning.py`, vectorised over the chunk): angle to rad and unwrapped;
    ω and ε from a local cubic over the smoothing window where they are not measured (natively,
    `batch.local_cubic`, the algorithm of `conditioning.fit`). A gap longer
@@ -21,7 +22,8 @@ same numbers bit for bit.
    crank inputs are set and every output is read, for a whole chunk in one call of the native
    batch driver (`fmu.Channel.run`, tools/fmi2-batch).
 4. **Per revolution** (`revolution.py`): when the model angle completes a revolution its summary
-   is emitted.
+   is emitted, flagged `interrupted` when a stop or a reversal fell inside it. The machine's state
+   (running, stopped, reversing) is followed at every sample and its changes are `motion_events`.
 
 Checkpoints (`Twin.checkpoint`/`Twin.from_checkpoint`) hold the FMU's serialized state and the
 twin's own position and buffers; a run resumed from one continues exactly as if uninterrupted.
@@ -68,6 +70,16 @@ CHECKPOINT_VERSION = 3
 #: Samples conditioned and sent to the FMU per call at most (bounds the memory of the windows).
 BLOCK = 4096
 
+#: Samples of one revolution kept whole (docs/twin.md "Machine states"): a longer revolution (a
+#: stop inside it) keeps only the samples that hold its extremes, so a standstill of hours holds
+#: a bounded memory; its friction_work and speed_fluctuation, which need every sample, are empty.
+REV_SAMPLES_MAX = 32768
+
+#: The machine states (docs/twin.md "Machine states") and the event that enters each.
+MOTION_STATES = {1: "running", 0: "stopped", -1: "reversing"}
+MOTION_EVENTS = {1: "started", 0: "stopped", -1: "reversed"}
+MOTION_KEEP = 64
+
 
 class DataError(ValueError):
     """Bad measured data, with the input line number. `rows` and `summaries` are what the twin
@@ -106,6 +118,11 @@ class Options:
     # The zone of ISO 8601 timestamps without a UTC offset (an IANA name, docs/twin.md
     # "Timestamps"); None: such timestamps are refused.
     timezone: str | None = None
+    # Machine states (docs/twin.md "Machine states"): below stop_speed [rpm] in magnitude the
+    # crank is stopped, at -stop_speed or less it reverses; a state holds from the sample where
+    # it begins once it has lasted stop_duration [s].
+    stop_speed: float = 1.0
+    stop_duration: float = 0.5
 
     def to_dict(self) -> dict:
         return dict(self.__dict__)
@@ -136,7 +153,14 @@ class Options:
                 flag = "--" + name.replace("_", "-")
                 raise ValueError(f"{flag} {v!r}: allowed: {', '.join(allowed)}")
         time_zone(self.timezone)  # ValueError naming --timezone
-        positive = ["window", "gap_limit", "max_speed", "speed_tolerance"]
+        positive = [
+            "window",
+            "gap_limit",
+            "max_speed",
+            "speed_tolerance",
+            "stop_speed",
+            "stop_duration",
+        ]
         if self.angle_unit == "counts" or self.counts_per_rev is not None:
             positive.append("counts_per_rev")
         for name in positive:
@@ -169,6 +193,7 @@ SUMMARY_FIELDS = (
     "stroke",
     "rod_angle_amplitude",
     "stress_max",
+    "interrupted",
 )
 
 #: The unit of each of SUMMARY_FIELDS ("-": a count or a ratio), written in the CSV header as
@@ -182,6 +207,7 @@ SUMMARY_UNITS = {
     "stroke": "m",
     "rod_angle_amplitude": "rad",
     "stress_max": "Pa",
+    "interrupted": "-",
     **{
         f"{k}_{m}": u
         for k, u in (
@@ -446,6 +472,7 @@ class Twin:
         self.o = (options or Options()).resolved(self.design_speed)
         self.o.validate()
         self.i_angle = 1 + self.outputs.index("crank.model_angle")
+        self.i_speed = 1 + self.outputs.index("crank.model_speed")
         self.channel = None
         self.cols = None
         self.separator = ","  # of the input's fields: ',' or ';' (decimal comma), from the header
@@ -454,6 +481,7 @@ class Twin:
         self.time_kind: str | None = None
         self.clock: Clock | None = None
         self.iso_line = None  # the line of the first timestamp
+        self._slack_tables: dict = {}
         self.buf = _Segment()
         self.last_raw = None  # previous accepted raw angle (rad), unwrapped angle, time
         self.last_unwrapped = None
@@ -463,6 +491,14 @@ class Twin:
         self.gaps: list = []
         self.rev_parts: list = []  # rows of the revolution in progress (and the sample before it)
         self.rev_next = None  # index of the next revolution to complete
+        self.rev_dropped = 0  # its samples left out to bound the memory (REV_SAMPLES_MAX)
+        # Machine state (docs/twin.md "Machine states"): the state (1 running, 0 stopped, -1
+        # reversing; None before the first sample), the candidate state, the time and line it
+        # began; the last MOTION_KEEP events [kind, time, line] of the changes and their count
+        # (a twin that runs for months keeps a bounded list).
+        self.motion: list | None = None
+        self.motion_events: list = []
+        self.motion_count = 0
         self.defer_summaries = False
         self._pending: list = []  # rows for the summaries, None where a segment starts
         self.lines_read = 0  # input lines consumed (header included)
@@ -679,15 +715,8 @@ class Twin:
             )
             ln, t, theta, w, f, dt, near, dth = (x[:k] for x in (ln, t, theta, w, f, dt, near, dth))
             a = a[:k]
-        back = np.flatnonzero(near & (dth < 0))
-        if back.size:
-            k = int(back[0])
-            err = DataError(
-                f"line {ln[k]}: the crank angle goes backwards by {float(-dth[k]):.6g} rad "
-                "(the twin needs forward rotation)"
-            )
-            ln, t, theta, w, f, dt = (x[:k] for x in (ln, t, theta, w, f, dt))
-            a = a[:k]
+        # A step backwards is a state of the machine (a stop that rocks back, an encoder dithering
+        # at standstill, a crank jogged backwards), not an error: docs/twin.md "Machine states".
         if len(t) == 0:
             return err
         # Segments: a gap (an interval longer than gap_limit) starts a new one.
@@ -742,10 +771,52 @@ class Twin:
             raise err
         return out
 
-    def _emit(self, r: np.ndarray, rows: list) -> None:
+    def _emit(self, r: np.ndarray, rows: list, lines: np.ndarray | None = None) -> None:
         rows.append(r)
         if len(r):
             self._pending.append(r)
+            self._follow_motion(r[:, 0], r[:, self.i_speed], lines)
+
+    @property
+    def machine_state(self) -> str | None:
+        """running, stopped or reversing (docs/twin.md "Machine states"); None before a sample."""
+        return None if self.motion is None else MOTION_STATES[self.motion[0]]
+
+    def _follow_motion(self, t: np.ndarray, w: np.ndarray, lines) -> None:
+        """The machine state through these samples (time, the speed the FMU got): a class per
+        sample (running at ω ≥ stop_speed, reversing at ω ≤ -stop_speed, else stopped); a class
+        other than the state's becomes the state once it has held for stop_duration, from its
+        first sample (the event's time). Loops over the runs of equal class only."""
+        thr = self.o.stop_speed * TWO_PI / 60.0
+        cls = np.where(w >= thr, 1, np.where(w <= -thr, -1, 0))
+        if lines is None:
+            lines = np.full(len(t), -1)
+        if self.motion is None:
+            # The first sample's class is the state the record starts in (no event).
+            self.motion = [int(cls[0]), int(cls[0]), float(t[0]), int(lines[0])]
+        state, cand, t0, l0 = self.motion
+        change = (np.flatnonzero(np.diff(cls)) + 1).tolist()
+        for a, b in zip([0, *change], [*change, len(cls)]):
+            c = int(cls[a])
+            if c != cand:
+                cand, t0, l0 = c, float(t[a]), int(lines[a])
+            if cand != state and float(t[b - 1]) - t0 >= self.o.stop_duration:
+                state = cand
+                self.motion_events.append([MOTION_EVENTS[state], t0, l0])
+                self.motion_events = self.motion_events[-MOTION_KEEP:]
+                self.motion_count += 1
+        self.motion = [state, cand, t0, l0]
+
+    def motion_message(self, ev) -> str:
+        """The one-line report of a motion event [kind, time, line]."""
+        kind, t0, line = ev
+        rule = {
+            "stopped": f"|crank speed| below {self.o.stop_speed:g} rpm",
+            "started": f"crank speed at or above {self.o.stop_speed:g} rpm",
+            "reversed": f"crank speed at or below -{self.o.stop_speed:g} rpm",
+        }[kind]
+        where = f" (line {line})" if line >= 0 else ""
+        return f"t = {t0!r} s{where}: {kind} ({rule} for {self.o.stop_duration:g} s)"
 
     def _take_summaries(self) -> list:
         """The summaries of what was emitted since the last call (or its pieces, when deferred)."""
@@ -757,7 +828,7 @@ class Twin:
         out = []
         for r in pieces:
             if r is None:
-                self.rev_parts, self.rev_next = [], None
+                self.rev_parts, self.rev_next, self.rev_dropped = [], None, 0
             else:
                 out += self._revolutions(r)
         return out
@@ -840,8 +911,11 @@ class Twin:
                     raise err
             # A measured speed is checked against the angle's own rate (docs/twin.md "Measured
             # speed"): a wrong unit or sign would otherwise go straight into the loads.
+            slack = SPEED_SLACK + self._resolution_slack(
+                b.t[centres], inside[: len(centres)], float(b.t0), t_end
+            )
             with np.errstate(invalid="ignore"):
-                off = np.abs(w_meas - w_est) > self.o.speed_tolerance * np.abs(w_est) + SPEED_SLACK
+                off = np.abs(w_meas - w_est) > self.o.speed_tolerance * np.abs(w_est) + slack
             bad = np.flatnonzero(off)
             if bad.size and self.o.speed_check == "warn":
                 if not self.speed_ignored:
@@ -872,13 +946,13 @@ class Twin:
                 self._fmu_rows(block, inputs, b.segment_start and lo == 0)
             except FmuError as e:
                 k = getattr(e, "index", 0)
-                self._emit(block[:k], rows)
+                self._emit(block[:k], rows, b.line[centres[:k]])
                 if k < len(centres):
                     e.args = (
                         f"line {int(b.line[centres[k]])} (t = {float(b.t[centres[k]])!r} s): {e}",
                     )
                 raise
-            self._emit(block, rows)
+            self._emit(block, rows, b.line[centres])
             b.done = int(centres[-1]) + 1
             if err is not None:
                 raise err
@@ -889,6 +963,37 @@ class Twin:
         if keep_from > 0:
             b.drop(keep_from)
             b.segment_start = False
+
+    def _resolution_slack(self, tc: np.ndarray, inside: np.ndarray, t0: float, t_end: float):
+        """What the angle's resolution can add to ω̂ at samples at times tc [rad/s] (docs/twin.md
+        "Measured speed"): an encoder's angle is within half a count h of the truth, so the local
+        cubic's ω̂ is within (h/2)·Σ|c_j| of the truth's, c_j the weights of ω̂ at the sample's
+        place in its window: `inside` samples spread evenly over the window, which shifts inward
+        near a segment's ends (from t0 to t_end), where the sum is largest. 0 for angles in rad or
+        deg (no known resolution)."""
+        if self.o.angle_unit != "counts":
+            return np.zeros(len(tc))
+        w = self.o.window
+        start = np.maximum(t0, np.minimum(tc - 0.5 * w, t_end - w))
+        m = np.maximum(inside, cond.MIN_SAMPLES).astype(np.int64)
+        pos = np.clip(np.rint((tc - start) / w * (m - 1)), 0, m - 1).astype(np.int64)
+        h = TWO_PI / self.o.counts_per_rev
+        out = np.empty(len(tc))
+        for key in set(zip(m.tolist(), pos.tolist())):
+            if key not in self._slack_tables:
+                mm, p = key
+                # ω̂ = c1 of the cubic fitted on x = j - p (in sample spacings): its weights are
+                # row 1 of (VᵀV)⁻¹Vᵀ, scaled by the spacing w/(m-1); x scaled to [-1, 1] first.
+                x = np.arange(mm, dtype=float) - p
+                sc = max(1.0, float(np.max(np.abs(x))))
+                v = np.vander(x / sc, 4, True)
+                c = np.linalg.solve(v.T @ v, v.T)[1] / sc
+                if len(self._slack_tables) > 4096:
+                    self._slack_tables.clear()
+                self._slack_tables[key] = 0.5 * h * float(np.sum(np.abs(c)))
+            sel = (m == key[0]) & (pos == key[1])
+            out[sel] = self._slack_tables[key] * (m[sel] - 1) / w
+        return out
 
     def _too_wide(self, line: int, samples: int) -> None:
         raise DataError(
@@ -964,21 +1069,79 @@ class Twin:
         while TWO_PI * (last + 1) <= top:
             last += 1
         if last == self.rev_next:
+            # Once reduced, a revolution is reduced at every chunk: its rows stay few.
+            if self.rev_dropped or sum(map(len, self.rev_parts)) > REV_SAMPLES_MAX + 3:
+                self._reduce_revolution()
             return []
         arr = np.concatenate(self.rev_parts)
         series = {name: arr[:, 1 + i] for i, name in enumerate(self.outputs)}
         tab = revolution_table(
-            arr[:, 0], arr[:, self.i_angle], series, speed=series["crank.model_speed"]
+            arr[:, 0],
+            arr[:, self.i_angle],
+            series,
+            speed=series["crank.model_speed"],
+            stop_speed=self.o.stop_speed * TWO_PI / 60.0,
         )
         pick = (tab["revolution"] >= self.rev_next) & (tab["revolution"] < last)
         n = int(np.count_nonzero(pick))
+        samples = tab["samples"][pick]
+        if n and tab["revolution"][pick][0] == self.rev_next:
+            samples[0] += self.rev_dropped
         columns = [tab[key][pick].tolist() if key in tab else [None] * n for key in _SUMMARY_KEYS]
         out = [dict(zip(SUMMARY_FIELDS, values)) for values in zip(*columns)]
-        # Keep the samples from just before the next revolution's start.
-        start = int(np.searchsorted(arr[:, self.i_angle], TWO_PI * last)) - 1
+        for sm, k in zip(out, samples.tolist()):
+            if k > REV_SAMPLES_MAX:
+                # Not every sample was kept: these two need them all (docs/twin.md).
+                sm["friction_work"] = sm["speed_fluctuation"] = None
+        # Keep the samples from just before the next revolution's start (the first sample at
+        # which the angle reaches it: the crank may have turned back before).
+        reached = np.maximum.accumulate(arr[:, self.i_angle])
+        start = int(np.searchsorted(reached, TWO_PI * last)) - 1
         self.rev_parts = [arr[max(0, start) :].copy()]
         self.rev_next = last
+        self.rev_dropped = 0
         return out
+
+    def _reduce_revolution(self) -> None:
+        """Bounds the rows kept for the revolution in progress (REV_SAMPLES_MAX): the rows before
+        it are not needed but the one before its start; of its own rows, the first three, the
+        last two, and those holding each column's largest and smallest value with their
+        neighbours (the summary's extremes, refined by the parabola through them) are kept."""
+        # Part by part, without joining them: a join would double the memory at its peak.
+        parts = self.rev_parts
+        off = np.concatenate(([0], np.cumsum([len(p) for p in parts])))
+        n = int(off[-1])
+        ang = np.concatenate([p[:, self.i_angle] for p in parts])
+        c = int(np.searchsorted(np.maximum.accumulate(ang), TWO_PI * self.rev_next))
+
+        def gather(idx: np.ndarray) -> np.ndarray:
+            """The rows at these (sorted) indices of the parts one after the other."""
+            return np.concatenate(
+                [p[idx[(idx >= lo) & (idx < hi)] - lo] for p, lo, hi in zip(parts, off, off[1:])]
+            )
+
+        if c >= n:  # not begun yet: the last samples before it are all it needs
+            self.rev_parts = [gather(np.arange(n - 2, n))]
+            return
+        start = max(0, c - 1)
+        if n - start <= REV_SAMPLES_MAX + 3 and not self.rev_dropped:
+            self.rev_parts = [
+                p[max(0, start - lo) :] for p, lo in zip(parts, off) if lo + len(p) > start
+            ]
+            return
+        b0, b1 = start + 3, n - 2  # the body: all but the first three and the last two rows
+        best = []  # per part: (max, index of the first max, min, index of the first min)
+        for p, lo in zip(parts, off):
+            a, b = max(b0, lo), min(b1, lo + len(p))
+            if a < b:
+                seg = p[a - lo : b - lo]
+                best.append((seg.max(0), seg.argmax(0) + a, seg.min(0), seg.argmin(0) + a))
+        mx, amx, mn, amn = (np.stack(x) for x in zip(*best))
+        cols = np.arange(mx.shape[1])
+        ext = np.concatenate((amx[np.argmax(mx, 0), cols], amn[np.argmin(mn, 0), cols]))
+        idx = np.unique(np.clip(np.concatenate((ext - 1, ext, ext + 1)), b0, b1 - 1))
+        self.rev_dropped += (b1 - b0) - len(idx)
+        self.rev_parts = [gather(np.concatenate((np.arange(start, b0), idx, np.arange(b1, n))))]
 
     # ---- checkpoints ---------------------------------------------------------------------------
 
@@ -1022,6 +1185,10 @@ class Twin:
             "gaps": self.gaps,
             "rev_rows": rev.tolist(),
             "rev_next": self.rev_next,
+            "rev_dropped": self.rev_dropped,
+            "motion": self.motion,
+            "motion_events": self.motion_events,
+            "motion_count": self.motion_count,
         }
 
     @classmethod
@@ -1105,6 +1272,10 @@ class Twin:
         tw.speed_ignored = int(cp.get("speed_ignored", 0))
         rev = np.array(cp["rev_rows"], dtype=float).reshape(-1, 1 + len(tw.outputs))
         tw.rev_parts, tw.rev_next = ([rev] if len(rev) else []), cp["rev_next"]
+        tw.rev_dropped = int(cp.get("rev_dropped", 0))
+        tw.motion = cp.get("motion")
+        tw.motion_events = [list(e) for e in cp.get("motion_events", [])]
+        tw.motion_count = int(cp.get("motion_count", len(tw.motion_events)))
         if cp["fmu_state"] is not None:
             tw.fmu.start(tw.values)
             tw.fmu.restore(base64.b64decode(cp["fmu_state"], validate=True), float(cp["fmu_time"]))

@@ -558,6 +558,16 @@ def test_data_health_shows_connection_lag_gaps_drops_and_fmu_errors(server, page
     )
     assert cell("gaps") == "1" and cell("dropped") == "7" and cell("fmu_errors") == "1"
     assert cell("last_event") == "reconnect: reconnected after 5 s; no history"
+    # The machine's state (docs/twin.md "Machine states"): running before any stop is seen,
+    # then stopped since the event's time (a clock time: the source has one).
+    assert cell("machine") == "running (no stop seen yet)"
+    stop = Ev("machine_stopped", "t = 9.25 s (line 9251): stopped (...)", t=9.25)
+    page.add(rows[:0], 0, [], 0, [stop])
+    tab.wait_for_function(
+        "() => document.querySelector('#health tr[data-key=machine] td:nth-child(2)')"
+        ".textContent.startsWith('stopped since ')"
+    )
+    assert cell("machine").startswith("stopped since ")
     # The lag: the wall clock when the rows arrived minus the last sample's, origin + 9.5 (shown
     # with 3 digits).
     lag = float(cell("lag").split()[0])

@@ -547,3 +547,29 @@ def test_a_table_of_a_postgresql_database(fmu_path, tmp_path):
     p = twin([secret, *COUNTS, "--out", out, "--distributed"], fmu_path, check=False)
     one_line_error(p, 2, "PGPASSWORD")
     assert "hunter2" not in p.stderr
+
+
+def test_cuts_through_stops_and_rollbacks_are_bit_identical(fmu_path, tmp_path):
+    """A stop/start cycle with a rollback across the wrap and a dithering encoder (docs/twin.md
+    "Machine states"): the revolutions are bounded by the running maximum of the angle, so cuts
+    every revolution, and inside the standstill, give the sequential files."""
+    from reciprocating_drive.twin_sample import cycle_truth
+
+    t = np.arange(22001) / 1000.0
+    th, w, _, _ = cycle_truth(t)
+    stop = cycle_truth(np.array([8.1]))[0][0]
+    th = th + math.radians(1.0) - stop % (2 * math.pi)
+    rng = np.random.default_rng(5)
+    flips = np.cumsum((w == 0) & (rng.random(len(t)) < 0.05)) % 2
+    c = ((np.floor(th / (2 * math.pi) * 4096) + np.where(w == 0, flips, 0)) % 4096).astype(int)
+    inp = tmp_path / "cycle.csv"
+    inp.write_text(
+        "time,crank_angle\n" + "".join(f"{a!r},{b}\n" for a, b in zip(t.tolist(), c.tolist()))
+    )
+    seq = sequential(fmu_path, tmp_path, inp, COUNTS)
+    assert b"interrupted" in seq[1]
+    sc = R.scan(str(inp), fmu_path, "default", Options(angle_unit="counts", counts_per_rev=4096))
+    for n_rev, cuts in ((1, []), (2, [8500, 9000, 12000])):
+        pieces = R.plan(sc, n_rev, None, cuts)
+        assert len(pieces) >= 10
+        assert local_pieces(sc, pieces, fmu_path) == seq, (n_rev, cuts)

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from reciprocating_drive.revolution import summarize_revolutions
+from reciprocating_drive.revolution import revolution_table, summarize_revolutions
 
 W = 2 * math.pi * 65 / 60
 
@@ -60,9 +60,28 @@ def test_friction_work_and_rod_quantities():
         assert r.stress_max == pytest.approx(2.1e8, rel=1e-6)
 
 
-def test_rejects_a_decreasing_angle():
-    with pytest.raises(ValueError, match="must not decrease"):
-        summarize_revolutions([0, 1, 2, 3], [0, 1, 0.5, 2], {})
+def test_a_crank_that_turns_back_completes_a_revolution_when_it_first_reaches_its_end():
+    """The angle stops, rocks back below the revolution's start and turns forward again: the
+    revolution runs from the first sample at 2πk to the first at 2π(k+1) (the running maximum),
+    every sample in between is its own, and one whose speed fell below stop_speed is flagged."""
+    # Forward at 1 rad/s to 2π + 1, back by 2 rad (below 2π), forward at 1 rad/s to 4π + 1.
+    t1 = np.linspace(0, 2 * math.pi + 1, 801)
+    th = np.concatenate((t1, t1[-1] - np.linspace(0, 2, 201)[1:], t1[-1] - 2 + t1[1:]))
+    t = np.arange(len(th)) * (t1[1] - t1[0])
+    w = np.gradient(th, t)
+    x = 0.2 * (1 - np.cos(th))
+    tab = revolution_table(t, th, {"suspension.position": x}, speed=w, stop_speed=0.1)
+    assert tab["revolution"].tolist() == [0, 1]
+    # Revolution 1 begins at the first crossing of 2π (sample 800 is 2π + 1 > 2π, the first
+    # above it is at t = 2π within a step), ends at the first crossing of 4π after the rollback.
+    step = t[1] - t[0]
+    assert tab["start_time"][1] == pytest.approx(2 * math.pi, abs=step)
+    # Forward at 1 rad/s, 200 samples back, forward at 1 rad/s from 2π - 1 to 4π.
+    end = t1[-1] + 200 * step + (4 * math.pi - (t1[-1] - 2))
+    assert tab["start_time"][1] + tab["duration"][1] == pytest.approx(end, abs=step)
+    assert tab["interrupted"].tolist() == [0, 1]
+    assert tab["samples"].sum() <= len(t)
+    assert tab["stroke"][1] == pytest.approx(0.4, rel=1e-6)
 
 
 def test_a_revolution_does_not_depend_on_the_others_in_the_call():

@@ -162,7 +162,28 @@ def _main(argv, prog: str) -> int:
         default=0,
         help="µs between the angle's stamp and the speed's and force's of the same sample",
     )
+    ap.add_argument(
+        "--stop-cycle",
+        type=int,
+        default=None,
+        metavar="N",
+        help="play N stop/start cycles (ramp down, rollback, dither, standstill, ramp up; "
+        "4096-count encoder, 22 s each) instead of --data",
+    )
     a = ap.parse_args(argv)
+    if a.stop_cycle is not None:
+        if a.stop_cycle < 1:
+            print(
+                f"{prefix('plc_sim.py')}: --stop-cycle {a.stop_cycle}: must be a whole number >= 1",
+                file=sys.stderr,
+            )
+            return 2
+        import tempfile
+
+        from ..plant import stop_cycle
+
+        cycles_dir = tempfile.TemporaryDirectory(prefix="plc-sim-")
+        a.data = str(stop_cycle.write(pathlib.Path(cycles_dir.name) / "cycles.csv", a.stop_cycle))
     password = None
     if a.user:
         if a.password_file:

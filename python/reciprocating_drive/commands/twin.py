@@ -153,6 +153,8 @@ FIXED = (
     ("--timezone", "timezone", "timezone"),
     ("--speed-check", "speed_check", "speed_check"),
     ("--speed-tolerance", "speed_tolerance", "speed_tolerance"),
+    ("--stop-speed", "stop_speed", "stop_speed"),
+    ("--stop-duration", "stop_duration", "stop_duration"),
 )
 
 
@@ -223,6 +225,19 @@ def main(argv=None, prog: str | None = None) -> int:
         type=number,
         default=None,
         help="allowed relative difference of crank_speed from the angle's rate (default 0.1)",
+    )
+    ap.add_argument(
+        "--stop-speed",
+        type=number,
+        default=None,
+        help="below this |crank speed| [rpm] the crank is stopped, at minus it reversing "
+        "(default 1)",
+    )
+    ap.add_argument(
+        "--stop-duration",
+        type=number,
+        default=None,
+        help="a machine state counts once it has lasted this long [s] (default 0.5)",
     )
     ap.add_argument("--duplicates", choices=("drop", "error"), default=None)
     ap.add_argument(
@@ -590,6 +605,15 @@ def run(a, stopping: list) -> int:
     summ.close()
     for m in twin.messages:
         print(f"{prefix('twin.py')}: {m}", file=sys.stderr)
+    # The machine's state changes (docs/twin.md "Machine states"), the last MOTION_KEEP of them.
+    if twin.motion_count > len(twin.motion_events):
+        print(
+            f"{prefix('twin.py')}: {twin.motion_count - len(twin.motion_events)} earlier "
+            "machine-state change(s) not listed",
+            file=sys.stderr,
+        )
+    for ev in twin.motion_events:
+        print(f"{prefix('twin.py')}: {twin.motion_message(ev)}", file=sys.stderr)
     print(
         f"{twin.rows_out} samples, {twin.duplicates} duplicate timestamps dropped, "
         f"{len(twin.gaps)} gap(s)"

@@ -62,7 +62,17 @@ def _main(argv, prog: str) -> int:
         "which raises and clears the example's torque and rod force alarms (default 2000; 0: "
         "the sample as shipped)",
     )
+    ap.add_argument(
+        "--stop-cycle",
+        type=int,
+        default=None,
+        metavar="N",
+        help="with --demo: the PLC plays N stop/start cycles (ramp down, rollback, dither, "
+        "standstill, ramp up; 22 s each) instead of the sample",
+    )
     a = ap.parse_args(argv)
+    if a.stop_cycle is not None and (a.stop_cycle < 1 or not a.demo):
+        raise UserError(f"--stop-cycle {a.stop_cycle}: a whole number >= 1, with --demo")
     if a.seconds is not None:
         if not a.demo:
             raise UserError("--seconds: only with --demo (a configured run ends with its input)")
@@ -71,7 +81,7 @@ def _main(argv, prog: str) -> int:
         from ..plant.demo import FORCE_STEP, demo
 
         step = FORCE_STEP if a.force_step is None else a.force_step
-        return demo(a.db, a.seconds, a.page_port, force_step=step)
+        return demo(a.db, a.seconds, a.page_port, force_step=step, stop_cycles=a.stop_cycle)
     from ..plant.pipeline import run_config
 
     return run_config(a.config)

@@ -1,5 +1,5 @@
 """The page beside a running twin (docs/page.md, "Beside a twin"): follows the database another
-process writes (the plant sinks' SQLite schema, version 1) and feeds a `PageServer` with what is
+process writes (the plant sinks' SQLite schema, version 2) and feeds a `PageServer` with what is
 new: revolution summaries, data-health events and, when the twin stores per-sample rows, the card.
 
     python -m reciprocating_drive.page --database twin.sqlite --limits examples/twin/limits.toml

@@ -1,5 +1,5 @@
 """The page's reader of the twin's database (docs/page.md, "Trends"): per-revolution values of a
-run over a time window, from the `revolutions` table of the plant sinks' schema (version 1), opened
+run over a time window, from the `revolutions` table of the plant sinks' schema (version 2), opened
 read-only.
 
 A long window (days at 25 revolutions a second are millions of rows) is cut into at most

@@ -74,6 +74,13 @@ LABELS = {
     "rod_angle_amplitude": "rod angle amplitude ϑ (elastic rod)",
     "stress_max": "largest rod stress",
 }
+#: The plant's machine-state events (docs/plant.md "Machine states") and the state each enters.
+MACHINE_EVENTS = {
+    "machine_stopped": "stopped",
+    "machine_started": "running",
+    "machine_reversed": "reversing",
+}
+
 #: A rigid rod (rod.kind 0) has no stress of its own and no cage angle: its ϑ is the crank-slider's
 #: swing of the rod, named as such, and the stress (0) is not shown (docs/page.md, "What the page
 #: shows").
@@ -120,6 +127,9 @@ class _State:
             "run_status": None,
             "run_message": None,
             "ended": False,
+            # The machine's state from its events (docs/twin.md "Machine states"): None before
+            # the first, else {"state": running|stopped|reversing, "since": twin time [s]}.
+            "machine": None,
         }
         self.time_origin = None
         self.revolutions = 0
@@ -327,6 +337,8 @@ class PageServer:
         for ev in events:
             ev = ev[2] if isinstance(ev, tuple) else ev
             items.append(("event", ev.kind, ev.count, ev.message, time.time()))
+            if ev.kind in MACHINE_EVENTS:
+                items.append(("machine", MACHINE_EVENTS[ev.kind], getattr(ev, "t", None)))
         if items:
             with self._lock:
                 self._pending += items
@@ -425,6 +437,9 @@ class PageServer:
                     h["connected"] = True
                 h["last_event"] = {"kind": ek, "message": msg, "wall": wall}
                 push["health"] = h
+            elif kind == "machine":
+                st.health["machine"] = {"state": it[1], "since": it[2]}
+                push["health"] = st.health
             elif kind == "sample_time":
                 t, wall = it[1], it[2]
                 st.health["last_sample_time"] = t

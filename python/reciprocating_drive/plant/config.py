@@ -228,6 +228,9 @@ def parse(data: dict, path: str = "<config>") -> Config:
         gap_limit=cond.positive("gap_limit", 0.05),
         max_speed=cond.positive("max_speed", 100.0),
         use_measured_speed=cond.get("use_measured_speed", bool, True),
+        # Machine states (docs/twin.md "Machine states"): rpm and seconds.
+        stop_speed=cond.positive("stop_speed", 1.0),
+        stop_duration=cond.positive("stop_duration", 0.5),
     )
     cond.done()
 

@@ -53,7 +53,11 @@ def demo_data(path, force_step: float = FORCE_STEP) -> pathlib.Path:
 
 
 def demo(
-    db: str, seconds: float | None = None, page_port: int = 8050, force_step: float = FORCE_STEP
+    db: str,
+    seconds: float | None = None,
+    page_port: int = 8050,
+    force_step: float = FORCE_STEP,
+    stop_cycles: int | None = None,
 ) -> int:
     port = free_port()
     endpoint = f"opc.tcp://127.0.0.1:{port}/plc"
@@ -61,7 +65,14 @@ def demo(
     # The simulated PLC in a process of its own, from this very package (checkout or wheel).
     env = {**os.environ, "PYTHONPATH": str(artifacts.PACKAGE.parent)}
     with tempfile.TemporaryDirectory() as d:
-        data = demo_data(pathlib.Path(d) / "demo_data.csv", force_step)
+        if stop_cycles:
+            # Stops and starts instead of the sample (docs/plant.md "Machine states").
+            from . import stop_cycle
+
+            data = stop_cycle.write(pathlib.Path(d) / "cycles.csv", stop_cycles, force=True)
+            force_step = 0.0
+        else:
+            data = demo_data(pathlib.Path(d) / "demo_data.csv", force_step)
         plc = subprocess.Popen(
             [
                 sys.executable,
@@ -82,7 +93,7 @@ def demo(
             text=True,
         )
         try:
-            return _run(plc, d, endpoint, db, seconds, page_port, force_step)
+            return _run(plc, d, endpoint, db, seconds, page_port, force_step, stop_cycles)
         finally:
             plc.terminate()
             try:
@@ -92,7 +103,7 @@ def demo(
                 plc.wait(timeout=10)
 
 
-def _run(plc, d, endpoint, db, seconds, page_port, force_step) -> int:
+def _run(plc, d, endpoint, db, seconds, page_port, force_step, stop_cycles=None) -> int:
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline:
         line = plc.stdout.readline()
@@ -119,9 +130,14 @@ def _run(plc, d, endpoint, db, seconds, page_port, force_step) -> int:
         if force_step
         else ""
     )
+    played = (
+        f"{stop_cycles} stop/start cycle(s) ({22 * stop_cycles} s of data"
+        if stop_cycles
+        else f"data/twin/pump_encoder.csv{step} (12 s of data"
+    )
     about = (
-        f"demo: PLC at {endpoint} playing data/twin/pump_encoder.csv{step} in real time "
-        f"(12 s of data after a 2 s start); twin run {run!r} -> {db}"
+        f"demo: PLC at {endpoint} playing {played} in real time after a 2 s start); "
+        f"twin run {run!r} -> {db}"
     )
     pending = [about]
 

@@ -173,6 +173,12 @@ class Pipeline:
                 self.gap_count += 1
             self.last_gap = tuple(gap)
         self.gaps_seen = len(tw.gaps)
+        # The machine's state changes (docs/twin.md "Machine states"), as machine_stopped,
+        # machine_started, machine_reversed (`started` is the run's own start).
+        new = tw.motion_count - self.motion_seen
+        for ev in tw.motion_events[len(tw.motion_events) - min(new, len(tw.motion_events)) :]:
+            self._event(Event(f"machine_{ev[0]}", tw.motion_message(ev), t=ev[1]))
+        self.motion_seen = tw.motion_count
         for line, n in tw.short_dropped[self.short_seen :]:
             self._event(
                 Event(
@@ -311,6 +317,7 @@ class Pipeline:
             self.dups_seen = state.get("duplicates_reported", 0)
         self.twin = twin
         self.gaps_seen, self.short_seen = len(twin.gaps), len(twin.short_dropped)
+        self.motion_seen = twin.motion_count
         self.sparse_seen = len(twin.sparse) - twin.sparse_open
         self.last_gap = tuple(twin.gaps[-1]) if twin.gaps else None
         self.gap_count = state.get("gaps_reported", 0) if state else 0

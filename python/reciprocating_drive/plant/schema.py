@@ -1,18 +1,19 @@
 """The database schema of the twin's sinks (docs/plant.md, "Schema"), for SQLite and PostgreSQL.
 
-Version 1. Every table is keyed by the run (an integer, `runs.run`); a run has a name (the
-configuration's `run.id`, unique) and a machine identifier. Per-sample and per-revolution rows have
-primary keys (run, seq) and (run, revolution), so a row can never be stored twice: a bug that tried
-would fail its transaction instead of duplicating data. The time index (run, t) serves the queries
-plants make ("this machine, this hour"). Times `t` are seconds from the run's `time_origin` (Unix
-seconds), the twin's own time; wall-clock times are Unix seconds.
+Version 2 (version 1 had no `interrupted` column in `revolutions`). Every table is keyed by the run
+(an integer, `runs.run`); a run has a name (the configuration's `run.id`, unique) and a machine
+identifier. Per-sample and per-revolution rows have primary keys (run, seq) and (run, revolution),
+so a row can never be stored twice: a bug that tried would fail its transaction instead of
+duplicating data. The time index (run, t) serves the queries plants make ("this machine, this
+hour"). Times `t` are seconds from the run's `time_origin` (Unix seconds), the twin's own time;
+wall-clock times are Unix seconds.
 """
 
 from __future__ import annotations
 
 from ..twin import SUMMARY_FIELDS
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 
 
 def column(output: str) -> str:

@@ -186,6 +186,10 @@ function showHealth(h) {
   else if (h.lag === null) lag = "no sample yet";
   else lag = fmt(h.lag, 3) + " s";
   const run = status + (h.run_message ? ": " + h.run_message : "");
+  // The machine's state (docs/twin.md "Machine states"): running, stopped since, reversing since.
+  const machineText = (m) => !m ? "running (no stop seen yet)"
+    : m.state === "running" ? "running" + (m.since === null ? "" : " since " + when(m.since))
+    : m.state + (m.since === null ? "" : " since " + when(m.since));
   const ev = h.last_event;
   const last = !ev ? "none yet" : ev.message.startsWith(ev.kind + ":") ? ev.message : ev.kind + ": " + ev.message;
   const rows = [
@@ -197,6 +201,7 @@ function showHealth(h) {
     ["last sample", h.last_sample_time === null ? "none yet" : when(h.last_sample_time), "last_sample", false],
     ["run", run, "run_status", status === "failed"],
     ["last event", last, "last_event", false],
+    ["machine", machineText(h.machine), "machine", false],
   ];
   for (const [name, val, key, bad] of rows) {
     const tr = el("tr", { "data-key": key, class: bad ? "bad" : "" });
