@@ -31,6 +31,7 @@ import zipfile
 import numpy as np
 import pytest
 from conftest import ROOT
+from freed_child import run_freed_child
 from reciprocating_drive import preset_values
 
 MODELS = ["ReciprocatingDrive", "DriveTrain"]
@@ -853,33 +854,22 @@ def test_a_freed_instance_is_refused_by_every_function(fmu_path, tmp_path, model
     fmi3Functions.h that takes an instance return (fmi3Error, 3) without touching freed memory:
     the process lives on, another instance still works, the freed instance's logger is not
     called again, and one line on standard error names the first function called on it."""
-    import json
-
-    from fmpy import read_model_description
-
-    path = fmu3(fmu_path, model)
-    md = read_model_description(str(path))
-    so = tmp_path / f"{model}.so"
-    with zipfile.ZipFile(path) as z:
-        so.write_bytes(z.read(f"binaries/x86_64-linux/{model}.so"))
-    import fmpy
-
-    header = pathlib.Path(fmpy.__file__).parent / "c-code" / "fmi3Functions.h"
-    p = subprocess.run(
-        [sys.executable, "-c", _FREED_CHILD, str(so), str(header), md.guid, kind],
-        capture_output=True,
-        text=True,
-        timeout=120,
+    r, stderr = run_freed_child(
+        fmu3(fmu_path, model),
+        "x86_64-linux",
+        model,
+        "fmi3Functions.h",
+        _FREED_CHILD,
+        kind,
+        tmp_path,
     )
-    assert p.returncode == 0, f"exit {p.returncode}: {p.stderr[-2000:]}"
-    r = json.loads(p.stdout)
     assert len(r["names"]) == 75, len(r["names"])  # FMI 3.0: 75 functions
     refused = {n: s for n, s in r["status"].items() if s is not None}
     assert len(refused) == 70 and all(s == 3 for s in refused.values()), {
         n: s for n, s in refused.items() if s != 3
     }
     assert r["after"] == [] and r["ok"] == [0, 0], r
-    lines = p.stderr.strip().splitlines()
+    lines = stderr.strip().splitlines()
     first = next(n for n in r["status"])
     assert len(lines) == 1, lines
     assert (

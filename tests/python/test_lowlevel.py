@@ -9,15 +9,10 @@ its one variadic argument directly (see `Log`).
 from __future__ import annotations
 
 import ctypes
-import json
 import math
 import pathlib
 import re
-import subprocess
-import sys
-import zipfile
 
-import fmpy
 import pytest
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (
@@ -29,6 +24,7 @@ from fmpy.fmi2 import (
     fmi2CoSimulation,
     fmi2Error,
 )
+from freed_child import run_freed_child
 from reference import OUTPUTS, Machine
 
 OMEGA = 2 * math.pi * 65 / 60
@@ -543,19 +539,9 @@ def test_a_freed_instance_is_refused_by_every_function(fmu_path, tmp_path, model
     called again, and one line on standard error names the first function called on it
     (docs/fmi-interface.md "A freed instance")."""
     path = pathlib.Path(fmu_path).parent / f"{model}.fmu"
-    md = fmpy.read_model_description(str(path))
-    so = tmp_path / f"{model}.so"
-    with zipfile.ZipFile(path) as z:
-        so.write_bytes(z.read(f"binaries/linux64/{model}.so"))
-    header = pathlib.Path(fmpy.__file__).parent / "c-code" / "fmi2Functions.h"
-    p = subprocess.run(
-        [sys.executable, "-c", _FREED_CHILD, str(so), str(header), md.guid, kind],
-        capture_output=True,
-        text=True,
-        timeout=120,
+    r, stderr = run_freed_child(
+        path, "linux64", model, "fmi2Functions.h", _FREED_CHILD, kind, tmp_path
     )
-    assert p.returncode == 0, f"exit {p.returncode}: {p.stderr[-2000:]}"
-    r = json.loads(p.stdout)
     assert len(r["names"]) == 44, len(r["names"])  # FMI 2.0: 44 functions
     refused = {n: s for n, s in r["status"].items() if s is not None}
     # 44 less the three without an instance and fmi2FreeInstance (void).
@@ -564,7 +550,7 @@ def test_a_freed_instance_is_refused_by_every_function(fmu_path, tmp_path, model
     }
     assert "fmi2FreeInstance" in r["status"]
     assert r["after"] == [] and r["ok"] == [0, 0, 0], r
-    lines = p.stderr.strip().splitlines()
+    lines = stderr.strip().splitlines()
     first = next(iter(r["status"]))
     assert len(lines) == 1, lines
     assert (

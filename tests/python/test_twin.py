@@ -44,11 +44,15 @@ def run(args, fmu_path, stdin=None, check=True):
 
 
 def read(path):
-    """name -> column of a CSV the twin wrote (headers `name [unit]`: the unit is dropped)."""
+    """name -> column of a CSV the twin wrote (headers `name [unit]`: the unit is dropped; an
+    empty cell is NaN)."""
     with open(path) as f:
         rows = list(csv.reader(f))
     head = [h.rpartition(" [")[0] or h for h in rows[0]]
-    return {h: np.array([float(r[i]) for r in rows[1:]]) for i, h in enumerate(head)}
+    return {
+        h: np.array([float(r[i]) if r[i] else math.nan for r in rows[1:]])
+        for i, h in enumerate(head)
+    }
 
 
 def test_exact_angles_give_the_exact_acceleration(fmu_path, tmp_path):

@@ -15,7 +15,6 @@ crank-slider's acceleration a = TF·ε + TF′·ω² in closed form (docs/model.
 
 from __future__ import annotations
 
-import csv
 import math
 import subprocess
 import sys
@@ -30,33 +29,11 @@ from reciprocating_drive.twin_sample import (
     jog_truth,
 )
 from scipy.signal import savgol_coeffs, savgol_filter
+from test_twin import read, run
 
-TWIN = [sys.executable, str(ROOT / "scripts" / "twin.py")]
 RATE = 1000.0
 #: The default stop threshold, 1 rpm, in rad/s (docs/twin.md "Machine states").
 STOP = 2 * math.pi / 60
-
-
-def run(args, fmu_path, check=True):
-    p = subprocess.run(
-        TWIN + list(map(str, args)) + ["--fmu", fmu_path],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    if check:
-        assert p.returncode == 0, p.stderr
-    return p
-
-
-def read(path):
-    with open(path) as f:
-        rows = list(csv.reader(f))
-    head = [h.rpartition(" [")[0] or h for h in rows[0]]
-    return {
-        h: np.array([float(r[i]) if r[i] else math.nan for r in rows[1:]])
-        for i, h in enumerate(head)
-    }
 
 
 def cycle(t):
