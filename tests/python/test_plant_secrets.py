@@ -125,7 +125,7 @@ class _Lines(logging.Handler):
 @pytest.fixture
 def access_log():
     h = _Lines()
-    log = logging.getLogger("tornado.access")
+    log = logging.getLogger("reciprocating_drive.page.access")
     log.addHandler(h)
     yield h.lines
     log.removeHandler(h)

@@ -62,7 +62,9 @@ LOGIN_TRIES, LOGIN_WINDOW = 5, 60.0
 #: Refused requests logged: at most LOG_LINES in LOG_WINDOW seconds, then one line with how many
 #: were left out. A line names the status, method, path (never the query string) and client.
 LOG_LINES, LOG_WINDOW = 10, 60.0
-ACCESS_LOG = logging.getLogger("tornado.access")
+#: The page's own logger, not tornado's "tornado.access": Dask (imported by the sweeps and the
+#: distributed replay in the same process) configures "tornado" at CRITICAL, which would silence it.
+ACCESS_LOG = logging.getLogger("reciprocating_drive.page.access")
 #: The values of the last revolution the page shows, in its order (units: alarms.UNITS).
 SHOWN = tuple(TREND_SQL)
 LABELS = {
