@@ -24,7 +24,7 @@ from .. import artifacts
 from ..cli_errors import ArgumentParser, UserError, run_cli
 from . import prefix
 
-FAULTS = ("bad_status", "nan", "wrong_type")
+FAULTS = ("bad_status", "nan", "wrong_type", "double2", "block2d", "no_stamp")
 #: Seconds the server stays up after "finished playing" unless --linger says otherwise: enough
 #: for a subscriber's last notification (Pump.Finished among them), then it exits.
 LINGER = 2.0
@@ -87,6 +87,30 @@ def at_sample(option: str, kinds=None):
             ) from None
 
     return parse
+
+
+def history_fail(text: str) -> int:
+    if text == "always":
+        return -1
+    try:
+        v = int(text)
+    except ValueError:
+        v = -1
+    if v < 0:
+        raise argparse.ArgumentTypeError(
+            f"--history-fail {text!r}: give N (a whole number >= 0) or always"
+        )
+    return v
+
+
+def count(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        v = 0
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number >= 1")
+    return v
 
 
 def port(text: str) -> int:
@@ -161,6 +185,32 @@ def _main(argv, prog: str) -> int:
         type=int,
         default=0,
         help="µs between the angle's stamp and the speed's and force's of the same sample",
+    )
+    ap.add_argument(
+        "--block-writes",
+        choices=("together", "sequential"),
+        default="together",
+        help="block arrays stamped alike (together), or written one after another, each stamped "
+        "by the server at its write, then the counter Pump.Block.Seq (sequential)",
+    )
+    ap.add_argument(
+        "--history-fail",
+        type=history_fail,
+        default=0,
+        metavar="N|always",
+        help="the first N HistoryRead requests (or all) answered BadInternalError",
+    )
+    ap.add_argument(
+        "--history-cap",
+        type=count,
+        default=0,
+        metavar="M",
+        help="at most M values per HistoryRead response (the rest through continuation points)",
+    )
+    ap.add_argument(
+        "--silent",
+        action="store_true",
+        help="accept connections and never answer (a hung server); plays nothing",
     )
     ap.add_argument(
         "--stop-cycle",
@@ -239,6 +289,10 @@ def _main(argv, prog: str) -> int:
             clock_step=a.clock_step,
             duplicate=a.duplicate,
             stamp_apart_us=a.stamp_apart,
+            block_writes=a.block_writes,
+            history_fail=a.history_fail,
+            history_cap=a.history_cap,
+            silent=a.silent,
         )
     except (OSError, ValueError) as e:
         print(f"{prefix('plc_sim.py')}: --data {a.data}: {e}", file=sys.stderr)

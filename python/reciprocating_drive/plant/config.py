@@ -386,7 +386,7 @@ def _distinct_nodes(path: str, s: dict, allowed: str) -> None:
     from asyncua import ua
 
     seen: dict = {}
-    for key in ("angle_node", "speed_node", "force_node", "time_node", "end_node"):
+    for key in ("angle_node", "speed_node", "force_node", "time_node", "seq_node", "end_node"):
         v = s.get(key)
         if v is None:
             continue
@@ -414,6 +414,8 @@ def _opcua_settings(src: _Table, path: str) -> dict:
         "speed_node": src.get("speed_node", str, None),
         "force_node": src.get("force_node", str, None),
         "time_node": src.get("time_node", str, None),  # block mode: the timestamps' array
+        # block mode: the PLC's block counter, written after the arrays ("Sample assembly")
+        "seq_node": src.get("seq_node", str, None),
         "history": src.get("history", bool, True),
         "security_policy": src.choice("security_policy", ("None", "Basic256Sha256"), "None"),
         "security_mode": src.choice("security_mode", ("Sign", "SignAndEncrypt"), "SignAndEncrypt"),
@@ -431,6 +433,9 @@ def _opcua_settings(src: _Table, path: str) -> dict:
         "reconnect_max": src.positive("reconnect_max", 5.0),
         "reconnect_for": src.positive("reconnect_for", 300.0),
         "publishing_interval": src.positive("publishing_interval", 0.05),
+        # docs/plant.md "History" and "Unresponsive server or database"
+        "history_retry_for": src.positive("history_retry_for", 30.0, zero=True),
+        "notice_interval": src.positive("notice_interval", 30.0),
         "end_node": src.get("end_node", str, None),
         # docs/plant.md "Timestamps" and "Sample assembly"
         "clock_tolerance": src.positive("clock_tolerance", 1.0),
@@ -440,6 +445,11 @@ def _opcua_settings(src: _Table, path: str) -> dict:
         "server_uri": src.get("server_uri", str, None),
     }
     _distinct_nodes(path, s, node)
+    if s["seq_node"] and mode != "block":
+        raise ConfigError(
+            f'{path}: source.seq_node = {s["seq_node"]!r}: only with mode = "block" (the block '
+            "counter written after the arrays)"
+        )
     if mode == "block" and not s["time_node"]:
         raise ConfigError(
             f'{path}: source.time_node is missing (mode = "block" needs the timestamps\' array)'

@@ -241,6 +241,8 @@ class Pipeline:
     def run(self) -> int:
         cfg = self.cfg
         self.source = make_source(cfg)
+        if hasattr(self.source, "log"):
+            self.source.log = self.log  # the source's own lines (an unresponsive server)
         self.sinks = make_sinks(cfg)
         try:
             self.page = make_page(cfg, self._on_alarm)

@@ -7,14 +7,17 @@ Nodes (namespace "urn:reciprocating-drive:plc-sim", string ids):
   one value per sample with the sample's time as its SourceTimestamp;
 * block: `Pump.Block.Time` (DateTime[]), `Pump.Block.CrankAngle` (and speed, force),
   rewritten every `block_ms` of data time with the samples since the last block; all arrays of a
-  block carry the same SourceTimestamp;
+  block carry the same SourceTimestamp, or (`block_writes="sequential"`) each array is stamped by
+  the server's clock when it is written, one after another; `Pump.Block.Seq` (UInt32) counts the
+  blocks and is written after a block's arrays;
 * `Pump.Finished` (Boolean): true once the last sample is out.
 
 Every value written is kept in the server's history (OPC UA HistoryRead), unless history is off.
 Sample i carries the timestamp origin + t_i, origin a whole Unix second: a twin that subtracts the
 origin sees the file's own times. Security (optional): Basic256Sha256 Sign or SignAndEncrypt only,
 with a certificate made at run time, and user name + password. Faults for the tests: a sample's
-angle with a bad status, NaN, or a value of the wrong type; an outage (the endpoint closed for some
+angle with a bad status, NaN, a value of the wrong type, two numbers on the scalar node, a 2-D
+block array, no SourceTimestamp; a history that fails or caps its responses; an outage (the endpoint closed for some
 seconds while the PLC goes on recording into its history).
 """
 
@@ -118,6 +121,10 @@ class PlcSim:
     clock_step: tuple | None = None  # (sample, seconds): from that sample on, stamped earlier
     duplicate: tuple | None = None  # (sample, "same" | "other"): its angle written again later
     stamp_apart_us: int = 0  # speed and force stamped this many µs after the angle
+    block_writes: str = "together"  # "sequential": each array stamped by the server at its write
+    history_fail: int = 0  # HistoryRead requests answered BadInternalError first (-1: all)
+    history_cap: int = 0  # values per HistoryRead response at most (0: asyncua's 10 000)
+    silent: bool = False  # accept connections and never answer (no OPC UA at all)
 
     def __post_init__(self):
         self.port = self.port or free_port()
@@ -139,6 +146,9 @@ class PlcSim:
 
     # ---- set-up ---------------------------------------------------------------------------------
     async def start(self) -> None:
+        if self.silent:
+            await self._start_silent()
+            return
         # asyncua's own warnings (self-signed certificate, no encryption) are expected here.
         logging.getLogger("asyncua").setLevel(logging.ERROR)
         users = _Users(self.user, self.password) if self.user else None
@@ -190,8 +200,16 @@ class PlcSim:
                 await var(
                     f"Pump.Block.{name}", [], ua.VariantType.DateTime if name == "Time" else da
                 )
+        await var("Pump.Block.Seq", 0, ua.VariantType.UInt32)
+        self.seq = 0
+        self._last_stamp = None
         await var("Pump.Finished", False, ua.VariantType.Boolean)
         self.storage = srv.iserver.history_manager.storage
+        if self.history_cap:
+            # A server that caps a HistoryRead response: the rest through continuation points.
+            self.storage.max_history_data_response_size = self.history_cap
+        if self.history_fail:
+            self._failing_history(srv.iserver.history_manager)
         if self.history:
             for node in self.nodes.values():
                 # The PLC records every value it writes (not a sampled subscription).
@@ -213,24 +231,64 @@ class PlcSim:
         self.server = srv
         self.log(f"plc_sim: listening on {self.endpoint}", flush=True)
 
+    def _failing_history(self, manager) -> None:
+        """HistoryRead answered BadInternalError (each node of the request) for the first
+        `history_fail` requests, or for all (-1): a server whose history store is failing."""
+        read = manager.read_history
+        self.history_failed = 0
+
+        async def failing(params):
+            if self.history_fail < 0 or self.history_failed < self.history_fail:
+                self.history_failed += 1
+                self.log(f"plc_sim: HistoryRead failed on purpose ({self.history_failed})")
+                return [
+                    ua.HistoryReadResult(StatusCode=ua.StatusCode(ua.StatusCodes.BadInternalError))
+                    for _ in params.NodesToRead
+                ]
+            return await read(params)
+
+        manager.read_history = failing
+
+    async def _start_silent(self) -> None:
+        """A server that accepts TCP connections and never answers (a hung PLC runtime)."""
+        self.conns = []
+
+        async def swallow(reader, writer):
+            self.conns.append(writer)
+            while await reader.read(65536):
+                pass
+
+        self.server = await asyncio.start_server(swallow, "127.0.0.1", self.port)
+        self.log(f"plc_sim: listening on {self.endpoint} (silent: never answers)", flush=True)
+
     def _clear(self, name) -> None:
         att = self.server.iserver.aspace._nodes[self.nodes[name].nodeid].attributes
         att[ua.AttributeIds.Value].value = None
 
-    async def _write(self, name, value, vtype, ts, status=ua.StatusCodes.Good) -> None:
+    async def _write(self, name, value, vtype, ts, status=ua.StatusCodes.Good, dims=None) -> None:
         node = self.nodes[name]
         dv = ua.DataValue(
-            ua.Variant(value, vtype),
+            ua.Variant(value, vtype, Dimensions=dims),
             StatusCode=ua.StatusCode(status),
             SourceTimestamp=ts,
             ServerTimestamp=ts,
         )
         await self.server.write_attribute_value(node.nodeid, dv)
-        if self.history:
+        if self.history and ts is not None:  # a value without a timestamp has no place in it
             await self.storage.save_node_value(node.nodeid, dv)
+
+    def _now(self) -> dt.datetime:
+        """The server's clock at a write, strictly after the previous stamp it gave."""
+        now = dt.datetime.now(dt.UTC)
+        if self._last_stamp is not None and now <= self._last_stamp:
+            now = self._last_stamp + dt.timedelta(microseconds=1)
+        self._last_stamp = now
+        return now
 
     # ---- playing --------------------------------------------------------------------------------
     async def play(self) -> None:
+        if self.silent:
+            return
         await asyncio.sleep(self.start_delay)
         origin = float(math.floor(self.origin if self.origin is not None else time.time() + 1.0))
         self.origin = origin
@@ -274,6 +332,15 @@ class PlcSim:
                     )
                 elif fault == "nan":
                     await self._write("Pump.CrankAngle", math.nan, D, ts)
+                elif fault == "double2":
+                    # Two numbers on the scalar angle node (a PLC writing an array into it).
+                    self._clear("Pump.CrankAngle")
+                    a = float(self.angle[i])
+                    await self._write("Pump.CrankAngle", [a, a], D, ts)
+                    self._clear("Pump.CrankAngle")
+                elif fault == "no_stamp":
+                    # The angle without a SourceTimestamp (a server that leaves it out).
+                    await self._write("Pump.CrankAngle", float(self.angle[i]), D, None)
                 elif fault == "wrong_type":
                     # A PLC program writing text into the angle's tag: the server's type check
                     # is sidestepped (the stored value cleared first) so that the text goes out.
@@ -319,20 +386,37 @@ class PlcSim:
     async def _block(self, lo, hi, origin, ts) -> None:
         D = ua.VariantType.Double
         ang = [float(v) for v in self.angle[lo:hi]]
+        dims = None
         for k in range(lo, hi):
             if self.faults.get(k) == "nan":
                 ang[k - lo] = math.nan
+            if self.faults.get(k) == "block2d":
+                # The block's angle as a 2-D array (n x 1): a PLC writing a matrix.
+                dims = [len(ang), 1]
+        seq = self.block_writes == "sequential"
+
+        def stamp():
+            return self._now() if seq else ts
+
+        # Sequential: time, angle, speed, force, then the counter, one write after another, each
+        # stamped by the server when it is written (as most servers do).
+        times = [self._stamp(origin, v) for v in self.t[lo:hi]]
+        await self._write("Pump.Block.Time", times, ua.VariantType.DateTime, stamp())
+        if dims is not None:
+            self._clear("Pump.Block.CrankAngle")
+        await self._write("Pump.Block.CrankAngle", ang, D, stamp(), dims=dims)
+        if dims is not None:
+            self._clear("Pump.Block.CrankAngle")
         if self.speed_col is not None:
             await self._write(
-                "Pump.Block.CrankSpeed", [float(v) for v in self.speed_col[lo:hi]], D, ts
+                "Pump.Block.CrankSpeed", [float(v) for v in self.speed_col[lo:hi]], D, stamp()
             )
         if self.force_col is not None:
             await self._write(
-                "Pump.Block.ProcessForce", [float(v) for v in self.force_col[lo:hi]], D, ts
+                "Pump.Block.ProcessForce", [float(v) for v in self.force_col[lo:hi]], D, stamp()
             )
-        times = [self._stamp(origin, v) for v in self.t[lo:hi]]
-        await self._write("Pump.Block.Time", times, ua.VariantType.DateTime, ts)
-        await self._write("Pump.Block.CrankAngle", ang, D, ts)
+        self.seq = (self.seq + 1) % 2**32
+        await self._write("Pump.Block.Seq", self.seq, ua.VariantType.UInt32, stamp())
 
     async def _outage(self, seconds: float) -> None:
         """Closes the endpoint (every connection drops, new ones are refused) for `seconds`."""
@@ -348,7 +432,12 @@ class PlcSim:
 
     async def stop(self) -> None:
         if self.server is not None:
-            await self.server.stop()
+            if self.silent:
+                self.server.close()
+                for w in self.conns:
+                    w.close()
+            else:
+                await self.server.stop()
             self.server = None
 
 

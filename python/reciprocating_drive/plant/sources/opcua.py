@@ -29,6 +29,7 @@ import datetime as dt
 import logging
 import math
 import queue
+import sys
 import threading
 import time
 
@@ -137,7 +138,12 @@ class OpcUaSource:
             self.roles["force"] = settings["force_node"]
         if settings["mode"] == "block":
             self.roles["time"] = settings["time_node"]
+            if settings.get("seq_node"):
+                self.roles["seq"] = settings["seq_node"]
         self.block = settings["mode"] == "block"
+        self.join = None
+        # One line for the operator (set by the pipeline; standard error by default).
+        self.log = lambda m: print(m, file=sys.stderr, flush=True)
         self._recent: dict = {}  # SourceTimestamp -> values of samples handed out (bounded)
         self._gone: dict = {}  # the same for samples dropped by the clock's rules
         self._recent_order: collections.deque = collections.deque()
@@ -235,6 +241,7 @@ class OpcUaSource:
             except (TimeoutError, OSError, ConnectionError) as e:
                 reason = reason or (str(e).splitlines()[0] if str(e) else type(e).__name__)
                 lost_at = lost_at or time.monotonic()
+                self._notice(lost_at, e)
                 if time.monotonic() - lost_at > s["reconnect_for"]:
                     raise _Fatal(
                         f"OPC UA source {s['endpoint']}: unreachable for {s['reconnect_for']:g} s "
@@ -255,6 +262,12 @@ class OpcUaSource:
                 except (TimeoutError, OSError, ConnectionError):
                     continue  # the connection went: retried as any lost connection
             self.connected.set()
+            if self._noticed is not None:
+                self.log(
+                    f"OPC UA source {s['endpoint']}: answering again after "
+                    f"{time.monotonic() - lost_at:.3g} s"
+                )
+                self._noticed = None
             delay = 0.2
             try:
                 ended = await self._session(client, None if first else (lost_at, reason))
@@ -276,6 +289,26 @@ class OpcUaSource:
                 return
             return  # stopped by the pipeline
 
+    _noticed = None  # monotonic time of the last "not answering" line
+
+    def _notice(self, since: float, e) -> None:
+        """A line when the server first stops answering (or cannot be reached), then one every
+        notice_interval s while it stays so (docs/plant.md "Unresponsive server or database")."""
+        now = time.monotonic()
+        every = self.s.get("notice_interval", 30.0)
+        if self._noticed is not None and now - self._noticed < every:
+            return
+        why = str(e).splitlines()[0] if str(e) else type(e).__name__
+        if isinstance(e, TimeoutError):
+            why = f"no answer within timeout = {self.s['timeout']:g} s"
+        first = self._noticed is None
+        self._noticed = now
+        self.log(
+            f"OPC UA source {self.s['endpoint']}: "
+            + ("not answering" if first else f"still not answering after {now - since:.0f} s")
+            + f" ({why}); retrying for up to reconnect_for = {self.s['reconnect_for']:g} s"
+        )
+
     async def _check_nodes(self, client) -> None:
         """Every configured node read once before subscribing (docs/plant.md "Start-up
         checks"): it exists, is a Variable, and its DataType and ValueRank fit its role (a number,
@@ -289,6 +322,7 @@ class OpcUaSource:
         block = self.block
         keys = {"angle": "angle_node", "speed": "speed_node", "force": "force_node"}
         keys["time"] = "time_node"
+        keys["seq"] = "seq_node"
         checks = [(keys[role], nid, role) for role, nid in self.roles.items()]
         if s.get("end_node"):
             checks.append(("end_node", s["end_node"], "end"))
@@ -318,6 +352,8 @@ class OpcUaSource:
                 want, ok = "a Boolean", tid in _BOOLEAN_TYPES and not array
             elif role == "time":
                 want, ok = "an array of DateTime", tid in _TIME_TYPES and rank in (1, 0, -2, -3)
+            elif role == "seq":
+                want, ok = "a number (the block counter)", tid in _NUMBER_TYPES and not array
             elif block:
                 want = "an array of numbers (block mode)"
                 ok = tid in _NUMBER_TYPES and rank in (1, 0, -2, -3)
@@ -449,7 +485,11 @@ class OpcUaSource:
             await sub.subscribe_data_change(refused, queuesize=10000)
         if end_node is not None:
             await sub.subscribe_data_change(end_node)
-        self.join = _Joiner(self) if self.block else _ScalarJoiner(self)
+        if "seq" in self.roles:
+            # Kept across reconnections: the counter value last taken is where history starts.
+            self.join = self.join or _SeqJoiner(self)
+        else:
+            self.join = _Joiner(self) if self.block else _ScalarJoiner(self)
         events = []
         if lost is None and getattr(self, "_resumed", False):
             lost = (None, "the twin was restarted")
@@ -463,12 +503,9 @@ class OpcUaSource:
                 msg = f"connection to {self.s['endpoint']} lost ({reason}), back after {down:.3g} s"
             if self.s["history"] and self.last_dt is not None:
                 got = 0
+                since = getattr(self.join, "taken_dt", None) or self.last_dt
                 try:
-                    hist = {}
-                    for role, node in nodes.items():
-                        hist[role] = await node.read_raw_history(
-                            self.last_dt + dt.timedelta(microseconds=1), None
-                        )
+                    hist = await self._history(nodes, since + dt.timedelta(microseconds=1))
                     # Interleave the roles by timestamp, as the subscription would have.
                     merged = sorted(
                         (
@@ -482,8 +519,8 @@ class OpcUaSource:
                     self._process([(role, dv) for _ts, _i, role, dv in merged], events)
                     got = self.samples_out - before
                     msg += f"; {got} missed samples read back from the server's history"
-                except ua.UaStatusCodeError as e:
-                    msg += f"; history not available ({type(e).__name__}): the interval is a gap"
+                except _NoHistory as e:
+                    msg += f"; history not available ({e}): the interval is a gap"
             else:
                 msg += "; no history: the interval is a gap"
             events.insert(
@@ -497,8 +534,11 @@ class OpcUaSource:
                 batch = notes[:]
                 del notes[: len(batch)]
                 self._process(batch, events)
-            elif events:
-                self._emit([], events)
+            else:
+                # Nothing new: what waits for the rest of its group still times out (bounded).
+                self._process([], events)
+                if events:
+                    self._emit([], events)
             events = []
             if finished and (
                 (self.newest_dt is not None and self.newest_dt >= finished[0])
@@ -517,6 +557,50 @@ class OpcUaSource:
                 except (TimeoutError, OSError, ConnectionError, ua.UaError) as e:
                     raise _Lost(str(e).splitlines()[0] if str(e) else type(e).__name__) from None
         return False
+
+    async def _history(self, nodes, start) -> dict:
+        """Every node's history from `start` (asyncua follows the server's continuation points
+        when it caps a response). A failing HistoryRead (BadInternalError, BadTimeout, ...) is
+        retried with the reconnection's doubling delay for up to history_retry_for s before the
+        interval becomes a gap (docs/plant.md "History")."""
+        from asyncua import ua
+
+        s = self.s
+        t0, delay, tries = time.monotonic(), 0.2, 0
+        while True:
+            tries += 1
+            try:
+                hist = {}
+                for role, node in nodes.items():
+                    hist[role] = await asyncio.wait_for(
+                        node.read_raw_history(start, None), s["timeout"] * 4
+                    )
+                if tries > 1:
+                    self.log(
+                        f"OPC UA source {s['endpoint']}: history read on attempt {tries}, "
+                        f"after {time.monotonic() - t0:.3g} s"
+                    )
+                return hist
+            except ua.UaStatusCodeError as e:
+                name = type(e).__name__
+                if name in ("BadHistoryOperationUnsupported", "BadHistoryOperationInvalid"):
+                    raise _NoHistory(name) from None  # not kept at all: retrying cannot help
+                spent = time.monotonic() - t0
+                if spent + delay > s["history_retry_for"]:
+                    self.log(
+                        f"OPC UA source {s['endpoint']}: HistoryRead failed {tries} times over "
+                        f"{spent:.3g} s ({name}); the interval is a gap"
+                    )
+                    raise _NoHistory(
+                        f"{name}, {tries} attempts over {spent:.3g} s (history_retry_for)"
+                    ) from None
+                if tries == 1:
+                    self.log(
+                        f"OPC UA source {s['endpoint']}: HistoryRead failed ({name}); retrying "
+                        f"for up to history_retry_for = {s['history_retry_for']:g} s"
+                    )
+                await asyncio.sleep(delay)
+                delay = min(delay * 2, s["reconnect_max"])
 
     # ---- samples --------------------------------------------------------------------------------
     last_dt = None  # SourceTimestamp of the last sample handed out
@@ -715,6 +799,10 @@ class _Lost(Exception):
     pass
 
 
+class _NoHistory(Exception):
+    pass
+
+
 def _stamp(item):
     return item[0]
 
@@ -813,12 +901,20 @@ class _ScalarJoiner:
 class _Joiner:
     """Values of the nodes with the same SourceTimestamp make one sample (scalar mode) or one
     block (block mode). A group is complete when every node has given its value; groups left
-    incomplete behind a complete one are dropped (a value never came)."""
+    incomplete behind a complete one are dropped (a value never came). A group still incomplete
+    when a value stamped GROUP_WAIT s later has come, or after GROUP_WAIT s of waiting, is dropped
+    and reported while the run goes on; at most MAX_GROUPS wait (docs/plant.md "Sample
+    assembly")."""
+
+    GROUP_WAIT = 1.0
+    MAX_GROUPS = 2000
 
     def __init__(self, src: OpcUaSource):
         self.src = src
         self.roles = set(src.roles)
         self.groups: dict = {}
+        self.arrived: dict = {}  # group -> monotonic time of its first value
+        self.newest = None
 
     def _check(self, role, dv, block):
         from asyncua import ua
@@ -864,6 +960,9 @@ class _Joiner:
                 # Without a SourceTimestamp a value has no sample time: dropped and counted.
                 out_now.append((None, None, None, None, None, f"no SourceTimestamp on {role}"))
                 continue
+            if ts not in self.groups:
+                self.arrived[ts] = time.monotonic()
+                self.newest = ts if self.newest is None else max(self.newest, ts)
             g = self.groups.setdefault(ts, {})
             value, bad = self._check(role, dv, block)
             g[role] = value
@@ -884,25 +983,151 @@ class _Joiner:
             for ts in sorted(self.groups):
                 g = self.groups.pop(ts)
                 out += self._samples(ts, g, g.get("_bad") or "incomplete at the end", block)
+        # What waits too long is reported now, not at the end (bounded in time and memory).
+        now, wait = time.monotonic(), dt.timedelta(seconds=self.GROUP_WAIT)
+        for ts in sorted(self.groups):
+            if not (
+                len(self.groups) > self.MAX_GROUPS
+                or ts + wait <= self.newest
+                or now - self.arrived[ts] >= self.GROUP_WAIT
+            ):
+                break
+            g = self.groups.pop(ts)
+            missing = ", ".join(sorted(self.roles - set(g)))
+            hint = " (block arrays stamped at their writes? see source.seq_node)" if block else ""
+            out += self._samples(
+                ts, g, g.get("_bad") or f"incomplete: no value of {missing} came{hint}", block
+            )
+        for ts in [t for t in self.arrived if t not in self.groups]:
+            del self.arrived[ts]
         return out
 
     def _samples(self, ts, g, bad, block):
-        if not block:
-            return [(ts, ts, g.get("angle"), g.get("speed"), g.get("force"), bad)]
-        times = g.get("time") or []
-        if bad:
-            return [(ts, ts, None, None, None, bad)] * max(1, len(times))
-        n = len(times)
-        arrays = {r: g[r] for r in ("angle", "speed", "force") if r in g}
-        if any(len(a) != n for a in arrays.values()):
-            return [(ts, ts, None, None, None, "arrays of a block differ in length")] * max(1, n)
+        return _block_samples(ts, g, bad, block)
+
+
+def _block_samples(ts, g, bad, block):
+    """The samples of a group: one (scalar mode), or one per element of the block's arrays."""
+    if not block:
+        return [(ts, ts, g.get("angle"), g.get("speed"), g.get("force"), bad)]
+    times = g.get("time") or []
+    if bad:
+        return [(ts, ts, None, None, None, bad)] * max(1, len(times))
+    n = len(times)
+    arrays = {r: g[r] for r in ("angle", "speed", "force") if r in g}
+    if any(len(a) != n for a in arrays.values()):
+        return [(ts, ts, None, None, None, "arrays of a block differ in length")] * max(1, n)
+    out = []
+    for i in range(n):
+        a = arrays["angle"][i]
+        w = arrays["speed"][i] if "speed" in arrays else None
+        f = arrays["force"][i] if "force" in arrays else None
+        why = None
+        if not all(math.isfinite(x) for x in (a, w, f) if x is not None):
+            why = "a value of a block not finite"
+        out.append((times[i], times[i], a, w, f, why))
+    return out
+
+
+class _SeqJoiner:
+    """Block mode with a counter (source.seq_node; docs/plant.md "Sample assembly"): the PLC
+    writes its arrays one after another, each stamped by the server at its write, then the
+    counter. A block is the latest value of each array stamped after the previous counter value
+    and at or before this one; their SourceTimestamps need not be equal. An array missing from a
+    block makes it incomplete (dropped and reported at once); arrays waiting for a counter that
+    does not come within GROUP_WAIT s are dropped too; at most MAX_PENDING wait per node."""
+
+    GROUP_WAIT = 1.0
+    MAX_PENDING = 1000
+
+    def __init__(self, src: OpcUaSource):
+        self.src = src
+        self.arrays = [r for r in src.roles if r != "seq"]
+        self.pending: dict = {r: [] for r in self.arrays}  # (ts, value, bad, arrived)
+        self.counters: collections.deque = collections.deque()  # (ts, value, arrived)
+        self.taken_dt = None  # the stamp of the last counter value taken
+        self.taken_value = None
+        self.check = _Joiner(src)._check
+
+    def feed(self, batch, flush=False):
         out = []
-        for i in range(n):
-            a = arrays["angle"][i]
-            w = arrays["speed"][i] if "speed" in arrays else None
-            f = arrays["force"][i] if "force" in arrays else None
-            why = None
-            if not all(math.isfinite(x) for x in (a, w, f) if x is not None):
-                why = "a value of a block not finite"
-            out.append((times[i], times[i], a, w, f, why))
+        now = time.monotonic()
+        for role, dv in batch:
+            if dv.StatusCode.value == _WAITING:
+                continue
+            ts = dv.SourceTimestamp
+            if ts is None:
+                out.append((None, None, None, None, None, f"no SourceTimestamp on {role}"))
+                continue
+            if self.taken_dt is not None and ts <= self.taken_dt:
+                continue  # taken already (given again by a new subscription or the history)
+            if role == "seq":
+                v = dv.Value.Value if dv.Value is not None else None
+                if not dv.StatusCode.is_good() or not isinstance(v, int) or isinstance(v, bool):
+                    out.append(
+                        (
+                            ts,
+                            ts,
+                            None,
+                            None,
+                            None,
+                            f"the block counter is not a whole number ({v!r})",
+                        )
+                    )
+                    continue
+                if not self.counters or ts > self.counters[-1][0]:
+                    self.counters.append((ts, v, now))
+                continue
+            value, bad = self.check(role, dv, True)
+            q = self.pending[role]
+            bisect.insort_right(q, (ts, value, bad, now), key=_stamp)
+        while self.counters:
+            cts, cv, arrived = self.counters[0]
+            group, extra = {}, []
+            for r in self.arrays:
+                q = self.pending[r]
+                k = bisect.bisect_right(q, cts, key=_stamp)
+                if k:
+                    group[r] = q[k - 1]
+                    extra += [(r, x) for x in q[: k - 1]]
+            complete = len(group) == len(self.arrays)
+            if not (
+                complete or flush or len(self.counters) > 1 or now - arrived >= self.GROUP_WAIT
+            ):
+                break  # the arrays written before this counter value may still be on their way
+            self.counters.popleft()
+            for r in self.arrays:
+                q = self.pending[r]
+                del q[: bisect.bisect_right(q, cts, key=_stamp)]
+            for r, x in extra:
+                # An array written twice before the counter moved: the earlier value is lost.
+                n = len(x[1]) if r == "time" and isinstance(x[1], list) else 1
+                why = f"block overwritten before the counter moved ({r} written twice)"
+                out += [(x[0], x[0], None, None, None, why)] * n
+            prev, self.taken_value, self.taken_dt = self.taken_value, cv, cts
+            g = {r: x[1] for r, x in group.items()}
+            bad = next((x[2] for x in group.values() if x[2]), None)
+            if not complete:
+                missing = ", ".join(r for r in self.arrays if r not in group)
+                bad = bad or (
+                    f"incomplete block: no {missing} array written before counter value {cv}"
+                )
+            if prev is not None and cv != (prev + 1) % 2**32 and cv != prev + 1:
+                self.src.log(
+                    f"OPC UA source {self.src.s['endpoint']}: block counter went from {prev} to "
+                    f"{cv}: the blocks between were not received"
+                )
+            out += _block_samples(cts, g, bad, True)
+        # Arrays that no counter value claims within GROUP_WAIT s: dropped and reported now.
+        for r in self.arrays:
+            q = self.pending[r]
+            while q and (
+                flush
+                or len(q) > self.MAX_PENDING
+                or (now - q[0][3] >= self.GROUP_WAIT and not self.counters)
+            ):
+                ts, v, _bad, _a = q.pop(0)
+                n = len(v) if r == "time" and isinstance(v, list) else 1
+                why = f"block {r} array with no counter change (seq_node) within {self.GROUP_WAIT:g} s"
+                out += [(ts, ts, None, None, None, why)] * n
         return out
