@@ -254,6 +254,7 @@ def parse(data: dict, path: str = "<config>") -> Config:
             "samples": samples,
             "retry_for": s.positive("retry_for", 300.0),
             "retry_max": s.positive("retry_max", 5.0),
+            "notice_interval": s.positive("notice_interval", 30.0),
         }
         pw = None
         if stype_ == "sqlite":

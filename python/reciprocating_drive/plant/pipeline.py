@@ -55,7 +55,9 @@ def make_source(cfg: Config):
 def make_sinks(cfg: Config) -> list:
     out = []
     for s in cfg.sinks:
-        common = {k: s.settings[k] for k in ("samples", "retry_for", "retry_max")}
+        common = {
+            k: s.settings[k] for k in ("samples", "retry_for", "retry_max", "notice_interval")
+        }
         if s.type == "sqlite":
             from .sinks.sqlite import SqliteSink
 
@@ -244,6 +246,8 @@ class Pipeline:
         if hasattr(self.source, "log"):
             self.source.log = self.log  # the source's own lines (an unresponsive server)
         self.sinks = make_sinks(cfg)
+        for s in self.sinks:
+            s.log = self.log  # a database that stops answering (sinks/base.py)
         try:
             self.page = make_page(cfg, self._on_alarm)
             if self.page is not None:

@@ -12,7 +12,9 @@ A commit that fails because the database is unreachable keeps everything in memo
 retries with a bounded back-off (`retry_for` seconds in all, doubling delays up to `retry_max`); a
 commit whose outcome is unknown (the connection died during COMMIT) is settled by reading back the
 checkpoint's commit number. Only when `retry_for` has passed does the run stop, with one line, and
-the database still holds a consistent state to resume from.
+the database still holds a consistent state to resume from. A database that stops answering (a
+call that fails, or one that has not returned for ANSWER_WITHIN s) is a line at once, then one
+every `notice_interval` s while it stays so (docs/plant.md "Unresponsive server or database").
 
 The transactions run on a writer thread, in order, while the pipeline computes the next chunk
 (the database's own work releases Python's lock, and the machine has a second core). At most
@@ -25,6 +27,7 @@ from __future__ import annotations
 import functools
 import json
 import queue
+import sys
 import threading
 import time
 from dataclasses import dataclass, field
@@ -77,11 +80,25 @@ class Sink:
     name = "sink"
     transient: tuple = ()  # exceptions meaning "the database is unreachable now"
 
+    ANSWER_WITHIN = 5.0  # s a database call may take before it counts as not answering
+
     def __init__(
-        self, samples="all", retry_for: float = 300.0, retry_max: float = 5.0, depth: int = 2
+        self,
+        samples="all",
+        retry_for: float = 300.0,
+        retry_max: float = 5.0,
+        depth: int = 2,
+        notice_interval: float = 30.0,
     ):
         self.samples = samples
         self.retry_for, self.retry_max = retry_for, retry_max
+        self.notice_interval = notice_interval
+        self.log = lambda m: print(m, file=sys.stderr, flush=True)  # set by the pipeline
+        self._busy_since = None  # monotonic start of the database call under way
+        self._down_since = None  # since when the database has not answered
+        self._noticed = None  # when the last "not answering" line was printed
+        self._watch_lock = threading.Lock()
+        self._watchdog = None
         self.batch = _Batch()
         self.done = Counters()  # what the database holds (from its checkpoint)
         self.skip = Counters()  # what it held when the run resumed: not handed to it again
@@ -198,18 +215,62 @@ class Sink:
             if self._error is not None:
                 return
 
+    def _notice(self, why: str) -> None:
+        """The "not answering" line: at once, then every notice_interval s while it lasts."""
+        now = time.monotonic()
+        with self._watch_lock:
+            if self._noticed is not None and now - self._noticed < self.notice_interval:
+                return
+            first = self._down_since is None
+            self._down_since = self._down_since or now
+            self._noticed = now
+            since = now - self._down_since
+        self.log(
+            f"{self.name}: "
+            + ("not answering" if first else f"still not answering after {since:.0f} s")
+            + f" ({why}); retrying for up to retry_for = {self.retry_for:g} s"
+        )
+
+    def _answered(self) -> None:
+        with self._watch_lock:
+            down, self._down_since, self._noticed = self._down_since, None, None
+        if down is not None:
+            self.log(f"{self.name}: answering again after {time.monotonic() - down:.3g} s")
+
+    def _watch(self) -> None:
+        """A call that hangs (a server stopped, a network that drops packets) gives no error
+        to retry on: its lines come from here."""
+        while True:
+            time.sleep(0.25)
+            busy = self._busy_since
+            if busy is not None and time.monotonic() - busy >= self.ANSWER_WITHIN:
+                self._notice(f"a call has not returned for {time.monotonic() - busy:.0f} s")
+
+    def _call(self, fn):
+        if self._watchdog is None:
+            self._watchdog = threading.Thread(target=self._watch, name="sink watch", daemon=True)
+            self._watchdog.start()
+        self._busy_since = time.monotonic()
+        try:
+            out = fn()
+        finally:
+            self._busy_since = None
+        self._answered()
+        return out
+
     def _retrying(self, fn, settled=None):
         start, delay, reconnect = time.monotonic(), 0.05, False
         while True:
             try:
                 if reconnect:
-                    self._connect()
+                    self._call(self._connect)
                     reconnect = False
                     if settled is not None and settled():
                         return None
-                return fn()
+                return self._call(fn)
             except self.transient as e:
                 first_line = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+                self._notice(first_line)
                 if time.monotonic() - start > self.retry_for:
                     raise SinkError(
                         f"{self.name}: unreachable for {self.retry_for:g} s (retry_for), giving up: "

@@ -61,6 +61,12 @@ class PostgresSink(Sink):
             # A refusal is not an outage: retrying cannot help.
             if any(k in text for k in ("authentication failed", "does not exist", "no password")):
                 raise SinkError(f"{self.name}: refused: {text}") from None
+            if "does not support SSL" in text:
+                raise SinkError(
+                    f"{self.name}: refused: the server does not support SSL, and the connection "
+                    "string asks for it (sslmode); turn SSL on in the server, or change sslmode "
+                    "in dsn"
+                ) from None
             raise
 
     def _open_run(self, run: RunInfo):
