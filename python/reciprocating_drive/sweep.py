@@ -40,7 +40,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from .cli_errors import UserError, show
+from .cli_errors import RunFailed, UserError, show
 from .revolution import TWO_PI, summarize_revolutions
 from .study import SPEED_PARAMETERS, Study, check_fmu
 
@@ -323,6 +323,18 @@ class SweepError(UserError):
     answer): one line saying what and what to do."""
 
 
+class ClusterStartError(SweepError):
+    """The local Dask cluster could not start: its worker processes died while starting (killed
+    by the system, out of memory). Not an input error: exit code 1 (docs/install.md)."""
+
+    exit_code = RunFailed.exit_code
+
+
+#: Attempts to start a LocalCluster whose workers die while starting (a worker killed once by the
+#: system should not end a sweep; one that dies every time is reported).
+CLUSTER_ATTEMPTS = 2
+
+
 def fingerprint(study: Study, fmu_path: str | pathlib.Path) -> str:
     """What produced a result row: 12 hex digits of the study's content (study.content_hash), a
     dash, 8 of the FMU's GUID and version. Two parts, so a mismatch can say which changed."""
@@ -573,14 +585,29 @@ def _client(scheduler: str | None, workers: int | None, connect_timeout: float):
     old_env = {k: os.environ.get(k) for k in env}
     os.environ.update(env)
     try:
-        cluster = LocalCluster(
-            n_workers=n,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=":0",
-            host="127.0.0.1",
-            preload=[__name__],  # dask_setup below: the workers ignore Ctrl-C
-        )
+        for attempt in range(1, CLUSTER_ATTEMPTS + 1):
+            try:
+                cluster = LocalCluster(
+                    n_workers=n,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=":0",
+                    host="127.0.0.1",
+                    preload=[__name__],  # dask_setup below: the workers ignore Ctrl-C
+                )
+                break
+            except RuntimeError as e:
+                # distributed says "Nanny failed to start." when a worker process dies (is
+                # killed) before it has started; it cleans up what it had started itself.
+                if "failed to start" not in str(e) or attempt == CLUSTER_ATTEMPTS:
+                    if "failed to start" not in str(e):
+                        raise
+                    raise ClusterStartError(
+                        f"the local Dask cluster ({n} worker processes) could not start: a worker "
+                        f"process died while starting ({e}), {CLUSTER_ATTEMPTS} times; check the "
+                        "memory free and the system log (a process killed), or use fewer "
+                        "--workers"
+                    ) from None
     finally:
         for k, v in old_env.items():
             if v is None:

@@ -239,7 +239,7 @@ def _compute_quietly(a, sc, pieces, todo, work, progress, stopping, asm) -> int 
         client, cluster = _client(a.scheduler, a.workers, a.connect_timeout)
     except SweepError as e:
         print(f"{prefix('twin.py')}: {e}", file=err)
-        return 2
+        return e.exit_code  # 2, or 1 for a local cluster whose workers die while starting
     try:
         try:
             key = prepare_workers(client, a.fmu)
