@@ -4,7 +4,9 @@ duplicate, speed and force stamped apart from the angle, and pairs of them). The
 docs/plant.md "Final status": the run ends `finished` with exit 0, and every sample the PLC wrote
 is stored or counted in a `dropped` event; the summary line gives the same counts. Bounded in time:
 4 s of data (a crank at constant speed, speed and force nodes that stay constant for seconds)
-played 4x, RD_HOSTILE_EXAMPLES examples (default 6), about 10 s each."""
+played 4x, RD_HOSTILE_EXAMPLES examples (default 6), about 10 s each. A second property generates
+the mode (scalar, block, block joined by the counter node), odd values and an outage whose history
+fails or caps its responses: RD_HOSTILE_PLANTS examples (default 6), about 12 s each."""
 
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ import os
 
 import plant_util as pu
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
 SAMPLES = 4000
@@ -131,7 +133,17 @@ def plants(draw):
     return mode, faults, draw(history)
 
 
-EXTRA = settings(HYPOTHESIS, max_examples=int(os.environ.get("RD_HOSTILE_PLANTS", "6")))
+# Without shrinking: a failing example is printed as generated (each costs about 12 s; shrinking
+# one took more than 5 minutes).
+EXTRA = settings(
+    HYPOTHESIS,
+    max_examples=int(os.environ.get("RD_HOSTILE_PLANTS", "6")),
+    phases=(Phase.explicit, Phase.reuse, Phase.generate),
+)
+#: Samples whose data time falls in the outage (--outage 1.2:0.8 at --speed 2: from 1.2 s for
+#: about 1.6 s of data, with margins): an angle without SourceTimestamp written then cannot be in
+#: the PLC's history (it has no time to be found by), so it is never delivered to the twin.
+OUTAGE_SAMPLES = range(1100, 3000)
 
 
 @EXTRA
@@ -195,9 +207,10 @@ def test_generated_blocks_history_and_odd_values_lose_nothing_silently(
     counted = stored + sum(v for k, v in drops.items() if k != SAME)
     assert counted <= SAMPLES, (plant, stored, drops)
     history_gap = any(e[1] == "reconnect" and "the interval is a gap" in e[3] for e in ev)
-    if counted < SAMPLES:
+    undeliverable = sum(k == "no_stamp" and i in OUTAGE_SAMPLES for i, k in faults)
+    if counted < SAMPLES - undeliverable:
         # Samples never delivered: only when the history was not read, and a gap says so.
         assert history_gap and any(e[1] == "gap" for e in ev), (plant, stored, drops, ev)
     if hist is None or hist[1] != "always":
-        assert counted == SAMPLES, (plant, stored, drops)
+        assert SAMPLES - undeliverable <= counted, (plant, stored, drops)
     assert f"{stored} samples stored, {sum(drops.values())} dropped" in err, (plant, err)

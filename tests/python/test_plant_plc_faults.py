@@ -287,3 +287,39 @@ def test_server_that_never_answers_gives_a_line_at_once_then_every_notice_interv
     assert p.returncode == 1, got
     assert any("unreachable for 8 s (reconnect_for)" in x for _t, x in got), got
     assert not any("Traceback" in x for _t, x in got), got
+
+
+def test_incomplete_groups_and_unclaimed_arrays_stay_bounded_in_memory():
+    # A server that floods the source with values that never complete a group (time arrays only,
+    # each with its own stamp, faster than GROUP_WAIT lets them go): what waits stays bounded and
+    # every one comes out as a counted drop. Real asyncua DataValues, the source's own joiners.
+    import datetime as dt
+
+    from asyncua import ua
+    from reciprocating_drive.plant.sources import opcua as O
+
+    t0 = dt.datetime(2026, 1, 1, tzinfo=dt.UTC)
+
+    def array_dv(k):
+        ts = t0 + dt.timedelta(microseconds=k)  # 1 µs apart: none older than GROUP_WAIT
+        return ua.DataValue(ua.Variant([ts, ts], ua.VariantType.DateTime), SourceTimestamp=ts)
+
+    settings = {
+        "mode": "block",
+        "angle_node": "ns=2;s=A",
+        "time_node": "ns=2;s=T",
+        "seq_node": "ns=2;s=S",
+    }
+    for joiner, limit, waiting in (
+        (O._Joiner, O._Joiner.MAX_GROUPS, lambda j: len(j.groups)),
+        (O._SeqJoiner, O._SeqJoiner.MAX_PENDING, lambda j: len(j.pending["time"])),
+    ):
+        src = O.OpcUaSource(dict(settings, seq_node=settings["seq_node"]))
+        j = joiner(src)
+        out, most = 0, 0
+        for k in range(0, 30000, 100):
+            out += len(j.feed([("time", array_dv(k + i)) for i in range(100)]))
+            most = max(most, waiting(j))
+        assert most <= limit + 100, (joiner.__name__, most)
+        out += len(j.feed([], flush=True))
+        assert out == 30000 * 2, (joiner.__name__, out)  # two samples per time array, all dropped

@@ -571,7 +571,11 @@ class OpcUaSource:
             tries += 1
             try:
                 hist = {}
-                for role, node in nodes.items():
+                # The block counter first: the PLC goes on writing while the nodes are read one
+                # after another, and every array of a counter value read is written before it,
+                # so it is in the arrays' reads that follow (not so the other way round).
+                order = sorted(nodes.items(), key=lambda x: x[0] != "seq")
+                for role, node in order:
                     hist[role] = await asyncio.wait_for(
                         node.read_raw_history(start, None), s["timeout"] * 4
                     )
@@ -1075,12 +1079,16 @@ class _SeqJoiner:
                         )
                     )
                     continue
-                if not self.counters or ts > self.counters[-1][0]:
-                    self.counters.append((ts, v, now))
+                k = bisect.bisect_left(self.counters, ts, key=_stamp)
+                if k == len(self.counters) or self.counters[k][0] != ts:
+                    self.counters.insert(k, (ts, v, now))  # in stamp order, each write once
                 continue
             value, bad = self.check(role, dv, True)
             q = self.pending[role]
-            bisect.insort_right(q, (ts, value, bad, now), key=_stamp)
+            k = bisect.bisect_left(q, ts, key=_stamp)
+            if k < len(q) and q[k][0] == ts:
+                continue  # the same write again (the history, then the subscription)
+            q.insert(k, (ts, value, bad, now))
         while self.counters:
             cts, cv, arrived = self.counters[0]
             group, extra = {}, []
