@@ -323,3 +323,17 @@ def test_incomplete_groups_and_unclaimed_arrays_stay_bounded_in_memory():
         assert most <= limit + 100, (joiner.__name__, most)
         out += len(j.feed([], flush=True))
         assert out == 30000 * 2, (joiner.__name__, out)  # two samples per time array, all dropped
+
+
+def test_seq_node_in_scalar_mode_is_one_line_exit_2(tmp_path):
+    cfg = pu.write_config(
+        tmp_path / "s.toml",
+        source=_source(
+            "opc.tcp://127.0.0.1:1/plc", "scalar", 'seq_node = "ns=2;s=Pump.Block.Seq"\n'
+        ),
+        sinks=pu.sqlite_sink(tmp_path / "s.sqlite"),
+    )
+    p = pu.run(cfg, timeout=60)
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and len(lines) == 1, p.stderr
+    assert "source.seq_node = 'ns=2;s=Pump.Block.Seq': only with mode = \"block\"" in lines[0]
