@@ -46,10 +46,10 @@ import time
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
 import numpy as np  # noqa: E402
-from reciprocating_drive import batch, sweep  # noqa: E402
-from reciprocating_drive.fmu import Fmu  # noqa: E402
+from reciprocating_drive.fmu import Fmu, batch  # noqa: E402
 from reciprocating_drive.revolution import TWO_PI  # noqa: E402
-from reciprocating_drive.study import load_study, study_from_dict  # noqa: E402
+from reciprocating_drive.sweeps import sweep  # noqa: E402
+from reciprocating_drive.sweeps.study import load_study, study_from_dict  # noqa: E402
 
 STUDIES = ("unb600a_friction", "kvo630_resonance", "default_balancer")
 
@@ -140,7 +140,7 @@ def native_floor_run(fmu: Fmu, study, cases: list[int]):
     """(a'): a function that makes the cases' calls from native code alone once
     (fmi2_batch_cases on value rows prepared beforehand, 256 cases per call into one reused
     output array) and returns its (wall, CPU) seconds."""
-    from reciprocating_drive import sweep_cases
+    from reciprocating_drive.sweeps import cases as sweep_cases
 
     p = sweep_cases._prepared(fmu, study, sweep.OUTPUTS)
     params = study.case_array(cases)

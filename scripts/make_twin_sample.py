@@ -15,7 +15,7 @@ import sys
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
-from reciprocating_drive.twin_sample import encoder_samples  # noqa: E402
+from reciprocating_drive.twin.sample import encoder_samples  # noqa: E402
 
 
 def main(argv=None) -> int:

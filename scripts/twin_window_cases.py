@@ -29,7 +29,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
 from reciprocating_drive.fmu import Fmu  # noqa: E402
 from reciprocating_drive.twin import Options, Twin  # noqa: E402
-from reciprocating_drive.twin_sample import crank_slider_acceleration, truth  # noqa: E402
+from reciprocating_drive.twin.sample import crank_slider_acceleration, truth  # noqa: E402
 
 WINDOW = 0.05
 

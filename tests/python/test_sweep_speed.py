@@ -12,9 +12,10 @@ import struct
 import numpy as np
 import pytest
 from conftest import ROOT
-from reciprocating_drive import sweep, sweep_cases
-from reciprocating_drive.study import load_study, study_from_dict
-from reciprocating_drive.sweep import OUTPUTS, _summary_metrics, run_batch
+from reciprocating_drive.sweeps import cases as sweep_cases
+from reciprocating_drive.sweeps import sweep
+from reciprocating_drive.sweeps.study import load_study, study_from_dict
+from reciprocating_drive.sweeps.sweep import OUTPUTS, _summary_metrics, run_batch
 
 ALL_METRICS = [
     "friction_work",

@@ -25,11 +25,11 @@ import pytest
 from conftest import ROOT
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from reciprocating_drive import conditioning as cond
-from reciprocating_drive import replay as R
 from reciprocating_drive.fmu import Fmu
 from reciprocating_drive.twin import CheckpointError, Options, Twin
-from reciprocating_drive.twin_sample import crank_slider_acceleration, encoder_samples, truth
+from reciprocating_drive.twin import conditioning as cond
+from reciprocating_drive.twin import replay as R
+from reciprocating_drive.twin.sample import crank_slider_acceleration, encoder_samples, truth
 
 TWO_PI = 2 * math.pi
 #: The fewest samples a window may hold, and the most a sparse one reaches to either side

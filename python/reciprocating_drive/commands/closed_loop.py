@@ -84,7 +84,7 @@ def parser(prog: str = PROG) -> ArgumentParser:
 def overrides(items: list[str], fmu_dir: pathlib.Path) -> dict:
     """--set pump.mass.reciprocating=350 → {"pump": {"mass.reciprocating": 350.0}}, each value
     checked against the FMU's type and range."""
-    from ..study import model_parameters
+    from ..sweeps.study import model_parameters
 
     out = {"pump": {}, "drivetrain": {}}
     for item in items:
@@ -162,8 +162,7 @@ def _main(argv, prog: str = PROG) -> int:
             raise UserError(f"--fmu-dir {a.fmu_dir}: no {fmu}; build it with scripts/build-fmu.sh")
     if a.importer == "libcosim":
         require_libcosim()
-    from ..presets import read_ssv
-    from ..system import (
+    from ..closed_loop.system import (
         SSD,
         LoopFailed,
         build_ssp,
@@ -177,6 +176,7 @@ def _main(argv, prog: str = PROG) -> int:
         start_values,
         write_series,
     )
+    from ..presets import read_ssv
 
     extra = overrides(a.set, a.fmu_dir)
     pump = {**read_ssv(SSD.parent / "pump.ssv"), **extra["pump"]}
@@ -221,7 +221,7 @@ def _main(argv, prog: str = PROG) -> int:
     failure = None
     try:
         if a.importer == "model-exchange":
-            from reciprocating_drive.me_loop import run_model_exchange
+            from ..closed_loop.me_loop import run_model_exchange
 
             r = run_model_exchange(np.arange(1, n + 1) * h, pump, drive, a.fmu_dir)
         else:

@@ -29,7 +29,7 @@ from ..cli_errors import (
     positive_float,
     run_cli,
 )
-from ..study import DEFAULT_MAX_CASES, check_fmu, load_study
+from ..sweeps.study import DEFAULT_MAX_CASES, check_fmu, load_study
 from . import prefix
 
 PROG = "sweep.py"
@@ -123,12 +123,12 @@ def _main(argv, prog: str) -> int:
     # Everything is validated before a cluster starts (docs/sweeps.md "Errors and exit codes").
     study = load_study(a.study, fmu=a.fmu, max_cases=max_cases)
     if a.scheduler is not None:
-        from ..sweep import scheduler_address
+        from ..sweeps.sweep import scheduler_address
 
         scheduler_address(a.scheduler)
 
-    from ..sweep import Progress, load_rows, run_sweep, warnings
-    from ..sweep_plot import plot_sweep
+    from ..sweeps.plots import plot_sweep
+    from ..sweeps.sweep import Progress, load_rows, run_sweep, warnings
 
     for w in warnings(study):
         print(f"warning: {w}", flush=True)

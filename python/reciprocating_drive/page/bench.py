@@ -25,8 +25,8 @@ import numpy as np
 import psutil
 
 from ..alarms import load_limits
-from ..twin import Options, Twin
-from ..twin_sample import truth
+from ..twin.core import Options, Twin
+from ..twin.sample import truth
 from .server import PageServer
 
 ROOT = Path(__file__).resolve().parents[3]

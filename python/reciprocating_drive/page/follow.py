@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from ..twin import SUMMARY_FIELDS
+from ..twin.core import SUMMARY_FIELDS
 from .history import HistoryError
 
 
@@ -25,7 +25,7 @@ def elastic_of(machine: str) -> bool | None:
     value, read from the model description. None when it cannot be told (the page then shows
     what an elastic rod has too)."""
     from ..presets import preset_values
-    from ..study import MODEL_DESCRIPTION
+    from ..sweeps.study import MODEL_DESCRIPTION
 
     try:
         kind = preset_values(machine).get("rod.kind")

@@ -22,8 +22,8 @@ import time
 import traceback
 
 from ..cli_errors import one_line
-from ..fmu import FmuError
-from ..twin import DataError, Options, Twin
+from ..fmu.instance import FmuError
+from ..twin.core import DataError, Options, Twin
 from .config import Config, ConfigError, load
 from .samples import Event
 from .sinks.base import Counters, RunInfo, SinkError

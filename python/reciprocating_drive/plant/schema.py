@@ -11,7 +11,7 @@ wall-clock times are Unix seconds.
 
 from __future__ import annotations
 
-from ..twin import SUMMARY_FIELDS
+from ..twin.core import SUMMARY_FIELDS
 
 SCHEMA_VERSION = 2
 

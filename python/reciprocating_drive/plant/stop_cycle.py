@@ -14,7 +14,7 @@ import pathlib
 
 import numpy as np
 
-from ..twin_sample import CYCLE, cycle_truth
+from ..twin.sample import CYCLE, cycle_truth
 
 RATE = 1000.0
 COUNTS = 4096

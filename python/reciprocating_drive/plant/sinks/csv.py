@@ -18,8 +18,8 @@ import pathlib
 
 import numpy as np
 
-from ...batch import format_csv
-from ...twin import SUMMARY_FIELDS, summary_header
+from ...fmu.batch import format_csv
+from ...twin.core import SUMMARY_FIELDS, summary_header
 from .base import RunInfo, Sink, SinkError, parse_state
 
 FORMAT = "rdrive-plant-csv-sink"

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from ...twin import SUMMARY_FIELDS
+from ...twin.core import SUMMARY_FIELDS
 from ..schema import SCHEMA_VERSION, column, ddl, insert_events, upsert_checkpoint
 from .base import RunInfo, Sink, SinkError, parse_state, uncovered
 

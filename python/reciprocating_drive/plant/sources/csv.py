@@ -7,7 +7,7 @@ from __future__ import annotations
 import time
 
 from ... import timestamps
-from ...twin import detect_separator
+from ...twin.core import detect_separator
 from ..samples import Chunk
 
 

@@ -17,8 +17,8 @@ import queue
 import sys
 import threading
 
-from ...line_input import InputChanged, chunks_of
-from ...twin import DataError
+from ...twin.core import DataError
+from ...twin.line_input import InputChanged, chunks_of
 from ..samples import Chunk
 
 

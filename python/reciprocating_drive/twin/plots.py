@@ -14,8 +14,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .plots import span_axis  # noqa: E402
-from .twin import column_name  # noqa: E402
+from ..plots import span_axis  # noqa: E402
+from .core import column_name  # noqa: E402
 
 
 def read_columns(path) -> dict:

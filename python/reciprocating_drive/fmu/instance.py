@@ -26,7 +26,7 @@ from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from . import artifacts
+from .. import artifacts
 
 DEFAULT_FMU = artifacts.fmu()
 

@@ -40,8 +40,8 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from .cli_errors import UserError, show
-from .revolution import TWO_PI, summarize_revolutions
+from ..cli_errors import UserError, show
+from ..revolution import TWO_PI, summarize_revolutions
 from .study import SPEED_PARAMETERS, Study, check_fmu
 
 #: Outputs read at every step of a case.
@@ -66,7 +66,7 @@ _MAX_BATCH = 20_000
 
 def _worker_fmu(path: str):
     """The FMU of this worker process, loaded once and reused by every case (fmi2Reset between)."""
-    from .fmu import Fmu
+    from ..fmu.instance import Fmu
 
     f = _FMUS.get(path)
     if f is None:
@@ -207,11 +207,11 @@ def run_batch(
     batch driver with the metrics computed for the whole batch at once (sweep_cases.py);
     `reference=True` runs the reference path instead, one FMU call per step from Python
     (`run_case`), whose rows are the same bit for bit (but for the timings)."""
-    from .fmu import FmuError
-    from .sweep_cases import run_cases
+    from ..fmu.instance import FmuError
+    from .cases import run_cases
 
     if shipped:
-        from .cluster import local_fmu
+        from ..cluster import local_fmu
 
         fmu_path = local_fmu(fmu_path)
     fmu = _worker_fmu(fmu_path)
@@ -247,12 +247,12 @@ def run_batch_csv(
     (columns `cols`, which are `columns(study)`; fingerprint `fp`), formatted on the worker: the
     client only appends them, so it takes no share of the cores from the workers. Returns (text,
     rows, Σ seconds in FMU calls, seconds of the whole task but loading the FMU)."""
-    from .sweep_cases import run_cases
+    from .cases import run_cases
 
     if cols != columns(study):
         raise ValueError("run_batch_csv: the columns are not the study's")
     if shipped:
-        from .cluster import local_fmu
+        from ..cluster import local_fmu
 
         fmu_path = local_fmu(fmu_path)
     fmu = _worker_fmu(fmu_path)
@@ -275,7 +275,7 @@ def _csv_lines(res, worker: str, fp: str) -> str:
     fingerprint `fp`, byte for byte: the numbers formatted natively as repr writes them
     (batch.format_csv: csv.writer writes a float as its repr), the text cells as csv.writer
     quotes them, once per distinct value."""
-    from . import batch
+    from ..fmu import batch
 
     study = res.study
     if not res.cases:
@@ -667,7 +667,7 @@ def run_sweep(
     # workers run here and open the FMU's path.
     fmu_ref, shipped = fmu_path, False
     if scheduler:
-        from .cluster import WorkerMismatch, prepare_workers
+        from ..cluster import WorkerMismatch, prepare_workers
 
         try:
             fmu_ref, shipped = prepare_workers(client, fmu_path), True

@@ -19,7 +19,7 @@ import pathlib
 
 import numpy as np
 
-from . import artifacts
+from .. import artifacts
 
 DEFAULT_LIB = artifacts.batch_library()
 

@@ -49,9 +49,9 @@ from functools import cache
 
 import numpy as np
 
-from . import artifacts
-from .cli_errors import UserError, show
-from .presets import preset_values
+from .. import artifacts
+from ..cli_errors import UserError, show
+from ..presets import preset_values
 
 #: The model description of this repository (equal to the built FMU's), or of the FMU an installed
 #: package carries; studies are validated against the FMU they run on when it is given.
@@ -520,7 +520,7 @@ def study_from_dict(
     try:
         base = preset_values(machine)
     except KeyError:
-        from .presets import available_presets
+        from ..presets import available_presets
 
         raise StudyError(
             f"{where}: machine = {show(doc.get('machine'))}; allowed: "

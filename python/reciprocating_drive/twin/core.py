@@ -41,13 +41,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..fmu.batch import local_cubic, parse_csv
+from ..fmu.instance import Fmu, FmuError
+from ..presets import available_presets, preset_values
+from ..revolution import TWO_PI, revolution_table
+from ..timestamps import LOOKS_ISO, Clock, TimestampError
+from ..timestamps import zone as time_zone
 from . import conditioning as cond
-from .batch import local_cubic, parse_csv
-from .fmu import Fmu, FmuError
-from .presets import available_presets, preset_values
-from .revolution import TWO_PI, revolution_table
-from .timestamps import LOOKS_ISO, Clock, TimestampError
-from .timestamps import zone as time_zone
 
 INPUTS = ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")
 

@@ -31,9 +31,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import batch
-from .fmu import FmuError
-from .revolution import TWO_PI, _degrees, _refined_peaks
+from ..fmu import batch
+from ..fmu.instance import FmuError
+from ..revolution import TWO_PI, _degrees, _refined_peaks
 
 #: Samples × outputs per block of cases whose metrics are computed together (about 16 MB).
 _BLOCK_VALUES = 2_000_000

@@ -15,7 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .plots import MIN_SPAN, y_range  # noqa: E402
+from ..plots import MIN_SPAN, y_range  # noqa: E402
 from .study import Study  # noqa: E402
 
 #: SI unit -> (display unit, factor) for parameters (docs/fmi-interface.md "Units").

@@ -9,7 +9,7 @@ import select
 import stat
 import time
 
-from .twin import DataError
+from .core import DataError
 
 
 class InputChanged(Exception):
