@@ -27,10 +27,7 @@ from ..twin.core import DataError, Options, Twin
 from .config import Config, ConfigError, load
 from .samples import Event
 from .sinks.base import Counters, RunInfo, SinkError
-
-
-class SourceError(RuntimeError):
-    """A source that cannot go on or refuses us (one line; never a secret)."""
+from .sources.base import SourceError
 
 
 def make_source(cfg: Config):

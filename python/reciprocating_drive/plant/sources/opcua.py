@@ -173,7 +173,7 @@ class OpcUaSource:
 
     def _raise(self, e):
         from ..config import ConfigError
-        from ..pipeline import SourceError
+        from .base import SourceError
 
         if isinstance(e, ConfigError):  # a configured node the server does not have: exit 2
             raise ConfigError(str(e)) from None

@@ -42,7 +42,7 @@ class StreamSource:
         self.raw = None
 
     def start(self, lines_read: int = 0, last_t=None, time_origin=None) -> None:
-        from ..pipeline import SourceError
+        from .base import SourceError
 
         if self.stdin and lines_read > 0:
             raise SourceError(
