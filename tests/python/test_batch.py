@@ -1,4 +1,4 @@
-"""The native batch driver (tools/fmi2-batch, python/reciprocating_drive/batch.py) against an
+"""The native batch driver (tools/fmi2-batch, python/reciprocating_drive/fmu/batch.py) against an
 independent path through the same FMU: fmpy's ctypes functions called once per sample
 (`Channel.advance`, `set_inputs`, `read`, `step`). Results must be identical bit for bit, a failing
 call in the middle of a batch must stop it at the right sample with the FMU's own message, and the

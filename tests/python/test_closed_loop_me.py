@@ -1,4 +1,4 @@
-"""The closed loop solved exactly (python/reciprocating_drive/me_loop.py): the pump and the drive
+"""The closed loop solved exactly (python/reciprocating_drive/closed_loop/me_loop.py): the pump and the drive
 train as FMI 3.0 Model Exchange FMUs in one ODE (scipy DOP853), the torque–acceleration loop
 solved at every evaluation. Against the monolithic ODE of test_closed_loop.py (written there from
 the formulas, independent of both FMUs) the crank speed must agree to 1e-6 of its mean over 10 s

@@ -1,5 +1,5 @@
 """The digital twin (docs/twin.md) through its command line, against a truth independent of its
-code: the crank motion of python/reciprocating_drive/twin_sample.py in closed form and the
+code: the crank motion of python/reciprocating_drive/twin/sample.py in closed form and the
 crank-slider's acceleration a = TF·ε + TF′·ω² in closed form (docs/model.md §3.1).
 
 * exact, noise-free wrapped angles at 1 kHz, no speed channel: the suspension acceleration within

@@ -3,7 +3,7 @@ acceleration come from the samples within ±window/2 of its own time, so they do
 where the record starts, on its first interval or on the jitter.
 
 * The accuracy table of docs/twin.md, against the closed-form crank state of
-  python/reciprocating_drive/twin_sample.py (independent of the twin), reproduced with a first
+  python/reciprocating_drive/twin/sample.py (independent of the twin), reproduced with a first
   interval of 40 ms, one of 1 µs, ±30 % timestamp jitter and a start in the middle of the
   record: every figure within 10 % of the clean record's.
 * A record and slices of it started at 50 random samples (and runs resumed from checkpoints):

@@ -13,6 +13,8 @@ docs/fmi-interface.md "Directional derivatives"), and the loop's solution, one N
 ε ← ε − r/(1 − b·k) on r(ε) = ε − (a + b·T(ε)), is set into both FMUs (guide friction makes T(ε)
 piecewise affine: further Newton steps end on the right piece). There is no stability condition:
 ρ_eff ≥ 1, which makes the co-simulation diverge, is just another machine here.
+
+Layer: workflows, the closed loop (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -11,6 +11,8 @@ and parameter sets for each component) as a .ssp archive; `run_libcosim` and `ru
 it with the two importers. Both masters are Jacobi schemes: every FMU steps with the inputs the
 other produced at the previous communication point, which breaks the algebraic loop
 (crank.torque depends directly on crank.acceleration) with a delay of one step.
+
+Layer: workflows, the closed loop (docs/architecture.md).
 """
 
 from __future__ import annotations

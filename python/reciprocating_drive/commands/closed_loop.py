@@ -13,7 +13,11 @@ torque and power, δ per revolution).
 
 Exit codes: 0 done, 1 the loop failed or diverged (the message names docs/closed-loop.md's
 stability condition ρ_eff < 1), 2 a user error, 70 an internal error, 130 stopped.
+
+Layer: commands (docs/architecture.md).
 """
+
+# Layer: commands (docs/architecture.md); a comment, as --help prints the docstring.
 
 from __future__ import annotations
 

@@ -1,6 +1,9 @@
 """`rdrive twin --distributed`: a recorded file replayed in pieces on Dask (docs/twin.md
 "Distributed replay"). The output files are those of the sequential replay: identical byte for
-byte for a rigid rod, within 1e-8 rad of rod.angle for an elastic rod."""
+byte for a rigid rod, within 1e-8 rad of rod.angle for an elastic rod.
+
+Layer: commands (docs/architecture.md).
+"""
 
 from __future__ import annotations
 

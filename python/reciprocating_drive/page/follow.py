@@ -6,6 +6,8 @@ new: revolution summaries, data-health events and, when the twin stores per-samp
 
 Read-only (the database is opened with mode=ro). A revolution appears once the twin has committed
 it: the page is as fresh as the twin's commit interval, plus the poll interval.
+
+Layer: workflows, the page (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -9,6 +9,8 @@ per-sample rows and revolution summaries; every sink gets them all and commits t
 that covers them (the twin's state: FMU state, input position, conditioning buffers, and the
 counts of rows, summaries and events handed out). Restarted with the same configuration, the
 pipeline resumes from the last committed checkpoint (docs/plant.md "Exactly once").
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -16,6 +16,8 @@ origin sees the file's own times. Security (optional): Basic256Sha256 Sign or Si
 with a certificate made at run time, and user name + password. Faults for the tests: a sample's
 angle with a bad status, NaN, or a value of the wrong type; an outage (the endpoint closed for some
 seconds while the PLC goes on recording into its history).
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations

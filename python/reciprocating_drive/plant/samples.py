@@ -4,6 +4,8 @@ A source hands out `Chunk`s: input lines for `Twin.feed` (a CSV source passes th
 so its messages name the file's line numbers) and data-health events. A source of samples (OPC UA)
 formats them as CSV lines with `sample_lines`: each number written with `repr`, which reads back to
 the same double, so the twin computes from exactly the values the source received.
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations

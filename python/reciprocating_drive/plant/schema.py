@@ -7,6 +7,8 @@ so a row can never be stored twice: a bug that tried would fail its transaction 
 duplicating data. The time index (run, t) serves the queries plants make ("this machine, this
 hour"). Times `t` are seconds from the run's `time_origin` (Unix seconds), the twin's own time;
 wall-clock times are Unix seconds.
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations

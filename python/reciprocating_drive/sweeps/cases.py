@@ -21,6 +21,8 @@ exactly `run_case`'s, and the next cases go on natively), and samples for which 
 batched summary is not certain to hold (a non-finite value, an angle that decreases, an evaluated
 revolution missing or of fewer than three samples, a non-finite metric) go through
 `summarize_revolutions` and `metrics_of`, the reference summary.
+
+Layer: workflows, the sweeps (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -33,6 +33,8 @@ Cases are planned lazily: the number of cases is counted from the design (a prod
 lengths), and case i is computed when it is asked for (`Study.case`), so a study of 10¹⁵ cases
 costs no more memory than one of ten. A case's number is its index in the design, stable for a given
 study file, which is what lets a sweep resume.
+
+Layer: workflows, the sweeps (docs/architecture.md).
 """
 
 from __future__ import annotations

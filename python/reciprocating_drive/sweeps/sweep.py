@@ -19,6 +19,8 @@ started with `dask worker`, dask-jobqueue, dask-kubernetes, ...), after checking
 `connect_timeout` that a Dask scheduler answers there. Such workers share no disk with the client:
 they need the package (the wheel) installed, at the client's version, and receive the FMU from the
 client (cluster.py).
+
+Layer: workflows, the sweeps (docs/architecture.md).
 """
 
 from __future__ import annotations

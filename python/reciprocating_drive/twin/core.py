@@ -27,6 +27,8 @@ same numbers bit for bit.
 
 Checkpoints (`Twin.checkpoint`/`Twin.from_checkpoint`) hold the FMU's serialized state and the
 twin's own position and buffers; a run resumed from one continues exactly as if uninterrupted.
+
+Layer: workflows, the twin (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -1,6 +1,9 @@
 """Lines of a CSV input as they arrive: a file, a pipe (standard input) or a growing file
 (docs/twin.md "Input" and "Live mode"). Shared by `rdrive twin` and the plant pipeline's stream
-source (docs/plant.md "Sources")."""
+source (docs/plant.md "Sources").
+
+Layer: workflows, the twin (docs/architecture.md).
+"""
 
 from __future__ import annotations
 

@@ -23,6 +23,8 @@ progress. The distributed replay makes every cut exact as follows.
    write each piece's rows at their place in the work folder's rows file (`run_claimed`); a
    cluster that shares no disk sends them back as bytes, which the client places
    (`Assembler`). The rows file becomes the output at the end.
+
+Layer: workflows, the twin (docs/architecture.md).
 """
 
 from __future__ import annotations

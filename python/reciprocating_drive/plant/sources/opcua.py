@@ -18,6 +18,8 @@ through a queue, so a slow database never stalls the subscription (the queue buf
 * Security: Basic256Sha256 (Sign or SignAndEncrypt) with the client's certificate and key; the
   server's certificate must be one of the `trust` files (DER or PEM); user name and password. A
   refusal stops the run with one line; a password is never part of a message.
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations

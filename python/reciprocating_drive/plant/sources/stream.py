@@ -9,6 +9,8 @@ Resuming: a followed file is read again from its start and the lines the checkpo
 skipped, as for a CSV file. Standard input cannot be rewound, and nothing says which of its lines
 the checkpoint covers: a run of standard input that has a checkpoint is refused (name a new run,
 or give the data as a file).
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations
