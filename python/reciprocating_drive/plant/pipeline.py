@@ -372,18 +372,23 @@ class Pipeline:
                         self._event(ev)
                     if chunk.events:
                         self.dirty = True
-                    if chunk.lines:
+                    if chunk.lines or chunk.samples is not None:
                         had_origin = twin.time_origin is not None
                         try:
-                            rows, sums = twin.feed(chunk.lines, lineno + 1)
+                            if chunk.samples is None:
+                                rows, sums = twin.feed(chunk.lines, lineno + 1)
+                            else:
+                                rows, sums = twin.feed_samples(chunk.samples, lineno + 1)
                         except (DataError, FmuError) as e:
                             return self._failed(e)
                         if self.page is not None and not had_origin and twin.time_origin:
                             # Timestamps in the input: the page's clock starts at their origin.
                             self.page.open(twin.outputs, self.source_origin())
-                        lineno += len(chunk.lines)
-                        self.lines_since += len(chunk.lines)
-                        self.lines_since_checkpoint += len(chunk.lines)
+                        # Input lines consumed (a source of numbers: its samples' lines).
+                        n = twin.lines_read - lineno
+                        lineno += n
+                        self.lines_since += n
+                        self.lines_since_checkpoint += n
                         self._hand(rows, sums)
                 # A live source commits every commit_interval (the rows' latency); a replay
                 # as fast as possible every commit_samples lines (fewer, larger transactions).

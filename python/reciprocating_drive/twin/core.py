@@ -2,9 +2,11 @@
 sample and per revolution, replayed from a file or live.
 
 The pipeline works on chunks of input lines (`Twin.feed`): a whole block of a file in replay, the
-lines available now in live mode. Every sample's numbers are computed on their own, so the size of
-the chunks changes when rows appear, never their values: replay, live and resumed runs give the
-same numbers bit for bit.
+lines available now in live mode; a source of numbers (OPC UA) hands over chunks of samples as
+arrays (`Twin.feed_samples`, `samples.Samples`), checked as the reader checks a field, then the
+same steps. Every sample's numbers are computed on their own, so the size of the chunks changes
+when rows appear, never their values: replay, live and resumed runs give the same numbers bit for
+bit.
 
 1. **Reader** (`parse_lines`): a CSV with a header naming `time`, `crank_angle` and optionally
    `crank_speed` and `process_force`. A bad field, time going backwards, a duplicate timestamp
@@ -50,6 +52,7 @@ from ..revolution import TWO_PI, revolution_table
 from ..timestamps import LOOKS_ISO, Clock, TimestampError
 from ..timestamps import zone as time_zone
 from . import conditioning as cond
+from .samples import OPTIONAL, Samples
 
 INPUTS = ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")
 
@@ -559,6 +562,67 @@ class Twin:
         err = err or time_err
         try:
             err = self._accept(ln, t, a, w, f, rows) or err
+        except (DataError, FmuError) as e:
+            err = e
+        return self._hand_out(rows, err)
+
+    def feed_samples(self, samples: Samples, first_lineno: int) -> tuple[np.ndarray, list]:
+        """`feed` for samples given as numbers (a source of numbers: OPC UA), the first of them
+        numbered `first_lineno` (after the header line the input's CSV form would start with,
+        when these are the run's first samples) unless `samples.line` numbers them. The same
+        checks and the same results as `feed` of the samples written as CSV lines with `repr`,
+        bit for bit, with no text in between."""
+        rows = [self._empty()]
+        n = len(samples)
+        if n and self.cols is None:
+            # The columns the CSV form's header would name; the header is its line 1.
+            self.separator = ","
+            self.cols = parse_header(",".join(samples.names()))
+            first_lineno += 1
+        ln = (
+            samples.line
+            if samples.line is not None
+            else np.arange(first_lineno, first_lineno + n, dtype=np.int64)
+        )
+        if n:
+            self.lines_read = int(ln[-1])
+        if n and self.time_kind is None:
+            # Numbers, not ISO 8601 timestamps (the CSV path decides this at its first sample).
+            self.time_kind = "number"
+            if self.o.timezone is not None:
+                self.messages.append(
+                    f"--timezone {self.o.timezone} is not used: the input's times are "
+                    "numbers (seconds), not timestamps"
+                )
+        # What the CSV reader refuses in a field (parse_line): a missing value, which the CSV form
+        # writes empty, and a value that is not finite; the samples before it are computed.
+        names = samples.names()
+        values = [samples.columns[c] for c in names]
+        bad = np.flatnonzero(~np.isfinite(np.stack(values)).all(axis=0)) if n else []
+        err = None
+        if len(bad):
+            k = int(bad[0])
+            name = next(c for c, v in zip(names, values) if not math.isfinite(v[k]))
+            v = float(samples.columns[name][k])
+            what = (
+                f"{name} is empty (a number is needed)"
+                if math.isnan(v) and name in OPTIONAL
+                else f"{name} = {repr(v)!r} is not a finite number"
+            )
+            err = DataError(f"line {ln[k]}: {what}")
+            n = k
+        try:
+            err = (
+                self._accept(
+                    ln[:n],
+                    samples.columns["time"][:n],
+                    samples.columns["crank_angle"][:n],
+                    samples.value("crank_speed")[:n],
+                    samples.value("process_force")[:n],
+                    rows,
+                )
+                or err
+            )
         except (DataError, FmuError) as e:
             err = e
         return self._hand_out(rows, err)
