@@ -31,7 +31,7 @@ sys.path.insert(0, str(ROOT / "python"))
 from reciprocating_drive.fmu import Fmu  # noqa: E402
 from reciprocating_drive.plant.samples import sample_header, sample_lines  # noqa: E402
 from reciprocating_drive.twin import Twin  # noqa: E402
-from reciprocating_drive.twin.core import parse_header, parse_lines  # noqa: E402
+from reciprocating_drive.twin.line_input import parse_header, parse_lines  # noqa: E402
 from reciprocating_drive.twin.sample import truth  # noqa: E402
 from reciprocating_drive.twin.samples import Samples  # noqa: E402
 

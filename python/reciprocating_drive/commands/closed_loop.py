@@ -13,8 +13,6 @@ torque and power, δ per revolution).
 
 Exit codes: 0 done, 1 the loop failed or diverged (the message names docs/closed-loop.md's
 stability condition ρ_eff < 1), 2 a user error, 70 an internal error, 130 stopped.
-
-Layer: commands (docs/architecture.md).
 """
 
 # Layer: commands (docs/architecture.md); a comment, as --help prints the docstring.
@@ -59,7 +57,7 @@ def parser(prog: str = PROG) -> ArgumentParser:
         default="libcosim",
         help="libcosim or fmpy: co-simulation of the SSP system (one-step delay in the loop); "
         "model-exchange: both FMI 3.0 FMUs as Model Exchange in one ODE, the loop solved exactly "
-        "(reciprocating_drive/me_loop.py, docs/closed-loop.md)",
+        "(reciprocating_drive/closed_loop/me_loop.py, docs/closed-loop.md)",
     )
     ap.add_argument("--step", default="1e-3", help="communication step [s] (default 1e-3)")
     ap.add_argument("--time", default="10", help="simulated time [s] (default 10)")

@@ -14,8 +14,6 @@ DIR/studies/*.toml               design studies
 The configurations name their files relative to themselves, so they read DIR/data/ and write
 DIR/results/. Results are written where you run the commands (results/ of the current folder),
 never inside the installation. An existing file is not overwritten unless --force is given.
-
-Layer: commands (docs/architecture.md).
 """
 
 # Layer: commands (docs/architecture.md); a comment, as --help prints the docstring.

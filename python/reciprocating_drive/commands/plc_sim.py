@@ -9,8 +9,6 @@ history, optionally secured.
 
 Prints "plc_sim: listening on opc.tcp://..." when ready. With --cert-dir the server's certificate
 is written there (plc-sim.der), for the twin's trust list.
-
-Layer: commands (docs/architecture.md).
 """
 
 # Layer: commands (docs/architecture.md); a comment, as --help prints the docstring.

@@ -11,8 +11,6 @@ and prints the summary. The work is done by python/reciprocating_drive/mission.p
 Presets: "default" is the FMU's own start values (docs/model.md §8); any other NAME is the
 shipped parameter set NAME.ssv (resources/presets/ of a checkout, also inside the FMU), or a path
 to an .ssv file.
-
-Layer: commands (docs/architecture.md).
 """
 
 # Layer: commands (docs/architecture.md); a comment, as --help prints the docstring.

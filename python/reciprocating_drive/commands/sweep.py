@@ -12,8 +12,6 @@ data, configurations and studies of an installed package).
 A killed or stopped sweep resumes: run the same command again and only the missing cases are
 computed. A result file of another study or FMU is refused; --fresh discards it and starts afresh.
 Exit codes: 0 done, 1 every case rejected, 2 a user error, 70 an internal error, 130 stopped.
-
-Layer: commands (docs/architecture.md).
 """
 
 # Layer: commands (docs/architecture.md); a comment, as --help prints the docstring.

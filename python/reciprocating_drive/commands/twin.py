@@ -12,8 +12,6 @@ Writes --out (every sample: time and every FMU output), --summary (one row per c
 revolution) and, with --plots DIR, time series, the card and per-revolution trends. With
 --checkpoint FILE the FMU's state and the twin's position are saved every --checkpoint-every
 samples and at the end; --resume FILE continues a run from its checkpoint.
-
-Layer: commands (docs/architecture.md).
 """
 
 # Layer: commands (docs/architecture.md); a comment, as --help prints the docstring.

@@ -10,8 +10,6 @@ data, configurations and studies of an installed package).
 
 Run again with the same configuration after a crash or a stop: it resumes from the last
 checkpoint committed in the database, and nothing is lost or stored twice.
-
-Layer: commands (docs/architecture.md).
 """
 
 # Layer: commands (docs/architecture.md); a comment, as --help prints the docstring.

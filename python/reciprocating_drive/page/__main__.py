@@ -7,8 +7,6 @@ Serves the page of the run the database holds (the most recent one unless --run 
 follows what the twin commits. Bound to any address but 127.0.0.1 it needs an access token, read
 from --token-file or the environment variable RD_PAGE_TOKEN (never from the command line, where
 `ps` would show it). Errors are one line and a non-zero exit; stopped by SIGINT or SIGTERM.
-
-Layer: workflows, the page (docs/architecture.md).
 """
 
 # Layer: workflows, the page (docs/architecture.md); a comment, as --help prints the docstring.

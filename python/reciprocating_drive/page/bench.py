@@ -9,8 +9,6 @@ CPU time the twin's thread spends handing rows and summaries to the page (`PageS
 time.thread_time), the twin's own CPU time per second of data, and the largest time to process a
 chunk (it must stay below the 50 ms the chunk covers to keep up live) and the largest CPU time of
 one `PageServer.add`. The page's last revolution is checked to be the twin's after each run.
-
-Layer: workflows, the page (docs/architecture.md).
 """
 
 # Layer: workflows, the page (docs/architecture.md); a comment, as --help prints the docstring.

@@ -1,5 +1,5 @@
 """The twin's input as numbers (docs/twin.md "Input"): what the core computes from, whichever source
-the samples come from. A CSV file or standard input is parsed into `Samples` (`core.parse_lines`);
+the samples come from. A CSV file or standard input is parsed into `Samples` (`line_input.parse_lines`);
 a source that receives numbers (OPC UA) hands them over as they are, with no text in between.
 
 Each sample carries its origin for messages (`line`): the input line it was read from, or, for a
@@ -18,6 +18,15 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+
+class DataError(ValueError):
+    """Bad measured data, with the input line number. `rows` and `summaries` are what the twin
+    computed from the samples before it (to be written before the run stops)."""
+
+    rows = None
+    summaries: list = []
+
 
 #: The columns every input has, in the order of a CSV header.
 REQUIRED = ("time", "crank_angle")
@@ -58,13 +67,17 @@ class Samples:
             return self.columns[name]
         return np.full(len(self), OPTIONAL[name])
 
-    def __add__(self, other: Samples) -> Samples:
-        """These samples followed by `other`'s (of the same columns)."""
-        lines = (
-            None
-            if self.line is None and other.line is None
-            else np.concatenate([self.line, other.line])
-        )
+    @staticmethod
+    def concat(parts: list[Samples]) -> Samples:
+        """The samples of `parts` one after the other (parts of the same columns, all numbered
+        by `line` or none)."""
+        if len(parts) == 1:
+            return parts[0]
+        lines = None if parts[0].line is None else np.concatenate([p.line for p in parts])
         return Samples(
-            {n: np.concatenate([v, other.columns[n]]) for n, v in self.columns.items()}, lines
+            {n: np.concatenate([p.columns[n] for p in parts]) for n in parts[0].columns}, lines
         )
+
+    def __add__(self, other: Samples) -> Samples:
+        """These samples followed by `other`'s."""
+        return Samples.concat([self, other])
