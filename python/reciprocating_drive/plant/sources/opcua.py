@@ -221,9 +221,9 @@ class OpcUaSource:
         except Exception as e:  # noqa: BLE001 - reported by the pipeline as one line
             self.q.put(RuntimeError(f"OPC UA source {self.s['endpoint']}: {type(e).__name__}: {e}"))
 
-    def _emit(self, samples: Samples, events: list) -> None:
-        # The numbers as received: the twin numbers them as the lines of the input's CSV form
-        # (its header is line 1 of a new run), so messages name the same lines as before.
+    def _emit(self, samples: Samples | list, events: list) -> None:
+        # The numbers as received (`[]` with events only): the twin numbers them as the lines of
+        # the input's CSV form (its header is line 1 of a new run), so messages name the same lines.
         if len(samples) or events:
             self.q.put(Chunk(events=list(events), samples=samples if len(samples) else None))
 
