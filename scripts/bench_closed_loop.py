@@ -18,7 +18,7 @@ import time
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
 from reciprocating_drive import Fmu  # noqa: E402
-from reciprocating_drive.system import build_ssp, run_fmpy, run_libcosim  # noqa: E402
+from reciprocating_drive.closed_loop.system import build_ssp, run_fmpy, run_libcosim  # noqa: E402
 
 H, T = 1e-3, 60.0
 

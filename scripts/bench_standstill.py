@@ -24,7 +24,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
 
 from reciprocating_drive.twin import Options, Twin  # noqa: E402
-from reciprocating_drive.twin_sample import OMEGA0  # noqa: E402
+from reciprocating_drive.twin.sample import OMEGA0  # noqa: E402
 
 RATE = 1000.0
 CHUNK = 4096

@@ -46,10 +46,11 @@ import time
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
 import numpy as np  # noqa: E402
-from reciprocating_drive import batch, sweep  # noqa: E402
-from reciprocating_drive.fmu import Fmu  # noqa: E402
+from reciprocating_drive.fmu import Fmu, batch  # noqa: E402
 from reciprocating_drive.revolution import TWO_PI  # noqa: E402
-from reciprocating_drive.study import load_study, study_from_dict  # noqa: E402
+from reciprocating_drive.sweeps import cases as sweep_cases  # noqa: E402
+from reciprocating_drive.sweeps import sweep  # noqa: E402
+from reciprocating_drive.sweeps.study import load_study, study_from_dict  # noqa: E402
 
 STUDIES = ("unb600a_friction", "kvo630_resonance", "default_balancer")
 
@@ -77,9 +78,9 @@ def prepared_calls(fmu: Fmu, study, cases: list[int]) -> list:
     prepared = []
     for i in cases:
         params = study.case(i)
-        omega = sweep._speed(study, params)
+        omega = sweep_cases._speed(study, params)
         groups: dict = {}
-        for name, v in sweep.case_values(study, params, omega).items():
+        for name, v in sweep_cases.case_values(study, params, omega).items():
             var = fmu.variables[name]
             vrs, vals = groups.setdefault(var.type, ([], []))
             vrs.append(var.valueReference)
@@ -140,8 +141,6 @@ def native_floor_run(fmu: Fmu, study, cases: list[int]):
     """(a'): a function that makes the cases' calls from native code alone once
     (fmi2_batch_cases on value rows prepared beforehand, 256 cases per call into one reused
     output array) and returns its (wall, CPU) seconds."""
-    from reciprocating_drive import sweep_cases
-
     p = sweep_cases._prepared(fmu, study, sweep.OUTPUTS)
     params = study.case_array(cases)
     omega = sweep_cases.speeds(study, params)

@@ -97,7 +97,7 @@ import sys
 
 import pyarrow.parquet as pq
 
-from reciprocating_drive.study import load_study
+from reciprocating_drive.sweeps.study import load_study
 
 study = load_study(sys.argv[1])
 rows = pq.read_table(pathlib.Path(sys.argv[2]) / f"{study.name}.parquet").to_pylist()

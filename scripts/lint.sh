@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # The linters a Rust and Python contributor expects, as scripts/test.sh runs them: rustfmt
-# (rustfmt.toml), clippy over every target of the workspace with warnings as errors, and ruff's
-# check and format (pyproject.toml) over the Python. Exits non-zero on the first finding.
+# (rustfmt.toml), clippy over every target of the workspace with warnings as errors, ruff's
+# check and format (pyproject.toml) over the Python, and import-linter's contracts on the Python
+# package's layers (pyproject.toml [tool.importlinter], docs/architecture.md). Exits non-zero on
+# the first finding.
 #   scripts/lint.sh          check
 #   scripts/lint.sh --fix    rewrite the formatting (cargo fmt, ruff format, ruff check --fix)
 set -euo pipefail
@@ -33,4 +35,7 @@ cargo clippy --release --workspace --all-targets --quiet -- -D warnings
 echo "== ruff check, ruff format --check"
 "$ruff" check --quiet .
 "$ruff" format --check --quiet .
+echo "== lint-imports (the Python package's layers)"
+# --no-cache: no cache folder in the checkout; the graph of the package takes about a second.
+"$(dirname "$VENV_PYTHON")/lint-imports" --no-cache --no-logo
 echo "lint.sh: clean"

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Writes the twin's sample data data/twin/pump_encoder.csv (docs/twin.md): the default machine
-at 65 strokes/min with a ±3 % speed fluctuation (python/reciprocating_drive/twin_sample.py is the
+at 65 strokes/min with a ±3 % speed fluctuation (python/reciprocating_drive/twin/sample.py is the
 truth), a 4096-count encoder read at 1 kHz with 20 µs timestamp jitter, one 0.2 s gap at 6 s,
 no speed channel.
 
@@ -15,7 +15,7 @@ import sys
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
-from reciprocating_drive.twin_sample import encoder_samples  # noqa: E402
+from reciprocating_drive.twin.sample import encoder_samples  # noqa: E402
 
 
 def main(argv=None) -> int:

@@ -44,7 +44,7 @@ if ! /usr/bin/python3 -c 'import ensurepip, venv' 2>/dev/null; then
     apt_install python3 python3-venv
 fi
 
-echo "== scripts/lint.sh (rustfmt, clippy -D warnings, ruff)"
+echo "== scripts/lint.sh (rustfmt, clippy -D warnings, ruff, lint-imports)"
 bash scripts/lint.sh
 
 # The twin's PostgreSQL sink is tested against a real temporary server (tests/python/pg_server.py).

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """The smoothing window's dependence on where a record starts (docs/twin.md "Conditioning"),
-against the closed-form crank state of python/reciprocating_drive/twin_sample.py: a 2 kHz
+against the closed-form crank state of python/reciprocating_drive/twin/sample.py: a 2 kHz
 encoder of 14 bits read in rad (wrapped), timestamps with ±80 µs uniform jitter, a 40 ms dropout
 at 3 s, no speed channel, `--window 0.05`, run by the twin (`Twin.feed`) in one process:
 
@@ -29,7 +29,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "python"))
 from reciprocating_drive.fmu import Fmu  # noqa: E402
 from reciprocating_drive.twin import Options, Twin  # noqa: E402
-from reciprocating_drive.twin_sample import crank_slider_acceleration, truth  # noqa: E402
+from reciprocating_drive.twin.sample import crank_slider_acceleration, truth  # noqa: E402
 
 WINDOW = 0.05
 

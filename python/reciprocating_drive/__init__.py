@@ -6,6 +6,8 @@ sweeps and the closed-loop system, and importable from users' own scripts.
 
 The package lives in python/ of the repository; scripts/lib/venv.sh makes it importable in the
 project's .venv (a .pth file), and the project's scripts put python/ first on sys.path.
+
+Layer: the package's public names (from the FMU access and shared layers) (docs/architecture.md).
 """
 
 from ._version import __version__

@@ -1,5 +1,8 @@
 """The package's version: that of the installed distribution, or, in a checkout, the Rust crate's
-(Cargo.toml), which is also the FMUs' version (pyproject.toml takes it from there too)."""
+(Cargo.toml), which is also the FMUs' version (pyproject.toml takes it from there too).
+
+Layer: shared, below the FMU access (docs/architecture.md).
+"""
 
 from __future__ import annotations
 

@@ -21,6 +21,8 @@ raises, clears nor counts towards a delay or a trend window.
 
 Each alarm is raised once and cleared once: the engine keeps its state, so a value that stays
 beyond its limit does not raise it again.
+
+Layer: shared, below the FMU access (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -10,6 +10,8 @@ Two layouts, tried in this order:
 
 So the same code runs from a clone and from a wheel on a machine that has never seen the
 repository (a Dask worker, an edge computer); nothing else in the package names these paths.
+
+Layer: shared, below the FMU access (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -14,6 +14,8 @@ failed (the FMU refused, every case was rejected, the data stopped the run), 2 a
 error (a bad option, file or value: one line saying which), 70 an internal error (one line saying
 where its details were written), 128 + N stopped by signal N (130 Ctrl-C, 143 SIGTERM; a resumable
 run says how to resume).
+
+Layer: commands (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -8,6 +8,8 @@ how to resume; a bug is one line saying where its details were written. No trace
 
 Exit codes: 0 done, 1 the run finished but its result is not usable (every case rejected, a loop
 that diverged), 2 a user error, 70 an internal error, 130 stopped by Ctrl-C or SIGTERM.
+
+Layer: shared, below the FMU access (docs/architecture.md).
 """
 
 from __future__ import annotations

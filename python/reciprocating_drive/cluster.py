@@ -9,6 +9,8 @@ machine.
 Before any case runs, `prepare_workers` checks that every worker runs the client's package version
 and names each worker that does not, with both versions: a worker with other code would compute
 other numbers.
+
+Layer: shared, below the FMU access (docs/architecture.md).
 """
 
 from __future__ import annotations

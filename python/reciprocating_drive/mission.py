@@ -9,6 +9,8 @@ A rigid mechanism is algebraic: every revolution is the same, and two are simula
 starts with a transient of its cage oscillation (docs/model.md §6): the run is long enough for it to
 decay, the transient revolutions are the ones before the per-revolution ϑ amplitude settles (to
 `SETTLED` of its final value), and the summary describes the last complete revolution.
+
+Layer: the main job, below the workflows (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -1,7 +1,10 @@
 """The main job's figure (scripts/run.sh, docs/figures/results_*.png): what the FMU exists for,
 against the crank angle over whole steady revolutions (ticks every 90°). An elastic rod adds its
 cage angle ϑ and largest stress, with the start transient in its own panel; a beam unit adds its
-card (rod force against position)."""
+card (rod force against position).
+
+Layer: the main job, below the workflows (docs/architecture.md).
+"""
 
 from __future__ import annotations
 

@@ -2,6 +2,8 @@
 the repository and of the FMU (docs/model.md §8). fmpy reads and validates them against the SSP
 schema; this module turns fmpy's parameter set into {name: value} with Python types
 (float, int, bool) so that it can be handed to `Fmu.start` or fmpy.simulate_fmu.
+
+Layer: shared, below the FMU access (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -9,6 +9,8 @@ For each quantity the largest and smallest value are reported with the crank ang
 neighbours (exact for a quadratic peak, so the error falls with the cube of the sample spacing
 instead of its square). Friction work is ∫ F_fr ds over the revolution (link.friction_total along
 suspension.position; trapezoidal rule), negative because friction dissipates energy.
+
+Layer: shared, below the FMU access (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -8,6 +8,8 @@ The run's time origin is the whole UTC second of the first sample (as for an OPC
 plant/sources/opcua.py); the twin works, and writes, in seconds from it. Times are counted in whole
 microseconds (the resolution of `datetime`), so t = (microseconds since the origin) / 1e6 is the
 correctly rounded double of the exact value.
+
+Layer: shared, below the FMU access (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 # Sourced by the scripts: creates or refreshes the project-local Python environment .venv from
 # requirements.txt (fmpy, libcosimpy, pytest, matplotlib, numpy, scipy, mpmath, dask.distributed,
-# pyarrow, tqdm, ruff, hypothesis, asyncua, psycopg, playwright).
+# pyarrow, tqdm, ruff, import-linter, hypothesis, asyncua, psycopg, playwright).
 #
 #   source scripts/lib/venv.sh; ensure_venv      # then use "$VENV_PYTHON"
 #
@@ -64,7 +64,7 @@ _ensure_venv_unlocked() {
     VENV_PYTHON="$venv/bin/python"
     export VENV_PYTHON
     if [ -f "$venv/.requirements.sha256" ] && [ "$(cat "$venv/.requirements.sha256")" = "$want" ] \
-        && "$VENV_PYTHON" -c 'import fmpy, libcosimpy, pytest, matplotlib, numpy, scipy, mpmath, dask.distributed, pyarrow, tqdm, hypothesis, asyncua, psycopg, playwright' 2>/dev/null; then
+        && "$VENV_PYTHON" -c 'import fmpy, libcosimpy, pytest, matplotlib, numpy, scipy, mpmath, dask.distributed, pyarrow, tqdm, hypothesis, asyncua, psycopg, playwright, importlinter' 2>/dev/null; then
         _venv_link_package "$root"
         return 0
     fi
@@ -78,7 +78,7 @@ _ensure_venv_unlocked() {
         "$py" -m venv "$venv"
     fi
     "$VENV_PYTHON" -m pip install --quiet --disable-pip-version-check --no-input -r "$req"
-    "$VENV_PYTHON" -c 'import fmpy, libcosimpy, pytest, matplotlib, numpy, scipy, mpmath, dask.distributed, pyarrow, tqdm, hypothesis, asyncua, psycopg, playwright'
+    "$VENV_PYTHON" -c 'import fmpy, libcosimpy, pytest, matplotlib, numpy, scipy, mpmath, dask.distributed, pyarrow, tqdm, hypothesis, asyncua, psycopg, playwright, importlinter'
     echo "$want" > "$venv/.requirements.sha256"
     _venv_link_package "$root"
 }

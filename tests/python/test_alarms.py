@@ -197,7 +197,7 @@ def test_derived_values_against_hand_computation():
 def sample_lines(t0, t1, force, rate=1000.0):
     """Sample data of the default machine at 65 strokes/min (twin_sample.truth) with a constant
     process force [N]."""
-    from reciprocating_drive.twin_sample import truth
+    from reciprocating_drive.twin.sample import truth
 
     t = np.arange(round(t0 * rate), round(t1 * rate)) / rate
     theta, _, _ = truth(t)

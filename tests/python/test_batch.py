@@ -1,4 +1,4 @@
-"""The native batch driver (tools/fmi2-batch, python/reciprocating_drive/batch.py) against an
+"""The native batch driver (tools/fmi2-batch, python/reciprocating_drive/fmu/batch.py) against an
 independent path through the same FMU: fmpy's ctypes functions called once per sample
 (`Channel.advance`, `set_inputs`, `read`, `step`). Results must be identical bit for bit, a failing
 call in the middle of a batch must stop it at the right sample with the FMU's own message, and the
@@ -12,8 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from reciprocating_drive import batch
-from reciprocating_drive.fmu import Fmu, FmuError
+from reciprocating_drive.fmu import Fmu, FmuError, batch
 from reciprocating_drive.presets import preset_values
 
 INPUTS = ["crank.angle", "crank.speed", "crank.acceleration", "link.external_force"]
@@ -199,7 +198,7 @@ def test_local_cubic_agrees_with_the_numpy_fit(half):
     """The native estimate of ω and ε against conditioning.derivatives (numpy's batched LAPACK
     solver), windows of ±half seconds, on jittered timestamps of an encoder-like angle with
     dropouts (sparse windows for the short ones), edges of the segment included."""
-    from reciprocating_drive import conditioning as cond
+    from reciprocating_drive.twin import conditioning as cond
 
     rng = np.random.default_rng(int(half * 1e4))
     n = 600

@@ -20,7 +20,12 @@ import zipfile
 
 import numpy as np
 import pytest
-from reciprocating_drive.system import build_ssp, run_fmpy, run_libcosim, speed_fluctuation
+from reciprocating_drive.closed_loop.system import (
+    build_ssp,
+    run_fmpy,
+    run_libcosim,
+    speed_fluctuation,
+)
 from scipy.integrate import solve_ivp
 
 R, L, M, F = 0.2, 1.19, 300.0, 5000.0

@@ -1,4 +1,4 @@
-"""The closed loop solved exactly (python/reciprocating_drive/me_loop.py): the pump and the drive
+"""The closed loop solved exactly (python/reciprocating_drive/closed_loop/me_loop.py): the pump and the drive
 train as FMI 3.0 Model Exchange FMUs in one ODE (scipy DOP853), the torque–acceleration loop
 solved at every evaluation. Against the monolithic ODE of test_closed_loop.py (written there from
 the formulas, independent of both FMUs) the crank speed must agree to 1e-6 of its mean over 10 s
@@ -12,7 +12,7 @@ import pathlib
 
 import numpy as np
 import pytest
-from reciprocating_drive.me_loop import run_model_exchange
+from reciprocating_drive.closed_loop.me_loop import run_model_exchange
 from scipy.integrate import solve_ivp
 from test_closed_loop import DRIVE, PUMP, SB, TB, W0, WS, F, I, M, tf
 
@@ -77,8 +77,8 @@ def test_shipped_system_with_guide_friction_agrees_with_libcosim(fmu_path, tmp_p
     piecewise affine in ε): the Model Exchange loop against libcosim's co-simulation of the same
     system at h = 0.25 ms, whose one-step delay is first order (test_closed_loop.py: 1e-3 of the
     mean speed at 1 ms, so 2.5e-4 at 0.25 ms)."""
+    from reciprocating_drive.closed_loop.system import SSD, build_ssp, run_libcosim
     from reciprocating_drive.presets import read_ssv
-    from reciprocating_drive.system import SSD, build_ssp, run_libcosim
 
     fmu_dir = pathlib.Path(fmu_path).parent
     h, t_end = 0.25e-3, 2.0

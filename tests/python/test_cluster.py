@@ -227,11 +227,11 @@ def test_every_example_study_runs_on_the_cluster_that_shares_nothing(
     wheel_venv, worker_user, fmu_path, study, tmp_path
 ):
     """The sweep command of the checkout as the client; the workers as above. Reference: the same
-    cases run in this process through sweep.run_case on the client's FMU, with no Dask at all."""
+    cases run in this process through run_case on the client's FMU, with no Dask at all."""
     import pyarrow.parquet as pq
     from reciprocating_drive.fmu import Fmu
-    from reciprocating_drive.study import load_study
-    from reciprocating_drive.sweep import run_case
+    from reciprocating_drive.sweeps.study import load_study
+    from reciprocating_drive.sweeps.sweep import run_case
 
     bin_dir, _, _ = wheel_venv
     out = tmp_path / "out"

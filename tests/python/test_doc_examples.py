@@ -182,7 +182,7 @@ def test_example_runs_as_written(example, sandbox):
         pytest.skip(f"{example.id} `{example.code.splitlines()[0][:60]}`: {example.skip}")
     if example.language == "toml":
         # A design study as docs/sweeps.md shows it: the study reader accepts it and builds cases.
-        from reciprocating_drive.study import load_study
+        from reciprocating_drive.sweeps.study import load_study
 
         path = sandbox / f"study_{example.line}.toml"
         path.write_text(example.code)

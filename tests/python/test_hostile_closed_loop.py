@@ -182,7 +182,7 @@ def test_constant_delta_is_drawn_as_a_constant():
     """Issue 24, finding 5: δ = 3.2037 % in every revolution, with rounding noise below the
     printed digits, read "1e−5+3.203" on its axis. The δ axis has no offset, spans ±5 % of the
     value around it, and every tick label is a plain number near 3.2."""
-    from reciprocating_drive.system import plot_closed_loop
+    from reciprocating_drive.closed_loop.system import plot_closed_loop
 
     t = np.arange(1, 3001) * 1e-3
     w = 6.7 + 0.1 * np.sin(2 * math.pi * t / 0.92)

@@ -607,7 +607,7 @@ def test_size_of_a_study_costs_no_memory(tmp_path, fmu_path):
     that computes 4 cases and stops has the same peak memory as a study of 4 cases (to 50 MB)."""
     import tracemalloc
 
-    from reciprocating_drive.study import study_from_dict
+    from reciprocating_drive.sweeps.study import study_from_dict
 
     doc = {
         "parameters": {
@@ -678,8 +678,8 @@ def test_message_lines_have_no_newline_from_values(tmp_path, fmu_path):
 def test_damaged_result_file_is_refused(tmp_path, fmu_path, damage, words):
     """A result file with a damaged line in it (not the last line a kill may cut) is refused with
     the line named, before any cluster starts; the file is left as it was."""
-    from reciprocating_drive.study import load_study
-    from reciprocating_drive.sweep import columns, fingerprint
+    from reciprocating_drive.sweeps.study import load_study
+    from reciprocating_drive.sweeps.sweep import columns, fingerprint
 
     f, out = tmp_path / "s.toml", tmp_path / "out"
     f.write_text(to_toml(valid_study()))

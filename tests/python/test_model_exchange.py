@@ -614,8 +614,8 @@ def test_model_exchange_system_resolves_against_both_model_descriptions(fmu_path
     input, every parameter of the .ssv files is a parameter of its FMU, and both FMUs offer
     Model Exchange."""
     from fmpy import read_model_description
+    from reciprocating_drive.closed_loop.system import build_ssp
     from reciprocating_drive.presets import read_ssv
-    from reciprocating_drive.system import build_ssp
 
     fmu_dir = pathlib.Path(fmu_path).parent
     me = _unpacked(
@@ -667,9 +667,9 @@ def test_model_exchange_system_runs_in_the_repository_master(fmu_path, tmp_path)
     Model Exchange interface, its parameter sets) and integrates the loop exactly; over 1 s it
     gives the crank speed the FMI 3.0 Model Exchange FMUs give with the same parameters to 1e-9
     of its mean (the same equations through the other standard's calls)."""
-    from reciprocating_drive.me_loop import run_model_exchange, run_model_exchange_ssp
+    from reciprocating_drive.closed_loop.me_loop import run_model_exchange, run_model_exchange_ssp
+    from reciprocating_drive.closed_loop.system import SSD, build_ssp
     from reciprocating_drive.presets import read_ssv
-    from reciprocating_drive.system import SSD, build_ssp
 
     fmu_dir = pathlib.Path(fmu_path).parent
     ssp = build_ssp(tmp_path / "ClosedLoopME.ssp", fmu_dir=fmu_dir, model_exchange=True)

@@ -1,4 +1,4 @@
-"""python/reciprocating_drive/fmu.py: FMU errors carry the FMU's message, a restart gives the same
+"""python/reciprocating_drive/fmu/instance.py: FMU errors carry the FMU's message, a restart gives the same
 run, serialized states continue bit for bit, and the fast channel equals the by-name path."""
 
 from __future__ import annotations

@@ -24,7 +24,7 @@ import pytest
 from reciprocating_drive.alarms import parse_limits
 from reciprocating_drive.page import PageError, PageServer
 from reciprocating_drive.twin import SUMMARY_FIELDS, Twin
-from reciprocating_drive.twin_sample import truth
+from reciprocating_drive.twin.sample import truth
 
 ROOT = Path(__file__).resolve().parents[2]
 # A screenshot of a file replay's page (twin times), into target/; the one in docs/page.md is the

@@ -12,7 +12,7 @@ import math
 import plant_util as pu
 import pytest
 from reciprocating_drive.plant import stop_cycle
-from reciprocating_drive.twin_sample import CYCLE, OMEGA0
+from reciprocating_drive.twin.sample import CYCLE, OMEGA0
 
 
 def test_plant_through_three_stop_start_cycles_over_opcua(fmu_path, tmp_path):

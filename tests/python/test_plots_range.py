@@ -49,7 +49,7 @@ def test_y_range_rule_by_hand():
 def test_twin_revolutions_plot_does_not_stretch_a_4_um_stroke_change(tmp_path, drawn):
     """The finding: a twin's revolutions.png drew a stroke of 0.399996 to 0.400000 m and a
     friction work changing in its sixth digit at full height."""
-    from reciprocating_drive.twin_plots import plot_twin
+    from reciprocating_drive.twin.plots import plot_twin
 
     n = 12
     t = np.linspace(0.0, 11.0, 1101)
@@ -104,8 +104,8 @@ def test_twin_revolutions_plot_does_not_stretch_a_4_um_stroke_change(tmp_path, d
 def test_largest_means_the_largest_magnitude_in_every_label():
     """Signed maxima are "maximum", never "largest" (the page's "largest rod force" is the largest
     magnitude, max(|max|, |min|))."""
-    from reciprocating_drive.study import METRICS
-    from reciprocating_drive.sweep_plot import METRIC_AXES
+    from reciprocating_drive.sweeps.plots import METRIC_AXES
+    from reciprocating_drive.sweeps.study import METRICS
 
     signed = [k for k in METRICS if k.endswith(("_max", "_min")) and k != "stress_max"]
     assert signed

@@ -20,10 +20,10 @@ import time
 import numpy as np
 import pytest
 from conftest import ROOT
-from reciprocating_drive import replay as R
 from reciprocating_drive.commands.twin_distributed import worker_options
 from reciprocating_drive.twin import Options, summary_header
-from reciprocating_drive.twin_sample import encoder_samples, truth
+from reciprocating_drive.twin import replay as R
+from reciprocating_drive.twin.sample import encoder_samples, truth
 
 TWIN = [sys.executable, str(ROOT / "scripts" / "twin.py")]
 SAMPLE = ROOT / "data" / "twin" / "pump_encoder.csv"
@@ -553,7 +553,7 @@ def test_cuts_through_stops_and_rollbacks_are_bit_identical(fmu_path, tmp_path):
     """A stop/start cycle with a rollback across the wrap and a dithering encoder (docs/twin.md
     "Machine states"): the revolutions are bounded by the running maximum of the angle, so cuts
     every revolution, and inside the standstill, give the sequential files."""
-    from reciprocating_drive.twin_sample import cycle_truth
+    from reciprocating_drive.twin.sample import cycle_truth
 
     t = np.arange(22001) / 1000.0
     th, w, _, _ = cycle_truth(t)

@@ -17,8 +17,8 @@ import time
 import numpy as np
 import pytest
 from conftest import ROOT
-from reciprocating_drive.study import StudyError, load_study, study_from_dict
-from reciprocating_drive.sweep import load_rows, run_batch, run_sweep
+from reciprocating_drive.sweeps.study import StudyError, load_study, study_from_dict
+from reciprocating_drive.sweeps.sweep import load_rows, run_batch, run_sweep
 
 VENV_BIN = pathlib.Path(sys.executable).parent
 
@@ -373,7 +373,7 @@ def test_parameters_that_cannot_act_are_exactly_those_the_rule_names(fmu_path, m
     rule says it acts (some output differs)."""
     from reciprocating_drive.fmu import Fmu
     from reciprocating_drive.presets import preset_values
-    from reciprocating_drive.study import inert_in, model_parameters
+    from reciprocating_drive.sweeps.study import inert_in, model_parameters
 
     variables, _, _ = model_parameters(fmu_path)
     names = [v.name for v in model_description.modelVariables if v.causality == "output"]
@@ -437,7 +437,7 @@ def test_sweep_warns_of_a_parameter_that_cannot_act(fmu_path, tmp_path):
 def test_plot_uses_display_units_and_drops_all_zero_panels():
     """Issue 24, finding 7: axes in display units, no offset notation, no panel for a metric that
     is 0 in every case (sk8's guide friction: a single clamp) but a line saying why."""
-    from reciprocating_drive.sweep_plot import plot_sweep
+    from reciprocating_drive.sweeps.plots import plot_sweep
 
     study = study_from_dict(
         {

@@ -1,5 +1,5 @@
-"""The sweep's fast path (sweep_cases.py: the native batch driver, set-up reused across a batch,
-metrics vectorised over the batch) against the reference path it replaces (sweep.run_case: one
+"""The sweep's fast path (sweeps/cases.py: the native batch driver, set-up reused across a batch,
+metrics vectorised over the batch) against the reference path it replaces (cases.run_case: one
 FMU call per step from Python, metrics through summarize_revolutions one run at a time): every
 row of every example study, of rejected cases and of every metric on every machine is the same
 bit for bit (but for the timings). docs/sweeps.md "Speed"."""
@@ -12,9 +12,11 @@ import struct
 import numpy as np
 import pytest
 from conftest import ROOT
-from reciprocating_drive import sweep, sweep_cases
-from reciprocating_drive.study import load_study, study_from_dict
-from reciprocating_drive.sweep import OUTPUTS, _summary_metrics, run_batch
+from reciprocating_drive.sweeps import cases as sweep_cases
+from reciprocating_drive.sweeps import sweep
+from reciprocating_drive.sweeps.cases import OUTPUTS, _summary_metrics
+from reciprocating_drive.sweeps.study import load_study, study_from_dict
+from reciprocating_drive.sweeps.sweep import run_batch
 
 ALL_METRICS = [
     "friction_work",
@@ -58,6 +60,7 @@ def no_reference(monkeypatch):
         raise AssertionError("the per-step reference path ran")
 
     monkeypatch.setattr(sweep, "run_case", refuse)
+    monkeypatch.setattr(sweep_cases, "run_case", refuse)
 
 
 @pytest.mark.parametrize("name", sorted(p.stem for p in (ROOT / "studies").glob("*.toml")))
@@ -178,7 +181,7 @@ def test_a_case_failing_in_the_middle_of_a_native_batch(fmu_path, monkeypatch):
     assert [r["status"] for r in ref] == ["ok", "ok", "error", "error", "ok", "ok"]
     assert "fmi2DoStep" in ref[2]["message"]
     ran, calls = [], []
-    run_case, native = sweep.run_case, sweep_cases._Prepared.run
+    run_case, native = sweep_cases.run_case, sweep_cases._Prepared.run
 
     def counted(fmu, study, params):
         ran.append(params["mass.reciprocating"])
@@ -189,7 +192,7 @@ def test_a_case_failing_in_the_middle_of_a_native_batch(fmu_path, monkeypatch):
         calls.append((first, count, done, self.fail.function, self.fail.step))
         return done
 
-    monkeypatch.setattr(sweep, "run_case", counted)
+    monkeypatch.setattr(sweep_cases, "run_case", counted)
     monkeypatch.setattr(sweep_cases._Prepared, "run", spy)
     fast = run_batch(fmu_path, st, cases)
     assert ran == [0.5, 2.0]
@@ -202,7 +205,7 @@ def test_a_non_finite_output_makes_an_error_row_not_a_failed_batch(fmu_path, mon
     """A NaN or an infinity among a case's outputs (put into the native driver's output array
     after its call, as an FMU returning one with fmi2OK would), also in an output no metric
     reads: the case's row is an error naming the output, the value and the point, from the
-    reference summary (sweep._summary_metrics, which summarize_revolutions would fail in with an
+    reference summary (cases._summary_metrics, which summarize_revolutions would fail in with an
     IndexError); the other rows of the batch are the reference's."""
     st = load_study(ROOT / "studies" / "default_balancer.toml", fmu=fmu_path)
     assert "rod.stress_max" not in {q for m in st.metrics for q in sweep_cases._SERIES[m]}
@@ -270,7 +273,7 @@ def _typed_study(fmu_path):
 )  # fmt: skip
 def test_case_array_is_every_case_bit_for_bit(fmu_path, doc):
     """Study.case_array (a batch's values at once) against Study.case (one case), on cases in
-    runs with gaps and out of order; and the speeds of the batch against sweep._speed."""
+    runs with gaps and out of order; and the speeds of the batch against cases._speed."""
     st = study_from_dict({"name": "arr", **doc}, fmu=fmu_path)
     ids = [0, 1, 2, 5, 6, 7, 8, 20, 19, 3, st.n_cases - 1]
     got = st.case_array(ids)
@@ -278,7 +281,7 @@ def test_case_array_is_every_case_bit_for_bit(fmu_path, doc):
     for k, i in enumerate(ids):
         want = st.case(i)
         assert [bits(v) for v in got[k].tolist()] == [bits(v) for v in want.values()], i
-        assert bits(float(sweep_cases.speeds(st, got)[k])) == bits(sweep._speed(st, want))
+        assert bits(float(sweep_cases.speeds(st, got)[k])) == bits(sweep_cases._speed(st, want))
     with pytest.raises(IndexError):
         st.case_array([st.n_cases])
 

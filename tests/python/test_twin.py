@@ -1,5 +1,5 @@
 """The digital twin (docs/twin.md) through its command line, against a truth independent of its
-code: the crank motion of python/reciprocating_drive/twin_sample.py in closed form and the
+code: the crank motion of python/reciprocating_drive/twin/sample.py in closed form and the
 crank-slider's acceleration a = TF·ε + TF′·ω² in closed form (docs/model.md §3.1).
 
 * exact, noise-free wrapped angles at 1 kHz, no speed channel: the suspension acceleration within
@@ -23,7 +23,7 @@ import sys
 import numpy as np
 import pytest
 from conftest import ROOT
-from reciprocating_drive.twin_sample import crank_slider_acceleration, truth
+from reciprocating_drive.twin.sample import crank_slider_acceleration, truth
 
 TWIN = [sys.executable, str(ROOT / "scripts" / "twin.py")]
 SAMPLE = ROOT / "data" / "twin" / "pump_encoder.csv"
@@ -269,7 +269,7 @@ def test_plots_show_constants_as_constants_and_break_at_gaps(tmp_path):
     """No offset notation on a constant (the finding: '1e-5+3.203'); NaN breaks in the drawn
     line at a gap and at a missing revolution."""
     import matplotlib.pyplot as plt
-    from reciprocating_drive.twin_plots import broken, steady_axis
+    from reciprocating_drive.twin.plots import broken, steady_axis
 
     fig, ax = plt.subplots()
     y = np.full(50, 3.2037) + np.arange(50) * 1e-16
@@ -286,7 +286,7 @@ def test_plots_show_constants_as_constants_and_break_at_gaps(tmp_path):
 
 
 def test_plot_titles_name_the_machine_and_the_input(fmu_path, tmp_path):
-    from reciprocating_drive.twin_plots import plot_twin
+    from reciprocating_drive.twin.plots import plot_twin
 
     run([SAMPLE, *ENCODER, "--out", tmp_path / "o.csv"], fmu_path)
     titles = plot_twin(

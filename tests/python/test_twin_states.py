@@ -22,7 +22,7 @@ import sys
 import numpy as np
 import pytest
 from conftest import ROOT
-from reciprocating_drive.twin_sample import (
+from reciprocating_drive.twin.sample import (
     OMEGA0,
     crank_slider_acceleration,
     cycle_truth,
@@ -281,7 +281,7 @@ def test_a_revolution_through_a_long_stop_keeps_its_extremes(fmu_path):
     k = list(tab["revolution"]).index(long[0]["revolution"])
     assert tab["samples"][k] > REV_SAMPLES_MAX
     assert long[0]["friction_work"] is None and long[0]["speed_fluctuation"] is None
-    from reciprocating_drive.twin import _SUMMARY_KEYS
+    from reciprocating_drive.twin.core import _SUMMARY_KEYS
 
     for field, key in zip(SUMMARY_FIELDS, _SUMMARY_KEYS):
         if field in ("friction_work", "speed_fluctuation", "interrupted"):

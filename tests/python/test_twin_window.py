@@ -3,7 +3,7 @@ acceleration come from the samples within ±window/2 of its own time, so they do
 where the record starts, on its first interval or on the jitter.
 
 * The accuracy table of docs/twin.md, against the closed-form crank state of
-  python/reciprocating_drive/twin_sample.py (independent of the twin), reproduced with a first
+  python/reciprocating_drive/twin/sample.py (independent of the twin), reproduced with a first
   interval of 40 ms, one of 1 µs, ±30 % timestamp jitter and a start in the middle of the
   record: every figure within 10 % of the clean record's.
 * A record and slices of it started at 50 random samples (and runs resumed from checkpoints):
@@ -25,11 +25,11 @@ import pytest
 from conftest import ROOT
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from reciprocating_drive import conditioning as cond
-from reciprocating_drive import replay as R
 from reciprocating_drive.fmu import Fmu
 from reciprocating_drive.twin import CheckpointError, Options, Twin
-from reciprocating_drive.twin_sample import crank_slider_acceleration, encoder_samples, truth
+from reciprocating_drive.twin import conditioning as cond
+from reciprocating_drive.twin import replay as R
+from reciprocating_drive.twin.sample import crank_slider_acceleration, encoder_samples, truth
 
 TWO_PI = 2 * math.pi
 #: The fewest samples a window may hold, and the most a sparse one reaches to either side

@@ -9,6 +9,8 @@
 | plc_sim | plc-sim | plc_sim.py |
 | sweep | sweep | sweep.py |
 | closed_loop | closed-loop | closed_loop.py |
+
+Layer: commands (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -15,6 +15,8 @@ Exit codes: 0 done, 1 the loop failed or diverged (the message names docs/closed
 stability condition ρ_eff < 1), 2 a user error, 70 an internal error, 130 stopped.
 """
 
+# Layer: commands (docs/architecture.md); a comment, as --help prints the docstring.
+
 from __future__ import annotations
 
 import argparse
@@ -55,7 +57,7 @@ def parser(prog: str = PROG) -> ArgumentParser:
         default="libcosim",
         help="libcosim or fmpy: co-simulation of the SSP system (one-step delay in the loop); "
         "model-exchange: both FMI 3.0 FMUs as Model Exchange in one ODE, the loop solved exactly "
-        "(reciprocating_drive/me_loop.py, docs/closed-loop.md)",
+        "(reciprocating_drive/closed_loop/me_loop.py, docs/closed-loop.md)",
     )
     ap.add_argument("--step", default="1e-3", help="communication step [s] (default 1e-3)")
     ap.add_argument("--time", default="10", help="simulated time [s] (default 10)")
@@ -84,7 +86,7 @@ def parser(prog: str = PROG) -> ArgumentParser:
 def overrides(items: list[str], fmu_dir: pathlib.Path) -> dict:
     """--set pump.mass.reciprocating=350 → {"pump": {"mass.reciprocating": 350.0}}, each value
     checked against the FMU's type and range."""
-    from ..study import model_parameters
+    from ..sweeps.study import model_parameters
 
     out = {"pump": {}, "drivetrain": {}}
     for item in items:
@@ -162,8 +164,7 @@ def _main(argv, prog: str = PROG) -> int:
             raise UserError(f"--fmu-dir {a.fmu_dir}: no {fmu}; build it with scripts/build-fmu.sh")
     if a.importer == "libcosim":
         require_libcosim()
-    from ..presets import read_ssv
-    from ..system import (
+    from ..closed_loop.system import (
         SSD,
         LoopFailed,
         build_ssp,
@@ -177,6 +178,7 @@ def _main(argv, prog: str = PROG) -> int:
         start_values,
         write_series,
     )
+    from ..presets import read_ssv
 
     extra = overrides(a.set, a.fmu_dir)
     pump = {**read_ssv(SSD.parent / "pump.ssv"), **extra["pump"]}
@@ -221,7 +223,7 @@ def _main(argv, prog: str = PROG) -> int:
     failure = None
     try:
         if a.importer == "model-exchange":
-            from reciprocating_drive.me_loop import run_model_exchange
+            from ..closed_loop.me_loop import run_model_exchange
 
             r = run_model_exchange(np.arange(1, n + 1) * h, pump, drive, a.fmu_dir)
         else:

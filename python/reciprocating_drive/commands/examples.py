@@ -16,6 +16,8 @@ DIR/results/. Results are written where you run the commands (results/ of the cu
 never inside the installation. An existing file is not overwritten unless --force is given.
 """
 
+# Layer: commands (docs/architecture.md); a comment, as --help prints the docstring.
+
 from __future__ import annotations
 
 import argparse

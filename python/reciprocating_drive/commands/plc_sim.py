@@ -11,6 +11,8 @@ Prints "plc_sim: listening on opc.tcp://..." when ready. With --cert-dir the ser
 is written there (plc-sim.der), for the twin's trust list.
 """
 
+# Layer: commands (docs/architecture.md); a comment, as --help prints the docstring.
+
 from __future__ import annotations
 
 import argparse

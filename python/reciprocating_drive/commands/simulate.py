@@ -13,6 +13,8 @@ shipped parameter set NAME.ssv (resources/presets/ of a checkout, also inside th
 to an .ssv file.
 """
 
+# Layer: commands (docs/architecture.md); a comment, as --help prints the docstring.
+
 from __future__ import annotations
 
 import argparse

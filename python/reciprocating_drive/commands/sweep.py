@@ -14,6 +14,8 @@ computed. A result file of another study or FMU is refused; --fresh discards it 
 Exit codes: 0 done, 1 every case rejected, 2 a user error, 70 an internal error, 130 stopped.
 """
 
+# Layer: commands (docs/architecture.md); a comment, as --help prints the docstring.
+
 from __future__ import annotations
 
 import argparse
@@ -29,7 +31,7 @@ from ..cli_errors import (
     positive_float,
     run_cli,
 )
-from ..study import DEFAULT_MAX_CASES, check_fmu, load_study
+from ..sweeps.study import DEFAULT_MAX_CASES, check_fmu, load_study
 from . import prefix
 
 PROG = "sweep.py"
@@ -123,12 +125,12 @@ def _main(argv, prog: str) -> int:
     # Everything is validated before a cluster starts (docs/sweeps.md "Errors and exit codes").
     study = load_study(a.study, fmu=a.fmu, max_cases=max_cases)
     if a.scheduler is not None:
-        from ..sweep import scheduler_address
+        from ..sweeps.sweep import scheduler_address
 
         scheduler_address(a.scheduler)
 
-    from ..sweep import Progress, load_rows, run_sweep, warnings
-    from ..sweep_plot import plot_sweep
+    from ..sweeps.plots import plot_sweep
+    from ..sweeps.sweep import Progress, load_rows, run_sweep, warnings
 
     for w in warnings(study):
         print(f"warning: {w}", flush=True)

@@ -14,6 +14,8 @@ revolution) and, with --plots DIR, time series, the card and per-revolution tren
 samples and at the end; --resume FILE continues a run from its checkpoint.
 """
 
+# Layer: commands (docs/architecture.md); a comment, as --help prints the docstring.
+
 from __future__ import annotations
 
 import argparse
@@ -26,10 +28,9 @@ import sys
 import threading
 
 from .. import artifacts
-from ..batch import format_csv
-from ..fmu import FmuError
-from ..line_input import Idle, InputChanged, chunks_of
-from ..twin import (
+from ..fmu.batch import format_csv
+from ..fmu.instance import FmuError
+from ..twin.core import (
     SUMMARY_FIELDS,
     CheckpointError,
     DataError,
@@ -39,6 +40,7 @@ from ..twin import (
     save_checkpoint,
     summary_header,
 )
+from ..twin.line_input import Idle, InputChanged, chunks_of
 from . import prefix
 
 
@@ -621,7 +623,7 @@ def run(a, stopping: list) -> int:
         + f"; wrote {a.out} and {summary}"
     )
     if a.plots:
-        from ..twin_plots import plot_twin
+        from ..twin.plots import plot_twin
 
         plot_twin(
             a.out,

@@ -1,6 +1,9 @@
 """`rdrive twin --distributed`: a recorded file replayed in pieces on Dask (docs/twin.md
 "Distributed replay"). The output files are those of the sequential replay: identical byte for
-byte for a rigid rod, within 1e-8 rad of rod.angle for an elastic rod."""
+byte for a rigid rod, within 1e-8 rad of rod.angle for an elastic rod.
+
+Layer: commands (docs/architecture.md).
+"""
 
 from __future__ import annotations
 
@@ -11,9 +14,10 @@ import shutil
 import sys
 import time
 
-from ..fmu import FmuError
-from ..line_input import InputChanged
-from ..replay import (
+from ..fmu.instance import FmuError
+from ..twin.core import CheckpointError, DataError, Options, summary_header
+from ..twin.line_input import InputChanged
+from ..twin.replay import (
     INPUT_NAMES,
     STOP,
     Assembler,
@@ -37,7 +41,6 @@ from ..replay import (
     warm_worker,
     write_piece,
 )
-from ..twin import CheckpointError, DataError, Options, summary_header
 from . import prefix
 
 #: At most this many pieces in one Dask task (`_compute`).
@@ -104,7 +107,7 @@ def run(a, opts: Options, stopping: list) -> int:
 
     if a.scheduler:
         # Before reading the input: a scheduler that is not there is said at once, bounded.
-        from ..sweep import SweepError, probe_scheduler
+        from ..sweeps.sweep import SweepError, probe_scheduler
 
         try:
             probe_scheduler(a.scheduler, a.connect_timeout)
@@ -203,7 +206,7 @@ def run(a, opts: Options, stopping: list) -> int:
         f"{len(sc.gaps)} gap(s); {len(pieces)} pieces; wrote {a.out} and {summary}"
     )
     if a.plots:
-        from ..twin_plots import plot_twin
+        from ..twin.plots import plot_twin
 
         plot_twin(
             a.out, summary, a.plots, machine=machine, source=a.input, gap_limit=sc.options.gap_limit
@@ -215,7 +218,7 @@ def run(a, opts: Options, stopping: list) -> int:
 def _compute(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
     """Runs the pieces `todo` on Dask and writes each to the work folder as it arrives. None when
     all are written, else the exit code."""
-    from ..sweep import _quiet_distributed
+    from ..sweeps.sweep import _quiet_distributed
 
     # distributed's own log lines stay out of the replay's messages for the whole run, not only
     # while the cluster starts and stops: a worker lost with a result it held makes the client
@@ -232,7 +235,7 @@ def _compute(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
 
 def _compute_quietly(a, sc, pieces, todo, work, progress, stopping, asm) -> int | None:
     from ..cluster import WorkerMismatch, prepare_workers
-    from ..sweep import SweepError, _client, _close
+    from ..sweeps.sweep import SweepError, _client, _close
 
     err = sys.stderr
     try:

@@ -12,6 +12,8 @@ Run again with the same configuration after a crash or a stop: it resumes from t
 checkpoint committed in the database, and nothing is lost or stored twice.
 """
 
+# Layer: commands (docs/architecture.md); a comment, as --help prints the docstring.
+
 from __future__ import annotations
 
 import argparse

@@ -1,4 +1,7 @@
-"""The twin's live page (docs/page.md): `PageServer`, a sink that serves what the twin computes."""
+"""The twin's live page (docs/page.md): `PageServer`, a sink that serves what the twin computes.
+
+Layer: workflows, the page (docs/architecture.md).
+"""
 
 from .server import PageError, PageServer
 

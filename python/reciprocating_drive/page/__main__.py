@@ -9,6 +9,8 @@ from --token-file or the environment variable RD_PAGE_TOKEN (never from the comm
 `ps` would show it). Errors are one line and a non-zero exit; stopped by SIGINT or SIGTERM.
 """
 
+# Layer: workflows, the page (docs/architecture.md); a comment, as --help prints the docstring.
+
 from __future__ import annotations
 
 import argparse

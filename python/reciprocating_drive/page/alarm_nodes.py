@@ -13,6 +13,8 @@ connects, writes every node whose wanted state it has not written yet, and on a 
 retries with a doubling back-off (up to `retry_max` s); the first failure of a series is reported
 once through `log` (one line, without the password). A node whose write is refused (wrong id, not
 writable, wrong type) is reported once and not tried again.
+
+Layer: workflows, the page (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -11,6 +11,8 @@ chunk (it must stay below the 50 ms the chunk covers to keep up live) and the la
 one `PageServer.add`. The page's last revolution is checked to be the twin's after each run.
 """
 
+# Layer: workflows, the page (docs/architecture.md); a comment, as --help prints the docstring.
+
 from __future__ import annotations
 
 import argparse
@@ -25,8 +27,8 @@ import numpy as np
 import psutil
 
 from ..alarms import load_limits
-from ..twin import Options, Twin
-from ..twin_sample import truth
+from ..twin.core import Options, Twin
+from ..twin.sample import truth
 from .server import PageServer
 
 ROOT = Path(__file__).resolve().parents[3]

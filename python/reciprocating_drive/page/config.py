@@ -9,6 +9,8 @@
 `page_from_table(table, where, base)` checks it (one-line errors naming the file and key) and
 returns an unstarted `PageServer`; relative paths are taken from `base`, the configuration file's
 folder.
+
+Layer: workflows, the page (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -6,6 +6,8 @@ new: revolution summaries, data-health events and, when the twin stores per-samp
 
 Read-only (the database is opened with mode=ro). A revolution appears once the twin has committed
 it: the page is as fresh as the twin's commit interval, plus the poll interval.
+
+Layer: workflows, the page (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import time
 
 import numpy as np
 
-from ..twin import SUMMARY_FIELDS
+from ..twin.core import SUMMARY_FIELDS
 from .history import HistoryError
 
 
@@ -25,7 +27,7 @@ def elastic_of(machine: str) -> bool | None:
     value, read from the model description. None when it cannot be told (the page then shows
     what an elastic rod has too)."""
     from ..presets import preset_values
-    from ..study import MODEL_DESCRIPTION
+    from ..sweeps.study import MODEL_DESCRIPTION
 
     try:
         kind = preset_values(machine).get("rod.kind")

@@ -6,6 +6,8 @@ A long window (days at 25 revolutions a second are millions of rows) is cut into
 `MAX_POINTS` buckets by SQL itself: the peak values (torque, rod force, fluctuation, ϑ amplitude,
 stress) keep each bucket's largest, so a short excursion stays visible; strokes per minute and
 friction work keep each bucket's mean.
+
+Layer: workflows, the page (docs/architecture.md).
 """
 
 from __future__ import annotations

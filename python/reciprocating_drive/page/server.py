@@ -22,6 +22,8 @@ Access (docs/page.md, "Access"): bound to 127.0.0.1 by default. Bound to any oth
 every request must carry it: an `Authorization: Bearer` header, or the HttpOnly cookie of a session
 opened by the login form (the token is posted once, never put in a URL). Without it: 401 and a
 login form, no data. The page is read-only: no request changes the twin.
+
+Layer: workflows, the page (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -1,6 +1,9 @@
 """The twin's configuration file (docs/plant.md, "Configuration"): TOML, read with the standard
 library's tomllib, checked key by key. Every mistake is one line naming the file, the key, the
-value and what is allowed (`ConfigError`)."""
+value and what is allowed (`ConfigError`).
+
+Layer: workflows, the plant (docs/architecture.md).
+"""
 
 from __future__ import annotations
 

@@ -3,6 +3,8 @@ in real time, with a process-force step, the twin subscribes to it over OPC UA, 
 SQLite, and the live page shows the alarms the step raises and clears.
 
     rdrive plant --demo [--seconds S] [--db results/twin/demo.sqlite] [--force-step N]
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations

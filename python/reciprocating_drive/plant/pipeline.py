@@ -9,6 +9,8 @@ per-sample rows and revolution summaries; every sink gets them all and commits t
 that covers them (the twin's state: FMU state, input position, conditioning buffers, and the
 counts of rows, summaries and events handed out). Restarted with the same configuration, the
 pipeline resumes from the last committed checkpoint (docs/plant.md "Exactly once").
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -22,15 +24,12 @@ import time
 import traceback
 
 from ..cli_errors import one_line
-from ..fmu import FmuError
-from ..twin import DataError, Options, Twin
+from ..fmu.instance import FmuError
+from ..twin.core import DataError, Options, Twin
 from .config import Config, ConfigError, load
 from .samples import Event
 from .sinks.base import Counters, RunInfo, SinkError
-
-
-class SourceError(RuntimeError):
-    """A source that cannot go on or refuses us (one line; never a secret)."""
+from .sources.base import SourceError
 
 
 def make_source(cfg: Config):
@@ -379,18 +378,23 @@ class Pipeline:
                         self._event(ev)
                     if chunk.events:
                         self.dirty = True
-                    if chunk.lines:
+                    if chunk.lines or chunk.samples is not None:
                         had_origin = twin.time_origin is not None
                         try:
-                            rows, sums = twin.feed(chunk.lines, lineno + 1)
+                            if chunk.samples is None:
+                                rows, sums = twin.feed(chunk.lines, lineno + 1)
+                            else:
+                                rows, sums = twin.feed_samples(chunk.samples, lineno + 1)
                         except (DataError, FmuError) as e:
                             return self._failed(e)
                         if self.page is not None and not had_origin and twin.time_origin:
                             # Timestamps in the input: the page's clock starts at their origin.
                             self.page.open(twin.outputs, self.source_origin())
-                        lineno += len(chunk.lines)
-                        self.lines_since += len(chunk.lines)
-                        self.lines_since_checkpoint += len(chunk.lines)
+                        # Input lines consumed (a source of numbers: its samples' lines).
+                        n = twin.lines_read - lineno
+                        lineno += n
+                        self.lines_since += n
+                        self.lines_since_checkpoint += n
                         self._hand(rows, sums)
                 # A live source commits every commit_interval (the rows' latency); a replay
                 # as fast as possible every commit_samples lines (fewer, larger transactions).

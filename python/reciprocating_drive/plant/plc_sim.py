@@ -19,6 +19,8 @@ with a certificate made at run time, and user name + password. Faults for the te
 angle with a bad status, NaN, a value of the wrong type, two numbers on the scalar node, a 2-D
 block array, no SourceTimestamp; a history that fails or caps its responses; an outage (the endpoint closed for some
 seconds while the PLC goes on recording into its history).
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations

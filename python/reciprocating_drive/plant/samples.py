@@ -1,15 +1,21 @@
 """Timestamped samples between a source and the twin's core (docs/plant.md, "Pipeline").
 
 A source hands out `Chunk`s: input lines for `Twin.feed` (a CSV source passes the file's own lines,
-so its messages name the file's line numbers) and data-health events. A source of samples (OPC UA)
-formats them as CSV lines with `sample_lines`: each number written with `repr`, which reads back to
-the same double, so the twin computes from exactly the values the source received.
+so its messages name the file's line numbers), or samples as numbers for `Twin.feed_samples` (a
+source of numbers, OPC UA: the values it received, with no text in between), and data-health
+events. `sample_lines` writes samples as the CSV lines of the same input (each number with `repr`,
+which reads back to the same double): the form the twin computes the same numbers from, which the
+benchmark (scripts/bench_samples.py) and the tests compare the numbers' path with.
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+
+from ..twin.samples import Samples
 
 
 def sample_header(speed: bool, force: bool) -> str:
@@ -36,6 +42,8 @@ class Event:
 class Chunk:
     lines: list[str] = field(default_factory=list)
     events: list[Event] = field(default_factory=list)
+    #: Samples as numbers (a source of numbers), instead of lines.
+    samples: Samples | None = None
 
 
 def _num(v) -> str:

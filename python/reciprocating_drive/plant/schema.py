@@ -7,11 +7,13 @@ so a row can never be stored twice: a bug that tried would fail its transaction 
 duplicating data. The time index (run, t) serves the queries plants make ("this machine, this
 hour"). Times `t` are seconds from the run's `time_origin` (Unix seconds), the twin's own time;
 wall-clock times are Unix seconds.
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations
 
-from ..twin import SUMMARY_FIELDS
+from ..twin.core import SUMMARY_FIELDS
 
 SCHEMA_VERSION = 2
 

@@ -5,6 +5,8 @@ N cycles of the default machine (twin_sample.cycle_truth, docs/twin.md "Machine 
 standstill in which a 4096-count encoder dithers by one count (a flip every 20 ms on average), a
 2 s ramp up and 6 s running; 22 s a cycle, read at 1 kHz. The same N always gives the same file
 (a fixed seed), so a test replays it from the file and compares.
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import pathlib
 
 import numpy as np
 
-from ..twin_sample import CYCLE, cycle_truth
+from ..twin.sample import CYCLE, cycle_truth
 
 RATE = 1000.0
 COUNTS = 4096

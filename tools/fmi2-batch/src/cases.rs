@@ -2,7 +2,7 @@
 //! initialized with the case's values and run over all its communication steps with the crank
 //! turning at the case's constant speed, the outputs of every point written into the case's rows.
 //! The calls and their arguments are those of the per-step reference path of the sweeps
-//! (python/reciprocating_drive/sweep.py, `run_case`; docs/sweeps.md "Execution"), in the same
+//! (python/reciprocating_drive/sweeps/cases.py, `run_case`; docs/sweeps.md "Execution"), in the same
 //! order, so the FMU computes the same numbers bit for bit.
 
 use std::os::raw::{c_int, c_uint, c_void};

@@ -1,7 +1,7 @@
 //! The digital twin's speed and acceleration estimate (docs/twin.md "Conditioning"): at each
 //! centre sample, the first and second derivative of a cubic fitted by least squares to the
 //! samples of its window, on the measured timestamps (a Savitzky–Golay smoother). The same
-//! algorithm as python/reciprocating_drive/conditioning.py (`window` and `fit`, which the tests
+//! algorithm as python/reciprocating_drive/twin/conditioning.py (`window` and `fit`, which the tests
 //! compare it with).
 //!
 //! The window is a time: the samples within ±half of the centre's time, shifted inward at the

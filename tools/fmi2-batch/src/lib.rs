@@ -1,5 +1,5 @@
 //! The per-sample inner loops of the digital twin, called from Python through ctypes
-//! (python/reciprocating_drive/batch.py): a batch driver of any loaded FMI 2.0 co-simulation FMU
+//! (python/reciprocating_drive/fmu/batch.py): a batch driver of any loaded FMI 2.0 co-simulation FMU
 //! (`fmi2_batch_run`), the cases of a design sweep, each initialized and run over all its steps
 //! (`fmi2_batch_cases`), rows of numbers as CSV exactly as Python's repr writes them
 //! (`fmi2_batch_format_csv`), the local-cubic speed and acceleration estimate

@@ -1,1 +1,4 @@
-"""Database sinks of the twin (docs/plant.md, "Sinks")."""
+"""Database sinks of the twin (docs/plant.md, "Sinks").
+
+Layer: workflows, the plant (docs/architecture.md).
+"""

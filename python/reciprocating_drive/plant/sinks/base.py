@@ -20,6 +20,8 @@ The transactions run on a writer thread, in order, while the pipeline computes t
 (the database's own work releases Python's lock, and the machine has a second core). At most
 `depth` commits wait for it; then `commit` waits, and the source's queue buffers (a database
 that is down slows the twin, it never loses a row).
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations

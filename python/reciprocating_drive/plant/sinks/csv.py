@@ -8,6 +8,8 @@ of the folder). Opened again, the files are cut to the sizes the sidecar records
 written after the checkpoint and is computed again); a file shorter than recorded was changed
 since and is refused (it is never padded). The sidecar is written before any data, so a file
 without one is not this sink's and is never overwritten.
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -18,8 +20,8 @@ import pathlib
 
 import numpy as np
 
-from ...batch import format_csv
-from ...twin import SUMMARY_FIELDS, summary_header
+from ...fmu.batch import format_csv
+from ...twin.core import SUMMARY_FIELDS, summary_header
 from .base import RunInfo, Sink, SinkError, parse_state
 
 FORMAT = "rdrive-plant-csv-sink"

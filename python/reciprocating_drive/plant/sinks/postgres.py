@@ -3,6 +3,8 @@
 The rows of a chunk are one numpy array; its binary COPY image (big-endian fields with their
 lengths, PostgreSQL's "binary copy format") is built by numpy in one pass, so the doubles go to
 the server bit for bit and no Python object is made per value.
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import time
 import numpy as np
 import psycopg
 
-from ...twin import SUMMARY_FIELDS
+from ...twin.core import SUMMARY_FIELDS
 from ..config import mask_dsn
 from ..schema import SCHEMA_VERSION, column, ddl, insert_events, upsert_checkpoint
 from .base import RunInfo, Sink, SinkError, parse_state, uncovered

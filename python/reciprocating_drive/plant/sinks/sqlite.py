@@ -3,6 +3,8 @@
 WAL with synchronous=NORMAL: a transaction is atomic and survives the process being killed
 (SIGKILL) at any moment; after a power cut the last transactions may be lost, but always together
 with their checkpoint, so the twin resumes from the last one that the file holds.
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ import time
 
 import numpy as np
 
-from ...twin import SUMMARY_FIELDS
+from ...twin.core import SUMMARY_FIELDS
 from ..schema import SCHEMA_VERSION, column, ddl, insert_events, upsert_checkpoint
 from .base import RunInfo, Sink, SinkError, parse_state, uncovered
 

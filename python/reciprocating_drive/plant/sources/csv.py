@@ -1,13 +1,16 @@
 """A CSV file as a source (docs/twin.md "Input"): its own lines go to the twin, so messages name
 the file's line numbers. `pace` replays at that multiple of real time (0: as fast as possible).
-A UTF-8 byte-order mark (spreadsheets write one) is skipped."""
+A UTF-8 byte-order mark (spreadsheets write one) is skipped.
+
+Layer: workflows, the plant (docs/architecture.md).
+"""
 
 from __future__ import annotations
 
 import time
 
 from ... import timestamps
-from ...twin import detect_separator
+from ...twin.core import detect_separator
 from ..samples import Chunk
 
 

@@ -18,6 +18,8 @@ through a queue, so a slow database never stalls the subscription (the queue buf
 * Security: Basic256Sha256 (Sign or SignAndEncrypt) with the client's certificate and key; the
   server's certificate must be one of the `trust` files (DER or PEM); user name and password. A
   refusal stops the run with one line; a password is never part of a message.
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -33,7 +35,8 @@ import sys
 import threading
 import time
 
-from ..samples import Chunk, Event, sample_header, sample_lines
+from ...twin.samples import Samples
+from ..samples import Chunk, Event
 
 EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.UTC)
 _NUMERIC = None  # the numeric VariantTypes (set on first use: asyncua imported lazily)
@@ -151,7 +154,6 @@ class OpcUaSource:
 
     # ---- the pipeline's side --------------------------------------------------------------------
     def start(self, lines_read: int = 0, last_t=None, time_origin=None) -> None:
-        self.need_header = lines_read == 0
         self.last_t = last_t  # the last sample handed out (twin time)
         self.time_origin = time_origin
         if last_t is not None and time_origin is not None:
@@ -179,7 +181,7 @@ class OpcUaSource:
 
     def _raise(self, e):
         from ..config import ConfigError
-        from ..pipeline import SourceError
+        from .base import SourceError
 
         if isinstance(e, ConfigError):  # a configured node the server does not have: exit 2
             raise ConfigError(str(e)) from None
@@ -202,6 +204,8 @@ class OpcUaSource:
                 break
             more = self.q.get()
             item.lines += more.lines
+            if more.samples is not None:
+                item.samples = more.samples if item.samples is None else item.samples + more.samples
             item.events += more.events
         return item
 
@@ -223,12 +227,11 @@ class OpcUaSource:
         except Exception as e:  # noqa: BLE001 - reported by the pipeline as one line
             self.q.put(RuntimeError(f"OPC UA source {self.s['endpoint']}: {type(e).__name__}: {e}"))
 
-    def _emit(self, lines: list, events: list) -> None:
-        if self.need_header and lines:
-            lines = [sample_header("speed" in self.roles, "force" in self.roles), *lines]
-            self.need_header = False
-        if lines or events:
-            self.q.put(Chunk(lines=list(lines), events=list(events)))
+    def _emit(self, samples: Samples | list, events: list) -> None:
+        # The numbers as received (`[]` with events only): the twin numbers them as the lines of
+        # the input's CSV form (its header is line 1 of a new run), so messages name the same lines.
+        if len(samples) or events:
+            self.q.put(Chunk(events=list(events), samples=samples if len(samples) else None))
 
     async def _main(self) -> None:
         s = self.s
@@ -652,13 +655,13 @@ class OpcUaSource:
             )
         out_t, out_a, out_w, out_f = out
         self.samples_out += len(out_t)
-        lines = sample_lines(
-            out_t,
-            out_a,
-            out_w if "speed" in self.roles else None,
-            out_f if "force" in self.roles else None,
+        samples = Samples.of(
+            time=out_t,
+            crank_angle=out_a,
+            crank_speed=out_w if "speed" in self.roles else None,
+            process_force=out_f if "force" in self.roles else None,
         )
-        self._emit(lines, events)
+        self._emit(samples, events)
         events.clear()
 
     # The clock's state: a sample held for one more (the first, or one after a forward jump

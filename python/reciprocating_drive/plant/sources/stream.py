@@ -9,6 +9,8 @@ Resuming: a followed file is read again from its start and the lines the checkpo
 skipped, as for a CSV file. Standard input cannot be rewound, and nothing says which of its lines
 the checkpoint covers: a run of standard input that has a checkpoint is refused (name a new run,
 or give the data as a file).
+
+Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -17,8 +19,8 @@ import queue
 import sys
 import threading
 
-from ...line_input import InputChanged, chunks_of
-from ...twin import DataError
+from ...twin.core import DataError
+from ...twin.line_input import InputChanged, chunks_of
 from ..samples import Chunk
 
 
@@ -42,7 +44,7 @@ class StreamSource:
         self.raw = None
 
     def start(self, lines_read: int = 0, last_t=None, time_origin=None) -> None:
-        from ..pipeline import SourceError
+        from .base import SourceError
 
         if self.stdin and lines_read > 0:
             raise SourceError(

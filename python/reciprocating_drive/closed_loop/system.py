@@ -11,6 +11,8 @@ and parameter sets for each component) as a .ssp archive; `run_libcosim` and `ru
 it with the two importers. Both masters are Jacobi schemes: every FMU steps with the inputs the
 other produced at the previous communication point, which breaks the algebraic loop
 (crank.torque depends directly on crank.acceleration) with a delay of one step.
+
+Layer: workflows, the closed loop (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
-from . import artifacts
+from .. import artifacts
 
 SSD = artifacts.ssp_system() / "SystemStructure.ssd"
 #: The Model Exchange variant (same components and connections, OMSimulator's variable-step
@@ -178,7 +180,7 @@ def run_fmpy(ssp: pathlib.Path, h: float, t_end: float) -> dict:
     # The logger of fmu.py's _Log takes this project's FMUs' "%s" messages (its docstring).
     import fmpy.fmi2 as fmi2
 
-    from .fmu import _Log
+    from ..fmu.instance import _Log
 
     log = _Log(echo=False)
     saved = fmi2.defaultCallbacks.logger
@@ -228,7 +230,7 @@ def write_series(path: pathlib.Path, r: dict, units: dict) -> None:
     """The recorded series as CSV: `time [s]` then RECORD's variables as `component.variable
     [unit]`, one row per communication point (the same columns for every importer), numbers
     written with repr (round-trip exact)."""
-    from .twin import with_unit
+    from ..twin.core import with_unit
 
     names = [f"{c}.{v}" for c, v in RECORD]
     cols = [np.asarray(r["time"], dtype=float)] + [np.asarray(r[n], dtype=float) for n in names]
@@ -292,7 +294,7 @@ def torque_factor_max(pump_fmu: pathlib.Path, pump: dict, omega: float, n: int =
     (any mechanism: the FMU's own kinematics, docs/model.md §3)."""
     import numpy as np
 
-    from .fmu import Fmu
+    from ..fmu.instance import Fmu
 
     f = Fmu(str(pump_fmu))
     values = {k: v for k, v in pump.items() if k not in ("crank.angle", "crank.speed")}
@@ -340,7 +342,7 @@ def plot_closed_loop(r: dict, d: list, title: str, path: pathlib.Path | None = N
     import matplotlib.pyplot as plt
     from matplotlib.ticker import MaxNLocator
 
-    from .sweep_plot import plain_axis
+    from ..sweeps.plots import plain_axis
 
     fig, ax = plt.subplots(4, 1, figsize=(10, 10))
     t, w = r["time"], r["drivetrain.crank.speed"]

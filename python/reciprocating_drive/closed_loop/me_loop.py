@@ -13,6 +13,8 @@ docs/fmi-interface.md "Directional derivatives"), and the loop's solution, one N
 ε ← ε − r/(1 − b·k) on r(ε) = ε − (a + b·T(ε)), is set into both FMUs (guide friction makes T(ε)
 piecewise affine: further Newton steps end on the right piece). There is no stability condition:
 ρ_eff ≥ 1, which makes the co-simulation diverge, is just another machine here.
+
+Layer: workflows, the closed loop (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -59,7 +61,7 @@ class _Me:
             # proxy forwards every instance's messages to one process-wide callback, and once
             # the instance that registered it is freed, the next message (an error this FMU
             # reports) calls freed memory and the process dies.
-            from .fmu import _Log
+            from ..fmu.instance import _Log
 
             self._log = _Log(echo=False)
             f.instantiate(callbacks=self._log.callbacks)
@@ -220,7 +222,7 @@ def run_model_exchange_ssp(ssp: pathlib.Path, t_eval, rtol: float = 1e-10, atol:
     import xml.etree.ElementTree as ET
     import zipfile
 
-    from .presets import read_ssv
+    from ..presets import read_ssv
 
     ns = {"ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription"}
     with tempfile.TemporaryDirectory() as d:

@@ -33,6 +33,8 @@ Cases are planned lazily: the number of cases is counted from the design (a prod
 lengths), and case i is computed when it is asked for (`Study.case`), so a study of 10¹⁵ cases
 costs no more memory than one of ten. A case's number is its index in the design, stable for a given
 study file, which is what lets a sweep resume.
+
+Layer: workflows, the sweeps (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -49,9 +51,9 @@ from functools import cache
 
 import numpy as np
 
-from . import artifacts
-from .cli_errors import UserError, show
-from .presets import preset_values
+from .. import artifacts
+from ..cli_errors import UserError, show
+from ..presets import preset_values
 
 #: The model description of this repository (equal to the built FMU's), or of the FMU an installed
 #: package carries; studies are validated against the FMU they run on when it is given.
@@ -520,7 +522,7 @@ def study_from_dict(
     try:
         base = preset_values(machine)
     except KeyError:
-        from .presets import available_presets
+        from ..presets import available_presets
 
         raise StudyError(
             f"{where}: machine = {show(doc.get('machine'))}; allowed: "

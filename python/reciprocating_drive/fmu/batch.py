@@ -8,6 +8,8 @@ clean lines of a CSV (`parse_csv`).
 The library is built by `cargo build --release --workspace --lib` (scripts/build-fmu.sh, which
 scripts/run.sh and scripts/test.sh call). RD_BATCH_LIB=/path/to/libfmi2_batch.so loads another
 build.
+
+Layer: FMU access, below the workflows (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import pathlib
 
 import numpy as np
 
-from . import artifacts
+from .. import artifacts
 
 DEFAULT_LIB = artifacts.batch_library()
 

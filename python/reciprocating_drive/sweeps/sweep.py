@@ -1,6 +1,6 @@
 """Design sweeps on Dask's distributed scheduler (docs/sweeps.md).
 
-The cases of a study (python/reciprocating_drive/study.py) are cut into small batches; each batch is
+The cases of a study (python/reciprocating_drive/sweeps/study.py) are cut into small batches; each batch is
 one Dask task that runs its cases one after the other on the FMU its worker process has loaded once
 (`_worker_fmu`). Batches are sized to about a second of work and only a few per worker are in flight,
 planned lazily as results come back: a study of any size costs the same memory before its first case,
@@ -19,6 +19,8 @@ started with `dask worker`, dask-jobqueue, dask-kubernetes, ...), after checking
 `connect_timeout` that a Dask scheduler answers there. Such workers share no disk with the client:
 they need the package (the wheel) installed, at the client's version, and receive the FMU from the
 client (cluster.py).
+
+Layer: workflows, the sweeps (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -40,23 +42,9 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from .cli_errors import RunFailed, UserError, show
-from .revolution import TWO_PI, summarize_revolutions
-from .study import SPEED_PARAMETERS, Study, check_fmu
-
-#: Outputs read at every step of a case.
-OUTPUTS = (
-    "crank.model_angle",
-    "suspension.position",
-    "suspension.acceleration",
-    "inertia.force",
-    "guide.friction",
-    "link.friction_total",
-    "rod.force",
-    "crank.torque",
-    "rod.angle",
-    "rod.stress_max",
-)
+from ..cli_errors import RunFailed, UserError, show
+from .cases import OUTPUTS, run_case, run_cases
+from .study import Study, check_fmu
 
 _FMUS: dict = {}
 
@@ -66,116 +54,12 @@ _MAX_BATCH = 20_000
 
 def _worker_fmu(path: str):
     """The FMU of this worker process, loaded once and reused by every case (fmi2Reset between)."""
-    from .fmu import Fmu
+    from ..fmu.instance import Fmu
 
     f = _FMUS.get(path)
     if f is None:
         f = _FMUS[path] = Fmu(path)
     return f
-
-
-def _speed(study: Study, params: dict) -> float:
-    if "strokes_per_minute" in params:
-        return float(params["strokes_per_minute"]) * TWO_PI / 60.0
-    if "crank.speed" in params:
-        return float(params["crank.speed"])
-    return study.crank_speed
-
-
-def case_values(study: Study, params: dict, omega: float) -> dict:
-    """The values a case sets in initialization mode, in the order they are set: the machine's
-    (without the crank's state), the case's parameters, the crank speed."""
-    values = {
-        k: v
-        for k, v in study.base_values.items()
-        if k not in ("crank.angle", "crank.speed", "crank.acceleration")
-    }
-    values.update({k: v for k, v in params.items() if k not in SPEED_PARAMETERS})
-    values["crank.speed"] = omega
-    return values
-
-
-def _check_speed(omega: float) -> None:
-    if not (omega > 0 and math.isfinite(omega)):
-        raise ValueError(f"crank speed = {omega} rad/s; allowed: > 0")
-
-
-def run_case(fmu, study: Study, params: dict) -> tuple[dict, float]:
-    """The reference path of one case, one FMU call per communication step from Python (the
-    sweep runs `run_cases`, whose rows equal this path's bit for bit; the tests compare them, and
-    `run_batch(..., reference=True)` runs it). Returns (metrics, seconds spent in FMU calls);
-    raises the FMU's error (FmuError) for a rejected case."""
-    omega = _speed(study, params)
-    _check_speed(omega)
-    values = case_values(study, params, omega)
-    n_rev = study.skip_revolutions + study.revolutions
-    n = n_rev * study.steps_per_revolution + 2
-    h = TWO_PI / omega / study.steps_per_revolution
-    rows = np.empty((n + 1, len(OUTPUTS)))
-    t0 = time.perf_counter()
-    fmu.start(values)
-    ch = fmu.channel(["crank.angle", "crank.speed"], list(OUTPUTS))
-    ch.set_inputs([0.0, omega])
-    ch.read(rows[0])
-    for k in range(1, n + 1):
-        t = k * h
-        ch.step(
-            t, [omega * (t - h), omega], rows[k]
-        )  # inputs at the step's start (docs/model.md §2)
-    inside = time.perf_counter() - t0
-    return _summary_metrics(study, np.arange(n + 1) * h, rows), inside
-
-
-def _summary_metrics(study: Study, time_: np.ndarray, rows: np.ndarray) -> dict:
-    """The metrics of one run's samples through summarize_revolutions (the reference). Raises
-    ValueError (the case's row is an error) for a sample the FMU returned as NaN or infinite:
-    summarize_revolutions would fail on it with an IndexError, which would end the batch."""
-    bad = ~np.isfinite(rows)
-    if bad.any():
-        k, q = (int(x) for x in np.argwhere(bad)[0])
-        raise ValueError(
-            f"the FMU returned {OUTPUTS[q]} = {rows[k, q]} at t = {time_[k]:.6g} s (communication "
-            f"point {k}); allowed: finite values (the case's metrics cannot be computed)"
-        )
-    data = {name: rows[:, i] for i, name in enumerate(OUTPUTS)}
-    revs = [
-        r
-        for r in summarize_revolutions(time_, data["crank.model_angle"], data)
-        if r.index >= study.skip_revolutions
-    ][: study.revolutions]
-    return metrics_of(revs, study.metrics)
-
-
-def metrics_of(revs, wanted) -> dict:
-    if not revs:
-        raise RuntimeError("no complete evaluated revolution")
-
-    def ext(q, key):
-        vals = [getattr(r.extremes[q], key) for r in revs]
-        return max(vals) if key == "max" else min(vals)
-
-    last = revs[-1]
-    all_metrics = {
-        "friction_work": lambda: float(np.mean([r.friction_work for r in revs])),
-        "torque_peak": lambda: max(
-            abs(ext("crank.torque", "max")), abs(ext("crank.torque", "min"))
-        ),
-        "torque_max": lambda: ext("crank.torque", "max"),
-        "torque_min": lambda: ext("crank.torque", "min"),
-        "acceleration_max": lambda: ext("suspension.acceleration", "max"),
-        "acceleration_max_angle": lambda: last.extremes["suspension.acceleration"].max_angle_deg,
-        "acceleration_min": lambda: ext("suspension.acceleration", "min"),
-        "inertia_force_max": lambda: ext("inertia.force", "max"),
-        "inertia_force_min": lambda: ext("inertia.force", "min"),
-        "guide_friction_max": lambda: ext("guide.friction", "max"),
-        "guide_friction_min": lambda: ext("guide.friction", "min"),
-        "rod_force_max": lambda: ext("rod.force", "max"),
-        "rod_force_max_angle": lambda: last.extremes["rod.force"].max_angle_deg,
-        "rod_force_min": lambda: ext("rod.force", "min"),
-        "rod_angle_amplitude": lambda: max(r.rod_angle_amplitude for r in revs),
-        "stress_max": lambda: max(r.stress_max for r in revs),
-    }
-    return {m: float(all_metrics[m]()) for m in wanted}
 
 
 @dataclass
@@ -207,11 +91,10 @@ def run_batch(
     batch driver with the metrics computed for the whole batch at once (sweep_cases.py);
     `reference=True` runs the reference path instead, one FMU call per step from Python
     (`run_case`), whose rows are the same bit for bit (but for the timings)."""
-    from .fmu import FmuError
-    from .sweep_cases import run_cases
+    from ..fmu.instance import FmuError
 
     if shipped:
-        from .cluster import local_fmu
+        from ..cluster import local_fmu
 
         fmu_path = local_fmu(fmu_path)
     fmu = _worker_fmu(fmu_path)
@@ -247,12 +130,10 @@ def run_batch_csv(
     (columns `cols`, which are `columns(study)`; fingerprint `fp`), formatted on the worker: the
     client only appends them, so it takes no share of the cores from the workers. Returns (text,
     rows, Σ seconds in FMU calls, seconds of the whole task but loading the FMU)."""
-    from .sweep_cases import run_cases
-
     if cols != columns(study):
         raise ValueError("run_batch_csv: the columns are not the study's")
     if shipped:
-        from .cluster import local_fmu
+        from ..cluster import local_fmu
 
         fmu_path = local_fmu(fmu_path)
     fmu = _worker_fmu(fmu_path)
@@ -275,7 +156,7 @@ def _csv_lines(res, worker: str, fp: str) -> str:
     fingerprint `fp`, byte for byte: the numbers formatted natively as repr writes them
     (batch.format_csv: csv.writer writes a float as its repr), the text cells as csv.writer
     quotes them, once per distinct value."""
-    from . import batch
+    from ..fmu import batch
 
     study = res.study
     if not res.cases:
@@ -694,7 +575,7 @@ def run_sweep(
     # workers run here and open the FMU's path.
     fmu_ref, shipped = fmu_path, False
     if scheduler:
-        from .cluster import WorkerMismatch, prepare_workers
+        from ..cluster import WorkerMismatch, prepare_workers
 
         try:
             fmu_ref, shipped = prepare_workers(client, fmu_path), True

@@ -13,6 +13,8 @@
 
 This module is the reference in numpy; the twin runs the same algorithm natively
 (tools/fmi2-batch/src/fit.rs, `batch.local_cubic`). Accuracy: docs/twin.md "Conditioning".
+
+Layer: workflows, the twin (docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -23,6 +23,8 @@ progress. The distributed replay makes every cut exact as follows.
    write each piece's rows at their place in the work folder's rows file (`run_claimed`); a
    cluster that shares no disk sends them back as bytes, which the client places
    (`Assembler`). The rows file becomes the output at the end.
+
+Layer: workflows, the twin (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -42,12 +44,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .batch import format_csv
+from ..fmu.batch import format_csv
+from ..fmu.instance import Fmu, FmuError
+from ..revolution import TWO_PI
 from .conditioning import SPARSE_REACH, complete, window_counts
-from .fmu import Fmu, FmuError
+from .core import SUMMARY_FIELDS, DataError, Options, Twin, _Segment
 from .line_input import chunks_of
-from .revolution import TWO_PI
-from .twin import SUMMARY_FIELDS, DataError, Options, Twin, _Segment
 
 #: 3: the smoothing window is a time (pieces of a version 2 work folder were planned and computed
 #: with a window of samples; they are not reused).
@@ -429,7 +431,7 @@ _LOADED: dict = {}
 
 def load_fmu(fmu_key_or_path) -> Fmu:
     """On a worker: the FMU (shipped by the client, or a path), loaded once per process."""
-    from .cluster import _RECEIVED, local_fmu
+    from ..cluster import _RECEIVED, local_fmu
 
     path = local_fmu(fmu_key_or_path) if fmu_key_or_path in _RECEIVED else fmu_key_or_path
     fmu = _LOADED.get(path)

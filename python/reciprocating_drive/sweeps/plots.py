@@ -2,7 +2,10 @@
 parameter), or as a heat map over a grid of two; for more parameters, each metric against each
 parameter as a scatter plot. Rejected cases are marked. Axes are in display units (mm, mrad, MPa,
 kN/m, ...), never with an offset; a metric that is 0 in every case gets no panel but a line saying
-so and why; a varied parameter that cannot act is named under the title."""
+so and why; a varied parameter that cannot act is named under the title.
+
+Layer: workflows, the sweeps (docs/architecture.md).
+"""
 
 from __future__ import annotations
 
@@ -15,7 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .plots import MIN_SPAN, y_range  # noqa: E402
+from ..plots import MIN_SPAN, y_range  # noqa: E402
 from .study import Study  # noqa: E402
 
 #: SI unit -> (display unit, factor) for parameters (docs/fmi-interface.md "Units").

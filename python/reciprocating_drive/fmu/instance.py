@@ -13,6 +13,8 @@ Two ways to exchange values:
   one fmi2GetReal straight into a numpy row (the per-sample path of the sweeps), and whose
   `run(t, inputs, outputs)` does the same for many communication points in one call of the
   native batch driver (`batch.py`, tools/fmi2-batch): the path of the digital twin.
+
+Layer: FMU access, below the workflows (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 
-from . import artifacts
+from .. import artifacts
 
 DEFAULT_FMU = artifacts.fmu()
 

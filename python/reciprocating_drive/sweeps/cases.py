@@ -1,7 +1,8 @@
 """The cases of one sweep batch at the speed of the FMU's own calls (docs/sweeps.md "Speed").
 
-`run_cases` runs the cases of a batch one after the other on a worker's loaded FMU, as
-`sweep.run_case` does, with the same FMI calls in the same order and the same arguments, but:
+`run_cases` runs the cases of a batch one after the other on a worker's loaded FMU, as `run_case`
+(the reference path, below) does, with the same FMI calls in the same order and the same
+arguments, but:
 
 * what every case of a study needs is built once per worker and study (`_Prepared`): the value
   references, the typed rows of values in the order `run_case` sets them (a case writes only its
@@ -12,7 +13,7 @@
   fmi2GetReal per step, no Python in between; the outputs go straight into the block's array;
 * the metrics of all cases of a batch are computed together, vectorised over cases and
   revolutions (`batch_metrics`), with the arithmetic of `revolution.revolution_table` and
-  `sweep.metrics_of` element for element, so every number is the same bit for bit.
+  `metrics_of` element for element, so every number is the same bit for bit.
 
 Anything unusual falls back to the reference path for that one case, which then decides the row:
 a case the FMU rejects (the native call stops at the call that failed; its row and message are
@@ -20,6 +21,8 @@ exactly `run_case`'s, and the next cases go on natively), and samples for which 
 batched summary is not certain to hold (a non-finite value, an angle that decreases, an evaluated
 revolution missing or of fewer than three samples, a non-finite metric) go through
 `summarize_revolutions` and `metrics_of`, the reference summary.
+
+Layer: workflows, the sweeps (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -31,9 +34,129 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import batch
-from .fmu import FmuError
-from .revolution import TWO_PI, _degrees, _refined_peaks
+from ..fmu import batch
+from ..fmu.instance import FmuError
+from ..revolution import TWO_PI, _degrees, _refined_peaks, summarize_revolutions
+from .study import SPEED_PARAMETERS, Study
+
+#: Outputs read at every step of a case.
+OUTPUTS = (
+    "crank.model_angle",
+    "suspension.position",
+    "suspension.acceleration",
+    "inertia.force",
+    "guide.friction",
+    "link.friction_total",
+    "rod.force",
+    "crank.torque",
+    "rod.angle",
+    "rod.stress_max",
+)
+
+
+def _speed(study: Study, params: dict) -> float:
+    if "strokes_per_minute" in params:
+        return float(params["strokes_per_minute"]) * TWO_PI / 60.0
+    if "crank.speed" in params:
+        return float(params["crank.speed"])
+    return study.crank_speed
+
+
+def case_values(study: Study, params: dict, omega: float) -> dict:
+    """The values a case sets in initialization mode, in the order they are set: the machine's
+    (without the crank's state), the case's parameters, the crank speed."""
+    values = {
+        k: v
+        for k, v in study.base_values.items()
+        if k not in ("crank.angle", "crank.speed", "crank.acceleration")
+    }
+    values.update({k: v for k, v in params.items() if k not in SPEED_PARAMETERS})
+    values["crank.speed"] = omega
+    return values
+
+
+def _check_speed(omega: float) -> None:
+    if not (omega > 0 and math.isfinite(omega)):
+        raise ValueError(f"crank speed = {omega} rad/s; allowed: > 0")
+
+
+def run_case(fmu, study: Study, params: dict) -> tuple[dict, float]:
+    """The reference path of one case, one FMU call per communication step from Python (the
+    sweep runs `run_cases`, whose rows equal this path's bit for bit; the tests compare them, and
+    `run_batch(..., reference=True)` runs it). Returns (metrics, seconds spent in FMU calls);
+    raises the FMU's error (FmuError) for a rejected case."""
+    omega = _speed(study, params)
+    _check_speed(omega)
+    values = case_values(study, params, omega)
+    n_rev = study.skip_revolutions + study.revolutions
+    n = n_rev * study.steps_per_revolution + 2
+    h = TWO_PI / omega / study.steps_per_revolution
+    rows = np.empty((n + 1, len(OUTPUTS)))
+    t0 = time.perf_counter()
+    fmu.start(values)
+    ch = fmu.channel(["crank.angle", "crank.speed"], list(OUTPUTS))
+    ch.set_inputs([0.0, omega])
+    ch.read(rows[0])
+    for k in range(1, n + 1):
+        t = k * h
+        ch.step(
+            t, [omega * (t - h), omega], rows[k]
+        )  # inputs at the step's start (docs/model.md §2)
+    inside = time.perf_counter() - t0
+    return _summary_metrics(study, np.arange(n + 1) * h, rows), inside
+
+
+def _summary_metrics(study: Study, time_: np.ndarray, rows: np.ndarray) -> dict:
+    """The metrics of one run's samples through summarize_revolutions (the reference). Raises
+    ValueError (the case's row is an error) for a sample the FMU returned as NaN or infinite:
+    summarize_revolutions would fail on it with an IndexError, which would end the batch."""
+    bad = ~np.isfinite(rows)
+    if bad.any():
+        k, q = (int(x) for x in np.argwhere(bad)[0])
+        raise ValueError(
+            f"the FMU returned {OUTPUTS[q]} = {rows[k, q]} at t = {time_[k]:.6g} s (communication "
+            f"point {k}); allowed: finite values (the case's metrics cannot be computed)"
+        )
+    data = {name: rows[:, i] for i, name in enumerate(OUTPUTS)}
+    revs = [
+        r
+        for r in summarize_revolutions(time_, data["crank.model_angle"], data)
+        if r.index >= study.skip_revolutions
+    ][: study.revolutions]
+    return metrics_of(revs, study.metrics)
+
+
+def metrics_of(revs, wanted) -> dict:
+    if not revs:
+        raise RuntimeError("no complete evaluated revolution")
+
+    def ext(q, key):
+        vals = [getattr(r.extremes[q], key) for r in revs]
+        return max(vals) if key == "max" else min(vals)
+
+    last = revs[-1]
+    all_metrics = {
+        "friction_work": lambda: float(np.mean([r.friction_work for r in revs])),
+        "torque_peak": lambda: max(
+            abs(ext("crank.torque", "max")), abs(ext("crank.torque", "min"))
+        ),
+        "torque_max": lambda: ext("crank.torque", "max"),
+        "torque_min": lambda: ext("crank.torque", "min"),
+        "acceleration_max": lambda: ext("suspension.acceleration", "max"),
+        "acceleration_max_angle": lambda: last.extremes["suspension.acceleration"].max_angle_deg,
+        "acceleration_min": lambda: ext("suspension.acceleration", "min"),
+        "inertia_force_max": lambda: ext("inertia.force", "max"),
+        "inertia_force_min": lambda: ext("inertia.force", "min"),
+        "guide_friction_max": lambda: ext("guide.friction", "max"),
+        "guide_friction_min": lambda: ext("guide.friction", "min"),
+        "rod_force_max": lambda: ext("rod.force", "max"),
+        "rod_force_max_angle": lambda: last.extremes["rod.force"].max_angle_deg,
+        "rod_force_min": lambda: ext("rod.force", "min"),
+        "rod_angle_amplitude": lambda: max(r.rod_angle_amplitude for r in revs),
+        "stress_max": lambda: max(r.stress_max for r in revs),
+    }
+    return {m: float(all_metrics[m]()) for m in wanted}
+
 
 #: Samples × outputs per block of cases whose metrics are computed together (about 16 MB).
 _BLOCK_VALUES = 2_000_000
@@ -49,8 +172,6 @@ class _Prepared:
 
     def __init__(self, fmu, study, outputs: tuple):
         from fmpy.fmi2 import fmi2ValueReference
-
-        from .sweep import SPEED_PARAMETERS, case_values
 
         self.fmu = fmu
         # The order of run_case's values: the same dict with placeholders.
@@ -174,7 +295,7 @@ class Results:
 
 
 def speeds(study, params: np.ndarray) -> np.ndarray:
-    """The crank speed of each case (rows of Study.case_array), as sweep._speed computes it."""
+    """The crank speed of each case (rows of Study.case_array), as _speed computes it."""
     names = study.varied
     if "strokes_per_minute" in names:
         return params[:, names.index("strokes_per_minute")] * TWO_PI / 60.0
@@ -185,8 +306,6 @@ def speeds(study, params: np.ndarray) -> np.ndarray:
 
 def run_cases(fmu, study, cases: list[int], outputs: tuple) -> Results:
     """The cases `cases` of `study` on a loaded Fmu, as run_batch's rows need them."""
-    from .sweep import _summary_metrics, run_case
-
     p = _prepared(fmu, study, outputs)
     n_rows, n_out = p.n + 1, len(outputs)
     block = max(1, _BLOCK_VALUES // (n_rows * n_out))
@@ -332,9 +451,9 @@ def batch_metrics(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The metrics of C runs (data[c]: run c's samples, one row per communication point at
     times k·h[c], one column per output): (values (C × metrics), good (C)). A run whose `good`
-    is False must go through the reference (`sweep._summary_metrics`); its values are
+    is False must go through the reference (`_summary_metrics`); its values are
     meaningless. Every other value equals the reference's bit for bit: the operations of
-    revolution.revolution_table and sweep.metrics_of on the same operands, for all runs and
+    revolution.revolution_table and metrics_of on the same operands, for all runs and
     revolutions at once instead of one run at a time."""
     with np.errstate(all="ignore"):
         return _batch_metrics(h, data, study, outputs, work or Workspace())
@@ -355,7 +474,7 @@ def _batch_metrics(h, data, study, outputs, w: Workspace):
         for q in need:
             np.copyto(cache[q][a : a + 16], part[:, :, col[q]])
         # Every output, also those no metric reads: the reference refuses a run with a NaN or an
-        # infinity in any (sweep._summary_metrics). A sum is finite only if every term is (an
+        # infinity in any (_summary_metrics). A sum is finite only if every term is (an
         # overflow sends a run to the reference too).
         np.sum(part, axis=(1, 2), out=total[a : a + 16])
     good = np.isfinite(total) & np.isfinite(h) & (N >= 3)

@@ -3,6 +3,8 @@ default machine's crank at 65 strokes/min whose speed fluctuates by ±`FLUCTUATI
 revolution, as the crank of a pump driven through a compliant drive does:
 
     ω(t) = ω0·(1 + δ·sin(Ω·t)),  Ω = 2·ω0,   θ(t) = ω0·t + (δ·ω0/Ω)·(1 − cos(Ω·t)),   ε = δ·ω0·Ω·cos(Ω·t)
+
+Layer: workflows, the twin (docs/architecture.md).
 """
 
 from __future__ import annotations

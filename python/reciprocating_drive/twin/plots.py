@@ -1,7 +1,10 @@
 """Plots of a twin run (docs/twin.md "Output"): time series, the card (rod force against position)
 and the per-revolution trends. Lines break where the data do: at a gap between samples and at a
 missing revolution. Every y-range spans at least 2 % of the value's size (plots.y_range), on an axis
-without matplotlib's offset notation: rounding noise is drawn as the flat line it is."""
+without matplotlib's offset notation: rounding noise is drawn as the flat line it is.
+
+Layer: workflows, the twin (docs/architecture.md).
+"""
 
 from __future__ import annotations
 
@@ -14,8 +17,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from .plots import span_axis  # noqa: E402
-from .twin import column_name  # noqa: E402
+from ..plots import span_axis  # noqa: E402
+from .core import column_name  # noqa: E402
 
 
 def read_columns(path) -> dict:

@@ -2,11 +2,13 @@
 sample and per revolution, replayed from a file or live.
 
 The pipeline works on chunks of input lines (`Twin.feed`): a whole block of a file in replay, the
-lines available now in live mode. Every sample's numbers are computed on their own, so the size of
-the chunks changes when rows appear, never their values: replay, live and resumed runs give the
-same numbers bit for bit.
+lines available now in live mode; a source of numbers (OPC UA) hands over chunks of samples as
+arrays (`Twin.feed_samples`, `samples.Samples`), checked as the reader checks a field, then the
+same steps. Every sample's numbers are computed on their own, so the size of the chunks changes
+when rows appear, never their values: replay, live and resumed runs give the same numbers bit for
+bit.
 
-1. **Reader** (`parse_lines`): a CSV with a header naming `time`, `crank_angle` and optionally
+1. **Reader** (`line_input.parse_lines`): a CSV with a header naming `time`, `crank_angle` and optionally
    `crank_speed` and `process_force`. A bad field, time going backwards, a duplicate timestamp
    (dropped and counted, or an error) or an angle step faster than `max_speed` stops the run with
    the line number (`DataError`), after the samples before it. The crank may stand still and
@@ -27,6 +29,8 @@ same numbers bit for bit.
 
 Checkpoints (`Twin.checkpoint`/`Twin.from_checkpoint`) hold the FMU's serialized state and the
 twin's own position and buffers; a run resumed from one continues exactly as if uninterrupted.
+
+Layer: workflows, the twin (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -36,18 +40,26 @@ import binascii
 import hashlib
 import json
 import math
-import re
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..fmu.batch import local_cubic
+from ..fmu.instance import Fmu, FmuError
+from ..presets import available_presets, preset_values
+from ..revolution import TWO_PI, revolution_table
+from ..timestamps import LOOKS_ISO, Clock, TimestampError
+from ..timestamps import zone as time_zone
 from . import conditioning as cond
-from .batch import local_cubic, parse_csv
-from .fmu import Fmu, FmuError
-from .presets import available_presets, preset_values
-from .revolution import TWO_PI, revolution_table
-from .timestamps import LOOKS_ISO, Clock, TimestampError
-from .timestamps import zone as time_zone
+from .line_input import (
+    _EUROPEAN,
+    _NUMBER,
+    detect_separator,
+    n_fields,
+    parse_header,
+    parse_lines,
+)
+from .samples import OPTIONAL, DataError, Samples
 
 INPUTS = ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")
 
@@ -79,14 +91,6 @@ REV_SAMPLES_MAX = 32768
 MOTION_STATES = {1: "running", 0: "stopped", -1: "reversing"}
 MOTION_EVENTS = {1: "started", 0: "stopped", -1: "reversed"}
 MOTION_KEEP = 64
-
-
-class DataError(ValueError):
-    """Bad measured data, with the input line number. `rows` and `summaries` are what the twin
-    computed from the samples before it (to be written before the run stops)."""
-
-    rows = None
-    summaries: list = []
 
 
 #: The default machine's crank speed [rad/s] (the FMU's start value of crank.speed, 65 strokes/min)
@@ -260,129 +264,6 @@ _SUMMARY_KEYS = tuple(_EXTREME_KEYS.get(f, f) for f in SUMMARY_FIELDS)
 #: A number as the twin reads it (docs/twin.md "Input"): ASCII decimal digits, an optional sign,
 #: point and exponent, and the words inf/nan (refused as not finite). Python's float() alone also
 #: takes `1_0` (as 10) and non-ASCII digits; Rust's parser (the native reader) takes neither.
-_NUMBER = re.compile(  # ASCII: \d would match any script's digits
-    r"[+-]?(?:\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|inf|infinity|nan)", re.I | re.ASCII
-)
-
-#: Decimal comma to point and ';' to ',' (a ';'-separated file with decimal commas, docs/twin.md).
-_EUROPEAN = str.maketrans({",": ".", ";": ","})
-
-
-def detect_separator(line: str) -> str:
-    """',' or ';': the separator of a header line (';' when it has a ';' and no ',')."""
-    return ";" if ";" in line and "," not in line else ","
-
-
-def parse_header(line: str, separator: str = ",") -> dict:
-    """Column name -> field index of the header line. A UTF-8 byte-order mark and quotes around
-    a name are removed; a name given twice, or no `time` or `crank_angle`, is an error."""
-    line = line.lstrip("\ufeff")
-    names = [c.strip().strip('"').strip() for c in line.strip().split(separator)]
-    cols: dict = {}
-    for i, n in enumerate(names):
-        if n in cols and n:
-            raise DataError(
-                f"line 1: the header names {n!r} twice (columns {cols[n] + 1} and {i + 1})"
-            )
-        cols.setdefault(n, i)
-    for need in ("time", "crank_angle"):
-        if need not in cols:
-            shown = ", ".join(repr(n) for n in names)
-            raise DataError(f"line 1: the header must name '{need}' (found: {shown})")
-    cols["\0fields"] = len(names)
-    return cols
-
-
-def n_fields(cols: dict) -> int:
-    """The number of fields of a data line (the header's)."""
-    return cols.get("\0fields", len(cols))
-
-
-def parse_line(
-    line: str, lineno: int, cols: dict
-) -> tuple[float, float, float | None, float | None]:
-    parts = line.strip().split(",")
-    if len(parts) != n_fields(cols):
-        raise DataError(f"line {lineno}: {len(parts)} fields, the header names {n_fields(cols)}")
-
-    def num(name):
-        raw = parts[cols[name]].strip()
-        if raw == "":
-            raise DataError(f"line {lineno}: {name} is empty (a number is needed)")
-        if not _NUMBER.fullmatch(raw):
-            if name == "time" and LOOKS_ISO.match(raw):
-                raise DataError(
-                    f"line {lineno}: time = {raw!r} is an ISO 8601 timestamp, but the first "
-                    "sample's time is a number (seconds): one format per input"
-                )
-            raise DataError(f"line {lineno}: {name} = {raw!r} is not a number")
-        v = float(raw)
-        if not math.isfinite(v):
-            raise DataError(f"line {lineno}: {name} = {raw!r} is not a finite number")
-        return v
-
-    t, a = num("time"), num("crank_angle")
-    w = num("crank_speed") if "crank_speed" in cols else None
-    f = num("process_force") if "process_force" in cols else None
-    return t, a, w, f
-
-
-def parse_lines(lines: list[str], first_lineno: int, cols: dict):
-    """Consecutive data lines (the first is line `first_lineno`) as arrays: line numbers, time,
-    angle, speed (NaN where absent) and force (0 where absent), blank lines skipped. Returns the
-    arrays of the lines before the first bad one and its DataError (or None). The clean lines are
-    parsed natively (`batch.parse_csv`), from the first other one on in Python."""
-    names = [c for c in ("time", "crank_angle", "crank_speed", "process_force") if c in cols]
-    # Every field is required: an empty field is an error (docs/twin.md "Input").
-    defaults = [None] * len(names)
-    n, pos, parts = len(lines), 0, []
-    while pos < n:
-        got = parse_csv(
-            "\n".join(lines[pos:]).encode(),
-            n_fields(cols),
-            [cols[c] for c in names],
-            defaults,
-            n - pos,
-        )
-        k = len(got[0])
-        parts.append(
-            (
-                np.arange(first_lineno + pos, first_lineno + pos + k),
-                got[0],
-                got[1],
-                got[names.index("crank_speed")] if "crank_speed" in cols else np.full(k, math.nan),
-                got[names.index("process_force")] if "process_force" in cols else np.zeros(k),
-            )
-        )
-        pos += k
-        if pos < n:
-            # One line for Python: blank, bad (the message), or a number only Python reads.
-            arrays, err = _parse_slowly(lines[pos : pos + 1], first_lineno + pos, cols)
-            parts.append(arrays)
-            pos += 1
-            if err is not None:
-                return tuple(np.concatenate(p) for p in zip(*parts)), err
-    if not parts:
-        return _parse_slowly([], first_lineno, cols)
-    return tuple(np.concatenate(p) for p in zip(*parts)), None
-
-
-def _parse_slowly(lines, first_lineno, cols):
-    """parse_lines line by line: finds the first bad line and its message."""
-    out, err = [], None
-    for i, line in enumerate(lines):
-        if not line.strip():
-            continue
-        try:
-            t, a, w, f = parse_line(line, first_lineno + i, cols)
-        except DataError as e:
-            err = e
-            break
-        out.append((first_lineno + i, t, a, math.nan if w is None else w, 0.0 if f is None else f))
-    cols_ = list(zip(*out)) if out else [()] * 5
-    return (np.array(cols_[0], dtype=np.int64), *(np.array(c, dtype=float) for c in cols_[1:])), err
-
-
 def remainder_2pi(x: np.ndarray) -> np.ndarray:
     """math.remainder(x, 2π) elementwise (IEEE remainder: exact, ties to an even quotient)."""
     r = np.fmod(x, TWO_PI)
@@ -553,10 +434,73 @@ class Twin:
         lines, time_err = self._timestamps(lines, first_lineno)
         if not lines:
             return self._hand_out(rows, time_err)
-        (ln, t, a, w, f), err = parse_lines(lines, first_lineno, self.cols)
+        samples, err = parse_lines(lines, first_lineno, self.cols)
         err = err or time_err
         try:
-            err = self._accept(ln, t, a, w, f, rows) or err
+            err = self._accept_samples(samples, rows) or err
+        except (DataError, FmuError) as e:
+            err = e
+        return self._hand_out(rows, err)
+
+    def _accept_samples(self, s: Samples, rows) -> DataError | None:
+        """`_accept` of numbered samples (an optional column the input has not: its default)."""
+        return self._accept(
+            s.line,
+            s.columns["time"],
+            s.columns["crank_angle"],
+            s.value("crank_speed"),
+            s.value("process_force"),
+            rows,
+        )
+
+    def feed_samples(self, samples: Samples, first_lineno: int) -> tuple[np.ndarray, list]:
+        """`feed` for samples given as numbers (a source of numbers: OPC UA), the first of them
+        numbered `first_lineno` (after the header line the input's CSV form would start with,
+        when these are the run's first samples) unless `samples.line` numbers them. The same
+        checks and the same results as `feed` of the samples written as CSV lines with `repr`,
+        bit for bit, with no text in between."""
+        rows = [self._empty()]
+        n = len(samples)
+        if n and self.cols is None:
+            # The columns the CSV form's header would name; the header is its line 1.
+            self.separator = ","
+            self.cols = parse_header(",".join(samples.names()))
+            first_lineno += 1
+        ln = (
+            samples.line
+            if samples.line is not None
+            else np.arange(first_lineno, first_lineno + n, dtype=np.int64)
+        )
+        if n:
+            self.lines_read = int(ln[-1])
+        if n and self.time_kind is None:
+            # Numbers, not ISO 8601 timestamps (the CSV path decides this at its first sample).
+            self.time_kind = "number"
+            if self.o.timezone is not None:
+                self.messages.append(
+                    f"--timezone {self.o.timezone} is not used: the input's times are "
+                    "numbers (seconds), not timestamps"
+                )
+        # What the CSV reader refuses in a field (parse_line): a missing value, which the CSV form
+        # writes empty, and a value that is not finite; the samples before it are computed.
+        names = samples.names()
+        values = [samples.columns[c] for c in names]
+        bad = np.flatnonzero(~np.isfinite(np.stack(values)).all(axis=0)) if n else []
+        err = None
+        if len(bad):
+            k = int(bad[0])
+            name = next(c for c, v in zip(names, values) if not math.isfinite(v[k]))
+            v = float(samples.columns[name][k])
+            what = (
+                f"{name} is empty (a number is needed)"
+                if math.isnan(v) and name in OPTIONAL
+                else f"{name} = {repr(v)!r} is not a finite number"
+            )
+            err = DataError(f"line {ln[k]}: {what}")
+            n = k
+        try:
+            ok = Samples({c: v[:n] for c, v in samples.columns.items()}, ln[:n])
+            err = self._accept_samples(ok, rows) or err
         except (DataError, FmuError) as e:
             err = e
         return self._hand_out(rows, err)
