@@ -16,37 +16,19 @@ use std::ptr;
 
 use fmi_sys::fmi2::*;
 
-use crate::fmi2::fmu_state;
-use crate::fmi2::handle::{free_instance, live, new_handle, report_freed};
-use crate::fmi2::instance::{copy_name, snapshot_magic, Failure, Instance, Severity, Snapshot};
-use crate::fmi2::logging::{Category, Logger};
-use crate::fmi2::model::FmuModel;
+use crate::fmi::ffi::{null_argument, opt_str, slice, snapshot_ref, store_snapshot};
+use crate::fmi::fmu_state;
+use crate::fmi::handle::{free_instance, live, new_handle, report_freed};
+use crate::fmi::instance::{copy_name, snapshot_magic, Failure, Instance, Severity, Snapshot};
+use crate::fmi::logging::{Category, Logger};
+use crate::fmi::model::FmuModel;
+use crate::fmi::resources::resource_dir;
+use crate::fmi::variables::VarType;
 use crate::fmi2::model_description::guid;
 use crate::fmi2::model_exchange;
-use crate::fmi2::resources::resource_dir;
-use crate::fmi2::variables::VarType;
 
 static TYPES_PLATFORM: &CStr = c"default";
 static VERSION: &CStr = c"2.0";
-
-pub(crate) unsafe fn opt_str<'a>(s: fmi2String) -> Option<&'a str> {
-    if s.is_null() {
-        None
-    } else {
-        CStr::from_ptr(s).to_str().ok()
-    }
-}
-
-/// A slice from a C array; NULL is only accepted for an empty array.
-pub(crate) unsafe fn slice<'a, T>(p: *const T, n: usize) -> Option<&'a [T]> {
-    if n == 0 {
-        Some(&[])
-    } else if p.is_null() {
-        None
-    } else {
-        Some(std::slice::from_raw_parts(p, n))
-    }
-}
 
 fn status_of(s: Severity) -> fmi2Status {
     match s {
@@ -56,7 +38,7 @@ fn status_of(s: Severity) -> fmi2Status {
     }
 }
 
-/// Runs `f` on the instance behind `c`: NULL and freed-instance check (`crate::fmi2::handle`),
+/// Runs `f` on the instance behind `c`: NULL and freed-instance check (`crate::fmi::handle`),
 /// panic barrier, status and logging.
 pub(crate) unsafe fn call<M: FmuModel>(
     c: fmi2Component,
@@ -114,12 +96,6 @@ unsafe fn panicked<M: FmuModel>(inst: *mut Instance<M>, function: &str) -> fmi2S
         );
     }));
     fmi2Status_fmi2Fatal
-}
-
-#[cold]
-#[inline(never)]
-pub(crate) fn null_argument(function: &str, what: &str) -> Failure {
-    Failure::error(format!("{function}: {what} is NULL"))
 }
 
 // ------------------------------------------------------------------------------ common functions
@@ -219,7 +195,7 @@ pub unsafe fn fmi2Instantiate<M: FmuModel>(
     result.unwrap_or(ptr::null_mut())
 }
 
-/// Frees the instance and keeps its handle (`crate::fmi2::handle`): a second call is reported
+/// Frees the instance and keeps its handle (`crate::fmi::handle`): a second call is reported
 /// and does nothing.
 #[inline]
 pub unsafe fn fmi2FreeInstance<M: FmuModel>(c: fmi2Component) {
@@ -437,40 +413,6 @@ unsafe fn no_strings(
 
 // ------------------------------------------------------------------------------ FMU state
 
-/// Stores a snapshot in the importer's FMUstate: reuses a state it passes back (FMI 2.0 allows
-/// that), else allocates one, which the instance keeps track of so that fmi2FreeInstance frees
-/// it if the importer does not.
-pub(crate) unsafe fn store_snapshot<M: FmuModel>(
-    inst: &mut Instance<M>,
-    state: *mut fmi2FMUstate,
-    snap: Snapshot<M>,
-) {
-    let existing = *state as *mut Snapshot<M>;
-    if !existing.is_null()
-        && inst.states.contains(&(existing as usize))
-        && (*existing).magic == snapshot_magic::<M>()
-    {
-        *existing = snap;
-    } else {
-        *state = Box::into_raw(Box::new(snap)) as fmi2FMUstate;
-        inst.states.push(*state as usize);
-    }
-}
-
-pub(crate) unsafe fn snapshot_ref<'a, M: FmuModel>(
-    function: &str,
-    state: fmi2FMUstate,
-) -> Result<&'a Snapshot<M>, Failure> {
-    let s = state as *const Snapshot<M>;
-    if s.is_null() {
-        return Err(null_argument(function, "FMUstate"));
-    }
-    if (*s).magic != snapshot_magic::<M>() {
-        return Err(Failure::error(format!("{function}: FMUstate was not made by this FMU")));
-    }
-    Ok(&*s)
-}
-
 #[inline]
 pub unsafe fn fmi2GetFMUstate<M: FmuModel>(
     c: fmi2Component,
@@ -593,13 +535,13 @@ pub unsafe fn fmi2GetDirectionalDerivative<M: FmuModel>(
         nKnown,
         dvKnown,
         dvUnknown,
-        &crate::fmi2::directional::model_exchange_refs::<M>(),
+        &crate::fmi::directional::model_exchange_refs::<M>(),
     )
 }
 
 /// `fmi2GetDirectionalDerivative` with the value references of the continuous states and their
 /// derivatives of a Model Exchange instance (`refs`, used by a Model Exchange instance only), every
-/// argument checked, inside the panic barrier (`crate::fmi2::directional`).
+/// argument checked, inside the panic barrier (`crate::fmi::directional`).
 #[allow(clippy::too_many_arguments)]
 pub unsafe fn fmi2_directional_derivative<M: FmuModel>(
     c: fmi2Component,
@@ -609,7 +551,7 @@ pub unsafe fn fmi2_directional_derivative<M: FmuModel>(
     nKnown: usize,
     dvKnown: *const fmi2Real,
     dvUnknown: *mut fmi2Real,
-    refs: &crate::fmi2::directional::StateRefs,
+    refs: &crate::fmi::directional::StateRefs,
 ) -> fmi2Status {
     let f = "fmi2GetDirectionalDerivative";
     call::<M>(c, f, |inst| {
@@ -625,7 +567,7 @@ pub unsafe fn fmi2_directional_derivative<M: FmuModel>(
         } else {
             std::slice::from_raw_parts_mut(dvUnknown, nUnknown)
         };
-        crate::fmi2::directional::directional_derivative::<M>(
+        crate::fmi::directional::directional_derivative::<M>(
             inst, f, unknowns, knowns, seed, out, refs,
         )
     })

@@ -4,22 +4,14 @@
 
 use std::fmt::Write;
 
-use crate::fmi2::display_units;
-use crate::fmi2::logging::CATEGORIES;
-use crate::fmi2::model::FmuModel;
-use crate::fmi2::variables::{Binding, Causality, VarType, Variability};
-use crate::fmi3::model_description::own_state;
+use crate::fmi::display_units;
+use crate::fmi::logging::CATEGORIES;
+use crate::fmi::model::FmuModel;
+use crate::fmi::structure::{dependencies_of, derivative_vr, own_state, state_vr};
+use crate::fmi::variables::{Binding, Causality, VarType, Variability};
+use crate::fmi::xml::{bool_attr, esc, num};
 
 const GUID_PLACEHOLDER: &str = "@GUID@";
-
-pub(crate) fn esc(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
-}
-
-/// xs:double text that round-trips (Rust's shortest representation).
-pub(crate) fn num(v: f64) -> String {
-    format!("{v:?}")
-}
 
 fn ty_name(t: VarType) -> &'static str {
     match t {
@@ -32,16 +24,14 @@ fn ty_name(t: VarType) -> &'static str {
 /// The knowns the output or state derivative `vr` depends on, as 1-based indices in
 /// ModelVariables: its inputs and, for Model Exchange, its continuous states (FMI 2.0 §3.3.1:
 /// the knowns of <Outputs> and <Derivatives> are the inputs and the continuous states), the same
-/// dependencies as the FMI 3.0 file (`crate::fmi3::model_description::dependencies_of`).
+/// dependencies as the FMI 3.0 file (`dependencies_of`).
 fn dependency_indices<M: FmuModel>(vr: usize) -> Vec<String> {
     let n = M::CONTINUOUS_STATES.len();
-    let deps = crate::fmi3::model_description::dependencies_of::<M>(vr).unwrap_or_default();
+    let deps = dependencies_of::<M>(vr).unwrap_or_default();
     deps.iter()
-        .map(|&d| {
-            match (0..n).find(|&k| crate::fmi3::model_description::state_vr::<M>(k) == d as usize) {
-                Some(k) => state_index::<M>(k),
-                None => d as usize + 1,
-            }
+        .map(|&d| match (0..n).find(|&k| state_vr::<M>(k) == d as usize) {
+            Some(k) => state_index::<M>(k),
+            None => d as usize + 1,
         })
         .map(|i| i.to_string())
         .collect()
@@ -66,7 +56,7 @@ fn body<M: FmuModel>() -> String {
         w,
         r#"  <CoSimulation modelIdentifier="{}" needsExecutionTool="false" canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" maxOutputDerivativeOrder="0" canRunAsynchronuously="false" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="true" canSerializeFMUstate="true" providesDirectionalDerivative="{}"/>"#,
         info.model_identifier,
-        provides_directional_derivative::<M>()
+        bool_attr(M::DIRECTIONAL_DERIVATIVES)
     );
     let _ = writeln!(w, "  <UnitDefinitions>");
     for (name, [kg, m, s, rad]) in M::table().units {
@@ -194,12 +184,12 @@ fn model_exchange_element<M: FmuModel>(w: &mut String) {
     }
     // completedIntegratorStepNotNeeded: the FMU has no events a step could trigger.
     // providesDirectionalDerivative: with the states as knowns and their derivatives as unknowns
-    // (`crate::fmi2::directional`), as in the FMI 3.0 file.
+    // (`crate::fmi::directional`), as in the FMI 3.0 file.
     let _ = writeln!(
         w,
         r#"  <ModelExchange modelIdentifier="{}" needsExecutionTool="false" completedIntegratorStepNotNeeded="true" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="true" canSerializeFMUstate="true" providesDirectionalDerivative="{}"/>"#,
         M::info().model_identifier,
-        provides_directional_derivative::<M>()
+        bool_attr(M::DIRECTIONAL_DERIVATIVES)
     );
 }
 
@@ -208,7 +198,7 @@ fn model_exchange_element<M: FmuModel>(w: &mut String) {
 fn state_index<M: FmuModel>(k: usize) -> usize {
     match own_state::<M>(k) {
         Some(_) => M::table().variables.len() + M::CONTINUOUS_STATES.len() + 1 + k,
-        None => crate::fmi3::model_description::state_vr::<M>(k) + 1,
+        None => state_vr::<M>(k) + 1,
     }
 }
 
@@ -223,7 +213,7 @@ fn derivative_variables<M: FmuModel>(w: &mut String) {
             w,
             r#"    <ScalarVariable name="der({})" valueReference="{}" causality="local" variability="continuous" description="Derivative of {} (Model Exchange)">"#,
             esc(state),
-            crate::fmi2::model_exchange::derivative_vr::<M>(k),
+            derivative_vr::<M>(k),
             esc(state)
         );
         let _ = writeln!(
@@ -242,7 +232,7 @@ fn derivative_variables<M: FmuModel>(w: &mut String) {
                 w,
                 r#"    <ScalarVariable name="{}" valueReference="{}" causality="local" variability="continuous" description="{}">"#,
                 esc(M::CONTINUOUS_STATES[k].0),
-                crate::fmi3::model_description::state_vr::<M>(k),
+                state_vr::<M>(k),
                 esc(description)
             );
             let _ = writeln!(w, r#"      <Real unit="{}"/>"#, esc(unit));
@@ -271,7 +261,7 @@ fn derivatives_structure<M: FmuModel>(w: &mut String) {
             let _ = writeln!(w, r#"      <Unknown index="{}"/>"#, derivative_index::<M>(k));
             continue;
         }
-        let vr = crate::fmi2::model_exchange::derivative_vr::<M>(k) as usize;
+        let vr = derivative_vr::<M>(k) as usize;
         let deps = dependency_indices::<M>(vr);
         let kinds: Vec<&str> = deps.iter().map(|_| "dependent").collect();
         let _ = writeln!(
@@ -309,17 +299,6 @@ pub fn guid<M: FmuModel>() -> &'static str {
             c & 0xffff_ffff_ffff
         )
     })
-}
-
-/// The value of `providesDirectionalDerivative` of the 2.0 interface elements (co-simulation and
-/// Model Exchange): whether the model gives exact directional derivatives
-/// ([`FmuModel::DIRECTIONAL_DERIVATIVES`], `crate::fmi2::directional`).
-pub fn provides_directional_derivative<M: FmuModel>() -> &'static str {
-    if M::DIRECTIONAL_DERIVATIVES {
-        "true"
-    } else {
-        "false"
-    }
 }
 
 /// The complete modelDescription.xml.

@@ -15,18 +15,13 @@
 
 use fmi_sys::fmi2::*;
 
-use crate::fmi2::abi::{call, null_argument, slice};
-use crate::fmi2::instance::{Failure, Instance, Mode};
-use crate::fmi2::model::FmuModel;
-use crate::fmi2::variables::VarType;
-use crate::fmi3::model_description::own_state;
-
-/// The value reference of the derivative of the k-th continuous state: the same in the FMI 2.0
-/// and the FMI 3.0 model description (after the table's variables and FMI 3.0's `time`), so a
-/// master addresses both standards with the same numbers.
-pub fn derivative_vr<M: FmuModel>(k: usize) -> u32 {
-    crate::fmi3::model_description::derivative_vr::<M>(k)
-}
+use crate::fmi::ffi::{null_argument, slice};
+use crate::fmi::instance::{Failure, Instance, Mode};
+use crate::fmi::model::FmuModel;
+use crate::fmi::model_exchange::set_time;
+use crate::fmi::structure::{derivative_vr, own_state};
+use crate::fmi::variables::VarType;
+use crate::fmi2::abi::call;
 
 /// Where a Model Exchange function may be called, after initialization.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -267,53 +262,10 @@ pub unsafe fn fmi2SetTime<M: FmuModel>(c: fmi2Component, time: fmi2Real) -> fmi2
     me::<M>(c, "fmi2SetTime", Allowed::Both, |inst| set_time(inst, "fmi2SetTime", time))
 }
 
-/// fmi2SetTime and fmi3SetTime: the new time, and what the model carries forward to it
-/// ([`FmuModel::time_moved`]: the pump's crank, as between co-simulation steps). Inlined into
-/// both callers, its refusals out of line (cold): a solver calls it at every evaluation.
-#[inline(always)]
-pub fn set_time<M: FmuModel>(
-    inst: &mut Instance<M>,
-    function: &str,
-    time: f64,
-) -> Result<(), Failure> {
-    if !time.is_finite() {
-        return Err(time_not_finite(function, time));
-    }
-    let from = inst.time();
-    let mut carried = true;
-    inst.me_update(|t, state| {
-        carried = M::time_moved(state, time - *t);
-        if carried {
-            *t = time;
-        }
-    });
-    if !carried {
-        return Err(carry_overflows(function, time, from));
-    }
-    Ok(())
-}
-
 #[cold]
 #[inline(never)]
 fn state_not_finite(function: &str, name: &str, x: f64) -> Failure {
     Failure::error(format!("{function}: {name} = {x}; allowed: a finite number"))
-}
-
-#[cold]
-#[inline(never)]
-fn time_not_finite(function: &str, time: f64) -> Failure {
-    Failure::error(format!("{function}: time = {time}; allowed: a finite number"))
-}
-
-#[cold]
-#[inline(never)]
-fn carry_overflows(function: &str, time: f64, from: f64) -> Failure {
-    Failure::error(format!(
-        "{function}: time = {}: the crank inputs carried forward from t = {} overflow there; set \
-         them at the new time",
-        crate::model::error::given(time),
-        crate::model::error::num(from)
-    ))
 }
 
 pub unsafe fn fmi2SetContinuousStates<M: FmuModel>(

@@ -15,61 +15,26 @@
 #![allow(clippy::missing_safety_doc)]
 #![allow(clippy::too_many_arguments)]
 
-use std::borrow::Cow;
 use std::ffi::{c_char, CStr};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::ptr;
 
 use fmi_sys::fmi3::*;
 
-use crate::fmi2::abi::{opt_str, slice, snapshot_ref, store_snapshot};
-use crate::fmi2::fmu_state;
-use crate::fmi2::handle::{free_instance, live, new_handle, report_freed};
-use crate::fmi2::instance::{
+use crate::fmi::ffi::{opt_str, slice, snapshot_ref, store_snapshot};
+use crate::fmi::fmu_state;
+use crate::fmi::handle::{free_instance, live, new_handle, report_freed};
+use crate::fmi::instance::{
     copy_name, snapshot_magic, Failure, Instance, Mode, Severity, Snapshot,
 };
-use crate::fmi2::logging::{Category, Logger};
-use crate::fmi2::model::FmuModel;
-use crate::fmi2::variables::VarType;
-use crate::fmi3::model_description::{time_vr, token};
+use crate::fmi::logging::{Category, Logger};
+use crate::fmi::model::FmuModel;
+use crate::fmi::structure::time_vr;
+use crate::fmi::variables::VarType;
+use crate::fmi3::model_description::token;
 use std::path::PathBuf;
 
 static VERSION: &CStr = c"3.0";
-
-/// The instance core names the FMI 2.0 function a message comes from; through an FMI 3.0
-/// instance's logger the message names the 3.0 function the importer called instead.
-pub fn dialect(message: &str) -> Cow<'_, str> {
-    const NAMES: &[(&str, &str)] = &[
-        ("fmi2SetupExperiment", "fmi3EnterInitializationMode"),
-        ("fmi2EnterInitializationMode", "fmi3EnterInitializationMode"),
-        ("fmi2ExitInitializationMode", "fmi3ExitInitializationMode"),
-        ("fmi2Terminate", "fmi3Terminate"),
-        ("fmi2Reset", "fmi3Reset"),
-        ("fmi2DoStep", "fmi3DoStep"),
-        ("fmi2GetFMUstate", "fmi3GetFMUState"),
-        ("fmi2SetFMUstate", "fmi3SetFMUState"),
-        ("fmi2FreeFMUstate", "fmi3FreeFMUState"),
-        ("fmi2DeSerializeFMUstate", "fmi3DeserializeFMUState"),
-        ("fmi2SerializeFMUstate", "fmi3SerializeFMUState"),
-        ("fmi2GetReal", "fmi3GetFloat64"),
-        ("fmi2SetReal", "fmi3SetFloat64"),
-        ("fmi2GetInteger", "fmi3GetInt32"),
-        ("fmi2SetInteger", "fmi3SetInt32"),
-        ("fmi2GetBoolean", "fmi3GetBoolean"),
-        ("fmi2SetBoolean", "fmi3SetBoolean"),
-        ("fmi2Instantiate", "fmi3InstantiateCoSimulation"),
-    ];
-    if !message.contains("fmi2") {
-        return Cow::Borrowed(message);
-    }
-    let mut s = message.to_string();
-    for (from, to) in NAMES {
-        if s.contains(from) {
-            s = s.replace(from, to);
-        }
-    }
-    Cow::Owned(s)
-}
 
 fn status_of(s: Severity) -> fmi3Status {
     match s {
@@ -318,7 +283,7 @@ pub unsafe fn fmi3InstantiateScheduledExecution<M: FmuModel>(
     )
 }
 
-/// Frees the instance and keeps its handle (`crate::fmi2::handle`): a second call is reported
+/// Frees the instance and keeps its handle (`crate::fmi::handle`): a second call is reported
 /// and does nothing.
 pub unsafe fn fmi3FreeInstance<M: FmuModel>(c: fmi3Instance) {
     free_instance::<M>(c, "fmi3FreeInstance")
@@ -498,7 +463,7 @@ fn extra_value<M: FmuModel>(inst: &mut Instance<M>, vr: u32) -> Result<f64, Fail
     }
     let k = (vr - time_vr::<M>() - 1) as usize;
     // A state's own variable (FmuModel::STATE_VARIABLES), after the derivatives.
-    if k >= n && k < 2 * n && crate::fmi3::model_description::own_state::<M>(k - n).is_some() {
+    if k >= n && k < 2 * n && crate::fmi::structure::own_state::<M>(k - n).is_some() {
         let (_, _, state) = inst.me_parts_initial()?.ok_or_else(|| {
             Failure::error(format!(
                 "{f}: {} is not available before fmi3EnterInitializationMode",
@@ -676,7 +641,7 @@ pub unsafe fn fmi3SetClock<M: FmuModel>(
 /// The inputs an output depends on (the table's `depends_on`, as in `<ModelStructure>`); an
 /// error for a value reference that is not an output.
 fn dependencies<M: FmuModel>(function: &str, vr: fmi3ValueReference) -> Result<Vec<u32>, Failure> {
-    crate::fmi3::model_description::dependencies_of::<M>(vr as usize).ok_or_else(|| {
+    crate::fmi::structure::dependencies_of::<M>(vr as usize).ok_or_else(|| {
         Failure::error(format!(
             "{function}: value reference {vr} is not an output, calculated parameter or state \
              derivative with declared dependencies"
@@ -850,7 +815,7 @@ pub unsafe fn fmi3GetDirectionalDerivative<M: FmuModel>(
     sensitivity: *mut fmi3Float64,
     nSensitivity: usize,
 ) -> fmi3Status {
-    use crate::fmi2::directional::{directional_derivative, model_exchange_refs};
+    use crate::fmi::directional::{directional_derivative, model_exchange_refs};
     let f = "fmi3GetDirectionalDerivative";
     call::<M>(c, f, |inst| {
         if nSeed != nKnowns || nSensitivity != nUnknowns {
@@ -1084,7 +1049,7 @@ pub unsafe fn fmi3CompletedIntegratorStep<M: FmuModel>(
 
 pub unsafe fn fmi3SetTime<M: FmuModel>(c: fmi3Instance, time: fmi3Float64) -> fmi3Status {
     me::<M>(c, "fmi3SetTime", |inst| {
-        crate::fmi2::model_exchange::set_time(inst, "fmi3SetTime", time)
+        crate::fmi::model_exchange::set_time(inst, "fmi3SetTime", time)
     })
 }
 

@@ -1,5 +1,5 @@
 //! Generates a model's FMI 3.0 modelDescription.xml from the same variable table as the FMI 2.0
-//! one (`crate::fmi2::model_description`): names, value references, units and display units,
+//! one (the FMI 2.0 writer): names, value references, units and display units,
 //! descriptions, causality, variability, ranges, start values and output dependencies come from
 //! the one table, so the two descriptions cannot disagree (docs/fmi-interface.md "FMI 3.0").
 //! Deterministic (no generation date): the checked-in copy under `modelDescription/fmi3/` is
@@ -11,11 +11,12 @@
 
 use std::fmt::Write;
 
-use crate::fmi2::display_units;
-use crate::fmi2::logging::CATEGORIES;
-use crate::fmi2::model::FmuModel;
-use crate::fmi2::model_description::{esc, num};
-use crate::fmi2::variables::{Binding, Causality, VarType, Variability};
+use crate::fmi::display_units;
+use crate::fmi::logging::CATEGORIES;
+use crate::fmi::model::FmuModel;
+use crate::fmi::structure::{dependencies_of, derivative_vr, own_state, state_vr, time_vr};
+use crate::fmi::variables::{Binding, Causality, VarType, Variability};
+use crate::fmi::xml::{bool_attr, esc, num};
 
 const TOKEN_PLACEHOLDER: &str = "@TOKEN@";
 
@@ -47,14 +48,14 @@ fn body<M: FmuModel>() -> String {
             w,
             r#"  <ModelExchange modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="{}" providesAdjointDerivatives="false" needsCompletedIntegratorStep="false" providesEvaluateDiscreteStates="false"/>"#,
             info.model_identifier,
-            crate::fmi2::model_description::provides_directional_derivative::<M>()
+            bool_attr(M::DIRECTIONAL_DERIVATIVES)
         );
     }
     let _ = writeln!(
         w,
         r#"  <CoSimulation modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="{}" providesAdjointDerivatives="false" canHandleVariableCommunicationStepSize="true" maxOutputDerivativeOrder="0" providesIntermediateUpdate="false" mightReturnEarlyFromDoStep="false" canReturnEarlyAfterIntermediateUpdate="false" hasEventMode="false"/>"#,
         info.model_identifier,
-        crate::fmi2::model_description::provides_directional_derivative::<M>()
+        bool_attr(M::DIRECTIONAL_DERIVATIVES)
     );
     let _ = writeln!(w, "  <UnitDefinitions>");
     for (name, [kg, m, s, rad]) in table.units {
@@ -208,69 +209,8 @@ fn body<M: FmuModel>() -> String {
     x
 }
 
-/// The knowns (value references of inputs and continuous states, ascending) the output or state
-/// derivative `vr` depends on: the table's `depends_on` and [`FmuModel::OUTPUT_STATES`], or
-/// [`FmuModel::DERIVATIVE_DEPENDENCIES`]; None for any other value reference (or a derivative
-/// whose dependencies are not declared).
-pub fn dependencies_of<M: FmuModel>(vr: usize) -> Option<Vec<u32>> {
-    let table = M::table();
-    let (inputs, states): (&[M::Input], &[usize]) = match table.variables.get(vr) {
-        Some(v) => match v.binding {
-            Binding::Output { depends_on, .. } => (depends_on, M::output_states(v.name)),
-            _ => return None,
-        },
-        None => {
-            let k =
-                (0..M::CONTINUOUS_STATES.len()).find(|&k| derivative_vr::<M>(k) as usize == vr)?;
-            let (i, s) = M::DERIVATIVE_DEPENDENCIES.get(k)?;
-            (i, s)
-        }
-    };
-    let mut deps: Vec<u32> = inputs
-        .iter()
-        .filter_map(|s| table.input_vr(*s))
-        .chain(states.iter().map(|&k| state_vr::<M>(k)))
-        .map(|i| i as u32)
-        .collect();
-    deps.sort_unstable();
-    deps.dedup();
-    Some(deps)
-}
-
 fn dependencies<M: FmuModel>(vr: usize) -> Vec<u32> {
     dependencies_of::<M>(vr).unwrap_or_default()
-}
-
-/// The value reference of the independent variable `time`: the first after the table's.
-pub fn time_vr<M: FmuModel>() -> u32 {
-    M::table().variables.len() as u32
-}
-
-/// The value reference of the derivative of the k-th continuous state (Model Exchange): after
-/// `time`'s.
-pub fn derivative_vr<M: FmuModel>(k: usize) -> u32 {
-    time_vr::<M>() + 1 + k as u32
-}
-
-/// The value reference of the variable that is the k-th continuous state: the table's variable
-/// of that name, or the state's own variable ([`FmuModel::STATE_VARIABLES`]) after the
-/// derivatives.
-pub fn state_vr<M: FmuModel>(k: usize) -> usize {
-    let name = M::CONTINUOUS_STATES[k].0;
-    M::table()
-        .variables
-        .iter()
-        .position(|v| v.name == name)
-        .unwrap_or_else(|| derivative_vr::<M>(M::CONTINUOUS_STATES.len() + k) as usize)
-}
-
-/// The k-th continuous state's own variable (unit, description), if it is no table variable.
-pub fn own_state<M: FmuModel>(k: usize) -> Option<(&'static str, &'static str)> {
-    let name = M::CONTINUOUS_STATES[k].0;
-    if M::table().variables.iter().any(|v| v.name == name) {
-        return None;
-    }
-    M::STATE_VARIABLES.iter().find(|s| s.0 == name).map(|s| (s.1, s.2))
 }
 
 /// Model Exchange: the states that are no table variable, as local continuous variables.

@@ -3,8 +3,8 @@
 
 use std::fmt::Write;
 
-use crate::fmi2::model::FmuModel;
-use crate::fmi2::variables::{Causality, VarType, Variability};
+use crate::fmi::model::FmuModel;
+use crate::fmi::variables::{Causality, VarType, Variability};
 
 pub fn generate<M: FmuModel>() -> String {
     let info = M::info();

@@ -17,7 +17,7 @@ use std::fmt::Debug;
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 
-use crate::fmi2::variables::Table;
+use crate::fmi::variables::Table;
 use crate::model::error::ModelError;
 
 /// The identity of an FMU and the texts the generators put around its variable table.
