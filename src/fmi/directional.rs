@@ -1,3 +1,5 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! The glue of `fmi2GetDirectionalDerivative` and `fmi3GetDirectionalDerivative`
 //! (docs/fmi-interface.md "Directional derivatives"), for any instance kind: value references
 //! resolved and checked, the model's exact tangent ([`FmuModel::tangent`]) evaluated once for

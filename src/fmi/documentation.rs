@@ -1,3 +1,5 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! An FMU's documentation/index.html: the model's own text (its conventions) and the variable
 //! list, generated from the variable table so it cannot drift from the interface.
 

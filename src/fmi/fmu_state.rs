@@ -1,3 +1,5 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! The serialized FMU state (fmi2SerializeFMUstate): self-contained (no pointers), versioned, and
 //! checked on the way back in. Layout, all integers little-endian:
 //!

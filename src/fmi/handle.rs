@@ -1,3 +1,5 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! What an `fmi2Component` and an `fmi3Instance` point to: a handle to the instance, not the
 //! instance itself, so that an instance freed by fmi2FreeInstance or fmi3FreeInstance is
 //! recognised (docs/fmi-interface.md "A freed instance"). Both standards' C ABIs

@@ -1,3 +1,5 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! One FMU instance and the FMI 2.0 co-simulation state machine. Every public method returns
 //! `Result<_, Failure>`; the ABI layer turns a failure into its status plus one log line.
 //!

@@ -1,3 +1,5 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! Messages through the importer's logger (docs/fmi-interface.md "State machine"): the caller's
 //! componentEnvironment is passed back unchanged on every call; error messages always reach the
 //! logger; other categories only while debug logging is on and the category is enabled.

@@ -1,5 +1,8 @@
-//! What a model gives the shared FMI 2.0 glue: the counterpart of the `config.h` + `model.c`
-//! pair of each of the Modelica Reference FMUs over their one shared `fmi2Functions.c`.
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
+//! What a model gives the shared FMI glue (the core and both standards' layers): the counterpart
+//! of the `config.h` + `model.c` pair of each of the Modelica Reference FMUs over their one shared
+//! `fmi2Functions.c`.
 //!
 //! The glue (instances, state machine, get/set, logging, FMU states, modelDescription.xml and
 //! documentation generation, the C ABI) is written once, generic over [`FmuModel`]. A model

@@ -1,3 +1,5 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! The value references of the arrays a master passes to fmi2GetReal and fmi2SetReal at every
 //! step, resolved once per instance (docs/performance.md "Read and input plans"): the variable
 //! table is consulted again only when the array's contents change. Used by the fast paths of

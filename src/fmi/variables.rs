@@ -1,3 +1,5 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! The shape of a variable table: each model's table (e.g. `crate::fmus::reciprocating_drive::variables`)
 //! is the one source of truth for names, value references, types, causality, variability, units,
 //! start values, ranges, descriptions and output dependencies. The runtime (get/set, range checks,

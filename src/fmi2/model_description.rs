@@ -1,3 +1,5 @@
+//! FMI 2.0 layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! Generates a model's modelDescription.xml from its variable table. The output is deterministic
 //! (no generation date), so the checked-in copy under `modelDescription/` can be compared byte for
 //! byte with what this produces.

@@ -1,4 +1,4 @@
-//! FMI 2.0 layer: FMI 2.0 Model Exchange, in the same shared object as co-simulation (one `.fmu`, one model
+//! FMI 2.0 layer: Model Exchange, in the same shared object as co-simulation (one `.fmu`, one model
 //! description with both elements): the ten Model Exchange functions, generic over the model, and
 //! the FMI 2.0 Model Exchange state machine on top of the instance core that co-simulation and
 //! FMI 3.0 use (docs/fmi-interface.md "Model Exchange (FMI 2.0)").

@@ -1,3 +1,5 @@
+//! FMI 3.0 layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! Generates a model's FMI 3.0 modelDescription.xml from the same variable table as the FMI 2.0
 //! one (the FMI 2.0 writer): names, value references, units and display units,
 //! descriptions, causality, variability, ranges, start values and output dependencies come from
