@@ -76,7 +76,6 @@ pub(crate) trait Dialect {
 
 /// Runs `f` on the instance behind `c`: NULL and freed-instance check (`crate::fmi::handle`),
 /// panic barrier, status and logging.
-#[inline(always)]
 pub(crate) unsafe fn call<D: Dialect, M: FmuModel>(
     c: *mut c_void,
     function: &str,
@@ -276,9 +275,12 @@ pub(crate) unsafe fn set_debug_logging<D: Dialect, M: FmuModel>(
 
 /// The fast path of fmi2GetReal and fmi3GetFloat64 (`Instance::quick_get_real`), still behind
 /// the panic barrier: it evaluates the model. None: the call needs the general path (anything
-/// that needs a message), which evaluates again and reports.
+/// that needs a message), which evaluates again and reports. One copy per caller (`API`: 2 for
+/// fmi2GetReal, 3 for fmi3GetFloat64), as `Instance::quick_set_real`: with one copy shared by
+/// both, LLVM kept the panic barrier's closure out of line, 31 more instructions per fmi2GetReal
+/// (callgrind, scripts/bench_ratio.py --instructions).
 #[inline(always)]
-pub(crate) unsafe fn quick_get_real<M: FmuModel>(
+pub(crate) unsafe fn quick_get_real<M: FmuModel, const API: u8>(
     c: *mut c_void,
     function: &str,
     vr: *const u32,

@@ -195,3 +195,18 @@ fn carry_overflows(function: &str, time: f64, from: f64) -> Failure {
         crate::model::error::num(from)
     ))
 }
+
+/// fmi2CompletedIntegratorStep, fmi3CompletedIntegratorStep: no event to enter, no reason to
+/// stop (no event indicators, no time events).
+pub(crate) unsafe fn completed_integrator_step<T: From<bool>>(
+    f: &str,
+    enter_event_mode: *mut T,
+    terminate_simulation: *mut T,
+) -> Result<(), Failure> {
+    if enter_event_mode.is_null() || terminate_simulation.is_null() {
+        return Err(null_argument(f, "enterEventMode or terminateSimulation"));
+    }
+    *enter_event_mode = T::from(false);
+    *terminate_simulation = T::from(false);
+    Ok(())
+}

@@ -41,7 +41,7 @@ impl Dialect for Fmi2 {
 }
 
 /// Runs `f` on the instance behind `c` (`crate::fmi::ffi::call`).
-#[inline(always)]
+#[inline]
 pub(crate) unsafe fn call<M: FmuModel>(
     c: fmi2Component,
     function: &str,
@@ -176,7 +176,7 @@ pub unsafe fn fmi2GetReal<M: FmuModel>(
     nvr: usize,
     value: *mut fmi2Real,
 ) -> fmi2Status {
-    if let Some(status) = ffi::quick_get_real::<M>(c, "fmi2GetReal", vr, nvr, value) {
+    if let Some(status) = ffi::quick_get_real::<M, 2>(c, "fmi2GetReal", vr, nvr, value) {
         return status;
     }
     // Model Exchange: the state derivatives are not in the table.

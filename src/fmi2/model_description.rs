@@ -6,12 +6,12 @@
 
 use std::fmt::Write;
 
-use crate::fmi::display_units;
-use crate::fmi::logging::CATEGORIES;
 use crate::fmi::model::FmuModel;
 use crate::fmi::structure::{dependencies_of, derivative_vr, own_state, state_vr};
 use crate::fmi::variables::{Binding, Causality, VarType, Variability};
-use crate::fmi::xml::{bool_attr, esc, num};
+use crate::fmi::xml::{
+    bool_attr, categories_and_experiment, causality_name, esc, type_attributes, units,
+};
 
 const GUID_PLACEHOLDER: &str = "@GUID@";
 
@@ -41,7 +41,6 @@ fn dependency_indices<M: FmuModel>(vr: usize) -> Vec<String> {
 
 fn body<M: FmuModel>() -> String {
     let info = M::info();
-    let (start, stop, step) = info.default_experiment;
     let mut x = String::new();
     let w = &mut x;
     let _ = writeln!(w, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
@@ -61,45 +60,12 @@ fn body<M: FmuModel>() -> String {
         bool_attr(M::DIRECTIONAL_DERIVATIVES)
     );
     let _ = writeln!(w, "  <UnitDefinitions>");
-    for (name, [kg, m, s, rad]) in M::table().units {
-        let mut attrs = String::new();
-        for (sym, e) in [("kg", kg), ("m", m), ("s", s), ("rad", rad)] {
-            if *e != 0 {
-                let _ = write!(attrs, r#" {sym}="{e}""#);
-            }
-        }
-        let mut display = String::new();
-        for d in display_units::for_unit(name) {
-            let _ = write!(
-                display,
-                r#"<DisplayUnit name="{}" factor="{}"/>"#,
-                esc(d.name),
-                num(d.factor)
-            );
-        }
-        let _ = writeln!(w, r#"    <Unit name="{}"><BaseUnit{attrs}/>{display}</Unit>"#, esc(name));
-    }
+    units::<M>(w);
     let _ = writeln!(w, "  </UnitDefinitions>");
-    let _ = writeln!(w, "  <LogCategories>");
-    for (name, desc) in CATEGORIES {
-        let _ = writeln!(w, r#"    <Category name="{name}" description="{}"/>"#, esc(desc));
-    }
-    let _ = writeln!(w, "  </LogCategories>");
-    let _ = writeln!(
-        w,
-        r#"  <DefaultExperiment startTime="{}" stopTime="{}" stepSize="{}"/>"#,
-        num(start),
-        num(stop),
-        num(step)
-    );
+    categories_and_experiment::<M>(w);
     let _ = writeln!(w, "  <ModelVariables>");
     for (vr, v) in M::table().variables.iter().enumerate() {
-        let causality = match v.causality {
-            Causality::Parameter => "parameter",
-            Causality::CalculatedParameter => "calculatedParameter",
-            Causality::Input => "input",
-            Causality::Output => "output",
-        };
+        let causality = causality_name(v.causality);
         let variability = match v.variability {
             Variability::Fixed => "fixed",
             Variability::Tunable => "tunable",
@@ -112,31 +78,7 @@ fn body<M: FmuModel>() -> String {
             esc(v.name),
             esc(v.description)
         );
-        let mut attrs = String::new();
-        if v.ty == VarType::Real && !v.unit.is_empty() {
-            let _ = write!(attrs, r#" unit="{}""#, esc(v.unit));
-            if let Some(d) = display_units::default_for(v.unit) {
-                let _ = write!(attrs, r#" displayUnit="{}""#, esc(d));
-            }
-        }
-        if v.ty != VarType::Boolean {
-            let fmt =
-                |b: f64| if v.ty == VarType::Integer { format!("{}", b as i64) } else { num(b) };
-            if v.range.min.is_finite() {
-                let _ = write!(attrs, r#" min="{}""#, fmt(v.range.min));
-            }
-            if v.range.max.is_finite() {
-                let _ = write!(attrs, r#" max="{}""#, fmt(v.range.max));
-            }
-        }
-        if let Some(s) = v.start() {
-            let text = match v.ty {
-                VarType::Real => num(s),
-                VarType::Integer => format!("{}", s as i64),
-                VarType::Boolean => (if s != 0.0 { "true" } else { "false" }).to_string(),
-            };
-            let _ = write!(attrs, r#" start="{text}""#);
-        }
+        let attrs = type_attributes(v);
         let _ = writeln!(w, "      <{}{attrs}/>", ty_name(v.ty));
         let _ = writeln!(w, "    </ScalarVariable>");
     }

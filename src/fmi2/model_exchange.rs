@@ -19,8 +19,8 @@ use crate::fmi::ffi::{null_argument, slice};
 use crate::fmi::instance::{Failure, Instance, Mode};
 use crate::fmi::model::FmuModel;
 use crate::fmi::model_exchange::{
-    get_continuous_states, get_derivatives, get_nominals, set_continuous_states, set_time,
-    state_value,
+    completed_integrator_step, get_continuous_states, get_derivatives, get_nominals,
+    set_continuous_states, set_time, state_value,
 };
 use crate::fmi::structure::{derivative_vr, own_state};
 use crate::fmi::variables::VarType;
@@ -160,8 +160,18 @@ pub unsafe fn get_real_with_derivatives<M: FmuModel>(
 }
 
 pub unsafe fn fmi2EnterEventMode<M: FmuModel>(c: fmi2Component) -> fmi2Status {
-    me::<M>(c, "fmi2EnterEventMode", Allowed::ContinuousTime, |inst| {
-        inst.me_continuous_time = false;
+    enter_mode::<M>(c, "fmi2EnterEventMode", Allowed::ContinuousTime, false)
+}
+
+/// Enters event mode or continuous-time mode (`continuous_time`) from the other.
+unsafe fn enter_mode<M: FmuModel>(
+    c: fmi2Component,
+    function: &str,
+    from: Allowed,
+    continuous_time: bool,
+) -> fmi2Status {
+    me::<M>(c, function, from, |inst| {
+        inst.me_continuous_time = continuous_time;
         Ok(())
     })
 }
@@ -181,10 +191,7 @@ pub unsafe fn fmi2NewDiscreteStates<M: FmuModel>(
 }
 
 pub unsafe fn fmi2EnterContinuousTimeMode<M: FmuModel>(c: fmi2Component) -> fmi2Status {
-    me::<M>(c, "fmi2EnterContinuousTimeMode", Allowed::Event, |inst| {
-        inst.me_continuous_time = true;
-        Ok(())
-    })
+    enter_mode::<M>(c, "fmi2EnterContinuousTimeMode", Allowed::Event, true)
 }
 
 pub unsafe fn fmi2CompletedIntegratorStep<M: FmuModel>(
@@ -193,16 +200,9 @@ pub unsafe fn fmi2CompletedIntegratorStep<M: FmuModel>(
     enterEventMode: *mut fmi2Boolean,
     terminateSimulation: *mut fmi2Boolean,
 ) -> fmi2Status {
-    me::<M>(c, "fmi2CompletedIntegratorStep", Allowed::ContinuousTime, |_| {
-        if enterEventMode.is_null() || terminateSimulation.is_null() {
-            return Err(null_argument(
-                "fmi2CompletedIntegratorStep",
-                "enterEventMode or terminateSimulation",
-            ));
-        }
-        *enterEventMode = 0;
-        *terminateSimulation = 0;
-        Ok(())
+    let f = "fmi2CompletedIntegratorStep";
+    me::<M>(c, f, Allowed::ContinuousTime, |_| {
+        completed_integrator_step(f, enterEventMode, terminateSimulation)
     })
 }
 

@@ -49,7 +49,7 @@ impl Dialect for Fmi3 {
 
 /// Runs `f` on the instance behind `c` (`crate::fmi::ffi::call`; the logger translates the
 /// core's FMI 2.0 names, `crate::fmi::logging::dialect`).
-#[inline(always)]
+#[inline]
 unsafe fn call<M: FmuModel>(
     c: fmi3Instance,
     function: &str,
@@ -286,7 +286,7 @@ pub unsafe fn fmi3GetFloat64<M: FmuModel>(
 ) -> fmi3Status {
     // The fast path of the core (as for fmi2GetReal), behind the panic barrier.
     if nValues == nvr {
-        if let Some(status) = ffi::quick_get_real::<M>(c, "fmi3GetFloat64", vr, nvr, value) {
+        if let Some(status) = ffi::quick_get_real::<M, 3>(c, "fmi3GetFloat64", vr, nvr, value) {
             return status;
         }
     }
@@ -640,17 +640,8 @@ pub unsafe fn fmi3CompletedIntegratorStep<M: FmuModel>(
     enterEventMode: *mut fmi3Boolean,
     terminateSimulation: *mut fmi3Boolean,
 ) -> fmi3Status {
-    me::<M>(c, "fmi3CompletedIntegratorStep", |_| {
-        if enterEventMode.is_null() || terminateSimulation.is_null() {
-            return Err(null_argument(
-                "fmi3CompletedIntegratorStep",
-                "enterEventMode or terminateSimulation",
-            ));
-        }
-        *enterEventMode = false;
-        *terminateSimulation = false;
-        Ok(())
-    })
+    let f = "fmi3CompletedIntegratorStep";
+    me::<M>(c, f, |_| me_core::completed_integrator_step(f, enterEventMode, terminateSimulation))
 }
 
 pub unsafe fn fmi3SetTime<M: FmuModel>(c: fmi3Instance, time: fmi3Float64) -> fmi3Status {
@@ -713,24 +704,35 @@ pub unsafe fn fmi3GetNumberOfEventIndicators<M: FmuModel>(
     c: fmi3Instance,
     n: *mut usize,
 ) -> fmi3Status {
-    call::<M>(c, "fmi3GetNumberOfEventIndicators", |_| {
-        if n.is_null() {
-            return Err(null_argument("fmi3GetNumberOfEventIndicators", "nEventIndicators"));
-        }
-        *n = 0;
-        Ok(())
-    })
+    number_of::<M>(c, "fmi3GetNumberOfEventIndicators", "nEventIndicators", n, 0)
 }
 
 pub unsafe fn fmi3GetNumberOfContinuousStates<M: FmuModel>(
     c: fmi3Instance,
     n: *mut usize,
 ) -> fmi3Status {
-    call::<M>(c, "fmi3GetNumberOfContinuousStates", |_| {
+    number_of::<M>(
+        c,
+        "fmi3GetNumberOfContinuousStates",
+        "nContinuousStates",
+        n,
+        M::CONTINUOUS_STATES.len(),
+    )
+}
+
+/// fmi3GetNumberOf…: `value` into the importer's `n` (named `what`).
+unsafe fn number_of<M: FmuModel>(
+    c: fmi3Instance,
+    function: &str,
+    what: &str,
+    n: *mut usize,
+    value: usize,
+) -> fmi3Status {
+    call::<M>(c, function, |_| {
         if n.is_null() {
-            return Err(null_argument("fmi3GetNumberOfContinuousStates", "nContinuousStates"));
+            return Err(null_argument(function, what));
         }
-        *n = M::CONTINUOUS_STATES.len();
+        *n = value;
         Ok(())
     })
 }

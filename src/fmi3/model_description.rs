@@ -13,12 +13,12 @@
 
 use std::fmt::Write;
 
-use crate::fmi::display_units;
-use crate::fmi::logging::CATEGORIES;
 use crate::fmi::model::FmuModel;
 use crate::fmi::structure::{dependencies_of, derivative_vr, own_state, state_vr, time_vr};
 use crate::fmi::variables::{Binding, Causality, VarType, Variability};
-use crate::fmi::xml::{bool_attr, esc, num};
+use crate::fmi::xml::{
+    bool_attr, categories_and_experiment, causality_name, esc, type_attributes, units,
+};
 
 const TOKEN_PLACEHOLDER: &str = "@TOKEN@";
 
@@ -33,7 +33,6 @@ fn ty_name(t: VarType) -> &'static str {
 fn body<M: FmuModel>() -> String {
     let info = M::info();
     let table = M::table();
-    let (start, stop, step) = info.default_experiment;
     let mut x = String::new();
     let w = &mut x;
     let _ = writeln!(w, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
@@ -60,41 +59,13 @@ fn body<M: FmuModel>() -> String {
         bool_attr(M::DIRECTIONAL_DERIVATIVES)
     );
     let _ = writeln!(w, "  <UnitDefinitions>");
-    for (name, [kg, m, s, rad]) in table.units {
-        let mut attrs = String::new();
-        for (sym, e) in [("kg", kg), ("m", m), ("s", s), ("rad", rad)] {
-            if *e != 0 {
-                let _ = write!(attrs, r#" {sym}="{e}""#);
-            }
-        }
-        let mut display = String::new();
-        for d in display_units::for_unit(name) {
-            let _ = write!(
-                display,
-                r#"<DisplayUnit name="{}" factor="{}"/>"#,
-                esc(d.name),
-                num(d.factor)
-            );
-        }
-        let _ = writeln!(w, r#"    <Unit name="{}"><BaseUnit{attrs}/>{display}</Unit>"#, esc(name));
-    }
+    units::<M>(w);
     // The unit of the independent variable `time`, unless the table has it already.
     if !table.units.iter().any(|(name, _)| *name == "s") {
         let _ = writeln!(w, r#"    <Unit name="s"><BaseUnit s="1"/></Unit>"#);
     }
     let _ = writeln!(w, "  </UnitDefinitions>");
-    let _ = writeln!(w, "  <LogCategories>");
-    for (name, desc) in CATEGORIES {
-        let _ = writeln!(w, r#"    <Category name="{name}" description="{}"/>"#, esc(desc));
-    }
-    let _ = writeln!(w, "  </LogCategories>");
-    let _ = writeln!(
-        w,
-        r#"  <DefaultExperiment startTime="{}" stopTime="{}" stepSize="{}"/>"#,
-        num(start),
-        num(stop),
-        num(step)
-    );
+    categories_and_experiment::<M>(w);
     let _ = writeln!(w, "  <ModelVariables>");
     // FMI 3.0 requires the independent variable; it takes the value reference after the table's.
     let _ = writeln!(
@@ -103,12 +74,7 @@ fn body<M: FmuModel>() -> String {
         time_vr::<M>()
     );
     for (vr, v) in table.variables.iter().enumerate() {
-        let causality = match v.causality {
-            Causality::Parameter => "parameter",
-            Causality::CalculatedParameter => "calculatedParameter",
-            Causality::Input => "input",
-            Causality::Output => "output",
-        };
+        let causality = causality_name(v.causality);
         // FMI 3.0 allows "continuous" for Float variables only; an Int32 or Boolean input or
         // output changes only at communication points (discrete).
         let variability = match (v.variability, v.ty) {
@@ -117,31 +83,7 @@ fn body<M: FmuModel>() -> String {
             (Variability::Continuous, VarType::Real) => "continuous",
             (Variability::Continuous, _) => "discrete",
         };
-        let mut attrs = String::new();
-        if v.ty == VarType::Real && !v.unit.is_empty() {
-            let _ = write!(attrs, r#" unit="{}""#, esc(v.unit));
-            if let Some(d) = display_units::default_for(v.unit) {
-                let _ = write!(attrs, r#" displayUnit="{}""#, esc(d));
-            }
-        }
-        if v.ty != VarType::Boolean {
-            let fmt =
-                |b: f64| if v.ty == VarType::Integer { format!("{}", b as i64) } else { num(b) };
-            if v.range.min.is_finite() {
-                let _ = write!(attrs, r#" min="{}""#, fmt(v.range.min));
-            }
-            if v.range.max.is_finite() {
-                let _ = write!(attrs, r#" max="{}""#, fmt(v.range.max));
-            }
-        }
-        if let Some(s) = v.start() {
-            let text = match v.ty {
-                VarType::Real => num(s),
-                VarType::Integer => format!("{}", s as i64),
-                VarType::Boolean => (if s != 0.0 { "true" } else { "false" }).to_string(),
-            };
-            let _ = write!(attrs, r#" start="{text}""#);
-        }
+        let attrs = type_attributes(v);
         let _ = writeln!(
             w,
             r#"    <{} name="{}" valueReference="{vr}" causality="{causality}" variability="{variability}" description="{}"{attrs}/>"#,
