@@ -109,3 +109,22 @@ pub fn type_attributes<M: FmuModel>(v: &Var<M>) -> String {
     }
     attrs
 }
+
+/// The GUID (FMI 2.0) or instantiationToken (FMI 3.0) of a model description, derived from its
+/// text (`body`, with the identifier's placeholder) by two FNV-1a hashes: any change to the
+/// interface changes it, so an importer holding an old modelDescription.xml cannot instantiate a
+/// new binary by mistake.
+pub fn interface_id(body: &str) -> String {
+    let h = |seed: u64| {
+        body.bytes().fold(seed, |h, c| (h ^ c as u64).wrapping_mul(0x0000_0100_0000_01b3))
+    };
+    let (a, c) = (h(0xcbf2_9ce4_8422_2325), h(0x84222325cbf29ce4));
+    format!(
+        "{{{:08x}-{:04x}-{:04x}-{:04x}-{:012x}}}",
+        a >> 32,
+        (a >> 16) & 0xffff,
+        a & 0xffff,
+        c >> 48,
+        c & 0xffff_ffff_ffff
+    )
+}

@@ -10,7 +10,7 @@ use crate::fmi::model::FmuModel;
 use crate::fmi::structure::{dependencies_of, derivative_vr, own_state, state_vr};
 use crate::fmi::variables::{Binding, Causality, VarType, Variability};
 use crate::fmi::xml::{
-    bool_attr, categories_and_experiment, causality_name, esc, type_attributes, units,
+    bool_attr, categories_and_experiment, causality_name, esc, interface_id, type_attributes, units,
 };
 
 const GUID_PLACEHOLDER: &str = "@GUID@";
@@ -228,21 +228,7 @@ fn derivative_initial_unknowns<M: FmuModel>(w: &mut String) {
 /// GUID derived from the interface itself: any change to the table changes it, so an importer
 /// holding an old modelDescription.xml cannot instantiate a new binary by mistake.
 pub fn guid<M: FmuModel>() -> &'static str {
-    M::table().guid.get_or_init(|| {
-        let b = body::<M>();
-        let h = |seed: u64| {
-            b.bytes().fold(seed, |h, c| (h ^ c as u64).wrapping_mul(0x0000_0100_0000_01b3))
-        };
-        let (a, c) = (h(0xcbf2_9ce4_8422_2325), h(0x84222325cbf29ce4));
-        format!(
-            "{{{:08x}-{:04x}-{:04x}-{:04x}-{:012x}}}",
-            a >> 32,
-            (a >> 16) & 0xffff,
-            a & 0xffff,
-            c >> 48,
-            c & 0xffff_ffff_ffff
-        )
-    })
+    M::table().guid.get_or_init(|| interface_id(&body::<M>()))
 }
 
 /// The complete modelDescription.xml.

@@ -74,6 +74,33 @@ macro_rules! unsupported {
     )*};
 }
 
+/// The get and set functions of a type this FMU has variables of, through the core's general
+/// path (`set` reads the values as `$read`); Float64 has its own, with the fast path.
+macro_rules! typed_get_set {
+    ($($get:ident, $set:ident, $t:ty, $read:ty, $ty:ident, $to:expr, $from:expr;)*) => {$(
+        pub unsafe fn $get<M: FmuModel>(
+            c: fmi3Instance,
+            vr: *const fmi3ValueReference,
+            nvr: usize,
+            value: *mut $t,
+            nValues: usize,
+        ) -> fmi3Status {
+            let (f, ty, n) = (stringify!($get), VarType::$ty, Some(nValues));
+            ffi::get_values::<Fmi3, M, _>(c, f, ty, vr, nvr, value, n, $to)
+        }
+        pub unsafe fn $set<M: FmuModel>(
+            c: fmi3Instance,
+            vr: *const fmi3ValueReference,
+            nvr: usize,
+            value: *const $t,
+            nValues: usize,
+        ) -> fmi3Status {
+            let (f, ty, n) = (stringify!($set), VarType::$ty, Some(nValues));
+            ffi::set_values::<Fmi3, M, $read>(c, f, ty, vr, nvr, value as *const $read, n, $from)
+        }
+    )*};
+}
+
 /// The get and set functions of the types this FMU has no variable of: only an empty list of
 /// value references is accepted.
 macro_rules! no_variables {
@@ -343,52 +370,12 @@ pub unsafe fn fmi3SetFloat64<M: FmuModel>(
     ffi::set_values::<Fmi3, M, _>(c, f, ty, vr, nvr, value, Some(nValues), |v| v)
 }
 
-pub unsafe fn fmi3GetInt32<M: FmuModel>(
-    c: fmi3Instance,
-    vr: *const fmi3ValueReference,
-    nvr: usize,
-    value: *mut fmi3Int32,
-    nValues: usize,
-) -> fmi3Status {
-    let (f, ty) = ("fmi3GetInt32", VarType::Integer);
-    ffi::get_values::<Fmi3, M, _>(c, f, ty, vr, nvr, value, Some(nValues), |v| v as i32)
-}
-
-pub unsafe fn fmi3SetInt32<M: FmuModel>(
-    c: fmi3Instance,
-    vr: *const fmi3ValueReference,
-    nvr: usize,
-    value: *const fmi3Int32,
-    nValues: usize,
-) -> fmi3Status {
-    let (f, ty) = ("fmi3SetInt32", VarType::Integer);
-    ffi::set_values::<Fmi3, M, _>(c, f, ty, vr, nvr, value, Some(nValues), |v| v as f64)
-}
-
-pub unsafe fn fmi3GetBoolean<M: FmuModel>(
-    c: fmi3Instance,
-    vr: *const fmi3ValueReference,
-    nvr: usize,
-    value: *mut fmi3Boolean,
-    nValues: usize,
-) -> fmi3Status {
-    let (f, ty) = ("fmi3GetBoolean", VarType::Boolean);
-    ffi::get_values::<Fmi3, M, _>(c, f, ty, vr, nvr, value, Some(nValues), |v| v != 0.0)
-}
-
-pub unsafe fn fmi3SetBoolean<M: FmuModel>(
-    c: fmi3Instance,
-    vr: *const fmi3ValueReference,
-    nvr: usize,
-    value: *const fmi3Boolean,
-    nValues: usize,
-) -> fmi3Status {
-    // Read as bytes: a C caller may pass any non-zero byte for true, which is not a valid Rust
+typed_get_set! {
+    fmi3GetInt32, fmi3SetInt32, fmi3Int32, fmi3Int32, Integer, |v: f64| v as i32, |v: i32| v as f64;
+    // Set reads bytes: a C caller may pass any non-zero byte for true, which is not a valid Rust
     // bool.
-    let (f, ty, bytes) = ("fmi3SetBoolean", VarType::Boolean, value as *const u8);
-    ffi::set_values::<Fmi3, M, u8>(c, f, ty, vr, nvr, bytes, Some(nValues), |v| {
-        (v != 0) as i32 as f64
-    })
+    fmi3GetBoolean, fmi3SetBoolean, fmi3Boolean, u8, Boolean, |v: f64| v != 0.0,
+        |v: u8| (v != 0) as i32 as f64;
 }
 
 no_variables! {

@@ -17,7 +17,7 @@ use crate::fmi::model::FmuModel;
 use crate::fmi::structure::{dependencies_of, derivative_vr, own_state, state_vr, time_vr};
 use crate::fmi::variables::{Binding, Causality, VarType, Variability};
 use crate::fmi::xml::{
-    bool_attr, categories_and_experiment, causality_name, esc, type_attributes, units,
+    bool_attr, categories_and_experiment, causality_name, esc, interface_id, type_attributes, units,
 };
 
 const TOKEN_PLACEHOLDER: &str = "@TOKEN@";
@@ -177,21 +177,7 @@ fn own_state_variables<M: FmuModel>(w: &mut String) {
 /// 2.0 one): any change to the table changes it, so an importer holding an old
 /// modelDescription.xml cannot instantiate a new binary by mistake.
 pub fn token<M: FmuModel>() -> &'static str {
-    M::table().token3.get_or_init(|| {
-        let b = body::<M>();
-        let h = |seed: u64| {
-            b.bytes().fold(seed, |h, c| (h ^ c as u64).wrapping_mul(0x0000_0100_0000_01b3))
-        };
-        let (a, c) = (h(0xcbf2_9ce4_8422_2325), h(0x84222325cbf29ce4));
-        format!(
-            "{{{:08x}-{:04x}-{:04x}-{:04x}-{:012x}}}",
-            a >> 32,
-            (a >> 16) & 0xffff,
-            a & 0xffff,
-            c >> 48,
-            c & 0xffff_ffff_ffff
-        )
-    })
+    M::table().token3.get_or_init(|| interface_id(&body::<M>()))
 }
 
 /// The complete FMI 3.0 modelDescription.xml.
