@@ -5,7 +5,7 @@
 // rustc's own export list for a cdylib cannot be narrowed by a second version script.)
 // And with `-z defs`: every symbol the library uses must be resolved when it is linked. A shared
 // object may otherwise keep undefined symbols for the loader, and that is how `no_panic` reports a
-// path that could panic (fmi2DoStep's fast path, src/fmi2/instance.rs `quick_step`): with the flag
+// path that could panic (fmi2DoStep's fast path, src/fmi/instance.rs `quick_step`): with the flag
 // such a path fails the build instead of failing when the FMU is loaded. A PE link (the win64
 // DLL) fails on undefined symbols anyway.
 // The flags are ELF-only: they must not reach the Windows (PE) link of the win64 DLL.

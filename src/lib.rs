@@ -1,12 +1,14 @@
 //! ReciprocatingDrive: FMI 2.0 co-simulation FMUs of crank-driven reciprocating mechanisms.
 //!
 //! * [`model`]: the pure physics (docs/model.md), usable on its own from Rust.
-//! * [`fmi2`]: the FMI 2.0 layer shared by every FMU: variable tables, instances, state machine,
-//!   C ABI, XML generator; generic over a model.
-//! * [`fmi3`]: the FMI 3.0 dialect over the same instance core and variable tables.
+//! * [`fmi`]: the standard-independent FMI core shared by every FMU: the model trait, variable
+//!   tables, instances, state machine, FMU states, logging, Model Exchange evaluation, directional
+//!   derivatives, the checks and panic barrier of the exported functions; generic over a model.
+//! * [`fmi2`], [`fmi3`]: each standard's C ABI and model-description writer over that core.
 //! * [`fmus`]: the FMUs (each a model's variable table and its connection to the glue); their
 //!   shared objects are built by the thin crates under `cdylib/`.
 
+pub mod fmi;
 pub mod fmi2;
 pub mod fmi3;
 pub mod fmus;

@@ -283,7 +283,7 @@ fn fmu_state_save_restore_continues_bit_for_bit_with_the_integrator_memory() {
     };
     assert_eq!(f.set_state(s), OK);
     let reference_long = cont_long(&f);
-    use reciprocating_drive::fmi2::fmu_state;
+    use reciprocating_drive::fmi::fmu_state;
     use reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive;
     let mut core = fmu_state::deserialize::<ReciprocatingDrive>(&bytes).expect("decode");
     assert!(

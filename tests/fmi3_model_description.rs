@@ -3,7 +3,7 @@
 //! and the 3.0 file names the same variables as the 2.0 file, in the same order with the same
 //! value references (one table), read back from the two generated texts.
 
-use reciprocating_drive::fmi2::model::FmuModel;
+use reciprocating_drive::fmi::model::FmuModel;
 use reciprocating_drive::fmus::drive_train::DriveTrainFmu;
 use reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive;
 

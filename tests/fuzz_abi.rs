@@ -20,7 +20,7 @@ static CALLS: AtomicU64 = AtomicU64::new(0);
 static REFUSED: AtomicU64 = AtomicU64::new(0);
 static STEPS_OK: AtomicU64 = AtomicU64::new(0);
 use fmi_sys::fmi2::fmi2FMUstate;
-use reciprocating_drive::fmi2::variables::{Causality, VarType};
+use reciprocating_drive::fmi::variables::{Causality, VarType};
 use reciprocating_drive::fmus::reciprocating_drive::VARIABLES;
 
 /// splitmix64: small, seedable, good enough to spread the calls.

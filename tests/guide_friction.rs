@@ -21,7 +21,7 @@
 
 mod common;
 use common::*;
-use reciprocating_drive::fmi2::variables::VarType;
+use reciprocating_drive::fmi::variables::VarType;
 use reciprocating_drive::fmus::reciprocating_drive::VARIABLES;
 use std::f64::consts::PI;
 

@@ -5,8 +5,8 @@
 
 mod common;
 use common::*;
-use reciprocating_drive::fmi2::fmu_state;
-use reciprocating_drive::fmi2::model::FmuModel;
+use reciprocating_drive::fmi::fmu_state;
+use reciprocating_drive::fmi::model::FmuModel;
 use reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive;
 
 fn running(api: &Api) -> Inst<'_> {
@@ -46,7 +46,7 @@ fn deserialized_states_are_validated_like_set_calls() {
     let core = fmu_state::deserialize::<ReciprocatingDrive>(&bytes).expect("decode");
     type Corrupt = Box<
         dyn Fn(
-            &mut reciprocating_drive::fmi2::instance::Core<<ReciprocatingDrive as FmuModel>::State>,
+            &mut reciprocating_drive::fmi::instance::Core<<ReciprocatingDrive as FmuModel>::State>,
         ),
     >;
     let cases: Vec<(Corrupt, &str)> = vec![
@@ -203,7 +203,7 @@ fn long_numbers_finds_what_it_should() {
 /// echoed as given; integer ranges read as integers.
 #[test]
 fn every_number_an_fmu_prints_has_at_most_six_digits_unless_it_is_the_value_set() {
-    use reciprocating_drive::fmi2::variables::{Causality, VarType};
+    use reciprocating_drive::fmi::variables::{Causality, VarType};
     use reciprocating_drive::model::error::given;
     let api = Api::load();
     let table = ReciprocatingDrive::table();
@@ -475,7 +475,7 @@ fn a_freed_fmi2_instance_is_refused_without_touching_freed_memory() {
     let make = |ty: fmi2Type| unsafe {
         (api.fmi2Instantiate)(name.as_ptr(), ty, guid.as_ptr(), std::ptr::null(), &callbacks, 0, 1)
     };
-    let der0 = reciprocating_drive::fmi2::model_exchange::derivative_vr::<ReciprocatingDrive>(0);
+    let der0 = reciprocating_drive::fmi::structure::derivative_vr::<ReciprocatingDrive>(0);
     for ty in [fmi2Type_fmi2CoSimulation, fmi2Type_fmi2ModelExchange] {
         let cs = ty == fmi2Type_fmi2CoSimulation;
         let c = make(ty);

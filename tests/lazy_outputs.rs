@@ -11,7 +11,7 @@
 
 mod common;
 use common::*;
-use reciprocating_drive::fmi2::variables::{Binding, Causality};
+use reciprocating_drive::fmi::variables::{Binding, Causality};
 use reciprocating_drive::fmus::reciprocating_drive::{value_reference, VARIABLES};
 use reciprocating_drive::model::crank::CrankState;
 use reciprocating_drive::model::drive::{Inputs, Model, Outputs, RodState};

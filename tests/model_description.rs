@@ -4,7 +4,7 @@
 use reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive;
 
 /// The checked-in file equals what the generator makes from model M's table now.
-fn assert_current<M: reciprocating_drive::fmi2::model::FmuModel>(file: &str, regenerate: &str) {
+fn assert_current<M: reciprocating_drive::fmi::model::FmuModel>(file: &str, regenerate: &str) {
     let path = format!("{}/modelDescription/{file}", env!("CARGO_MANIFEST_DIR"));
     let on_disk = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
     let generated = reciprocating_drive::fmi2::model_description::generate::<M>();

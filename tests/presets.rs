@@ -5,7 +5,7 @@
 
 mod common;
 use common::*;
-use reciprocating_drive::fmi2::variables::{Binding, Causality, VarType};
+use reciprocating_drive::fmi::variables::{Binding, Causality, VarType};
 use reciprocating_drive::fmus::reciprocating_drive::VARIABLES;
 
 /// (preset name, its (name, type, value) entries).

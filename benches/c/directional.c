@@ -9,11 +9,11 @@
  *   IN: comma-separated value references of (angle, speed, acceleration); OUT: the output;
  *   KNOWN: the known of the derivative; MODE: "value" or "derivative";
  *   SET: r:VR=VALUE, i:VR=VALUE or b:VR=VALUE, set in initialization mode. */
-#include <dlfcn.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include "fmi2Functions.h"
+#include "../../tests/c/fmu_load.h"
 
 static void logger(fmi2ComponentEnvironment e, fmi2String n, fmi2Status s, fmi2String c,
                    fmi2String m, ...) {
@@ -21,26 +21,20 @@ static void logger(fmi2ComponentEnvironment e, fmi2String n, fmi2Status s, fmi2S
     if (s != fmi2OK) fprintf(stderr, "%s\n", m);
 }
 
-static void *sym(void *lib, const char *name) {
-    void *f = dlsym(lib, name);
-    if (!f) { fprintf(stderr, "missing %s\n", name); exit(2); }
-    return f;
-}
-
 int main(int argc, char **argv) {
     if (argc < 9) { fprintf(stderr, "usage: see the source\n"); return 2; }
-    void *lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
-    if (!lib) { fprintf(stderr, "%s\n", dlerror()); return 2; }
-    fmi2InstantiateTYPE *instantiate = sym(lib, "fmi2Instantiate");
-    fmi2SetupExperimentTYPE *setup = sym(lib, "fmi2SetupExperiment");
-    fmi2EnterInitializationModeTYPE *enter = sym(lib, "fmi2EnterInitializationMode");
-    fmi2ExitInitializationModeTYPE *exit_init = sym(lib, "fmi2ExitInitializationMode");
-    fmi2SetRealTYPE *set_real = sym(lib, "fmi2SetReal");
-    fmi2SetIntegerTYPE *set_integer = sym(lib, "fmi2SetInteger");
-    fmi2SetBooleanTYPE *set_boolean = sym(lib, "fmi2SetBoolean");
-    fmi2GetRealTYPE *get_real = sym(lib, "fmi2GetReal");
-    fmi2GetDirectionalDerivativeTYPE *dd = sym(lib, "fmi2GetDirectionalDerivative");
-    fmi2FreeInstanceTYPE *free_instance = sym(lib, "fmi2FreeInstance");
+    void *lib = fmu_load(argv[1]);
+    if (!lib) { fprintf(stderr, "%s\n", fmu_load_error()); return 2; }
+    fmi2InstantiateTYPE *instantiate = fmu_need(lib, "fmi2Instantiate");
+    fmi2SetupExperimentTYPE *setup = fmu_need(lib, "fmi2SetupExperiment");
+    fmi2EnterInitializationModeTYPE *enter = fmu_need(lib, "fmi2EnterInitializationMode");
+    fmi2ExitInitializationModeTYPE *exit_init = fmu_need(lib, "fmi2ExitInitializationMode");
+    fmi2SetRealTYPE *set_real = fmu_need(lib, "fmi2SetReal");
+    fmi2SetIntegerTYPE *set_integer = fmu_need(lib, "fmi2SetInteger");
+    fmi2SetBooleanTYPE *set_boolean = fmu_need(lib, "fmi2SetBoolean");
+    fmi2GetRealTYPE *get_real = fmu_need(lib, "fmi2GetReal");
+    fmi2GetDirectionalDerivativeTYPE *dd = fmu_need(lib, "fmi2GetDirectionalDerivative");
+    fmi2FreeInstanceTYPE *free_instance = fmu_need(lib, "fmi2FreeInstance");
     fmi2ValueReference in[3];
     if (sscanf(argv[3], "%u,%u,%u", &in[0], &in[1], &in[2]) != 3) return 2;
     fmi2ValueReference out = (fmi2ValueReference)strtoul(argv[4], NULL, 10);

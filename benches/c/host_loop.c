@@ -12,7 +12,6 @@
  *   *_IN, *_OUT: comma-separated value references (3 inputs; the outputs read each step)
  *   SET: r:VR=VALUE, i:VR=VALUE or b:VR=VALUE, set on the FMU (not the base) in initialization mode
  *   The FMU's inputs are (crank angle, speed, acceleration) = (SPEED*t, SPEED, 0). */
-#include <dlfcn.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -20,6 +19,7 @@
 #include <string.h>
 #include <time.h>
 #include "fmi2Functions.h"
+#include "../../tests/c/fmu_load.h"
 
 typedef struct {
     void *lib;
@@ -50,36 +50,22 @@ static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status sta
     va_end(ap);
 }
 
-static void *sym(void *lib, const char *name) {
-    void *p = dlsym(lib, name);
-    if (!p) { fprintf(stderr, "missing %s\n", name); exit(2); }
-    return p;
-}
-
-static size_t parse_vrs(const char *s, fmi2ValueReference *v, size_t max) {
-    size_t n = 0;
-    char *copy = strdup(s), *save = NULL;
-    for (char *t = strtok_r(copy, ",", &save); t && n < max; t = strtok_r(NULL, ",", &save)) v[n++] = (fmi2ValueReference)strtoul(t, NULL, 10);
-    free(copy);
-    return n;
-}
-
 static void load(Fmu *f, const char *path, const char *guid, const char *in, const char *out) {
-    f->lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
-    if (!f->lib) { fprintf(stderr, "%s\n", dlerror()); exit(2); }
-    f->instantiate = sym(f->lib, "fmi2Instantiate");
-    f->free_instance = sym(f->lib, "fmi2FreeInstance");
-    f->setup = sym(f->lib, "fmi2SetupExperiment");
-    f->enter = sym(f->lib, "fmi2EnterInitializationMode");
-    f->exit_init = sym(f->lib, "fmi2ExitInitializationMode");
-    f->set_real = sym(f->lib, "fmi2SetReal");
-    f->set_integer = dlsym(f->lib, "fmi2SetInteger");
-    f->set_boolean = dlsym(f->lib, "fmi2SetBoolean");
-    f->get_real = sym(f->lib, "fmi2GetReal");
-    f->do_step = sym(f->lib, "fmi2DoStep");
+    f->lib = fmu_load(path);
+    if (!f->lib) { fprintf(stderr, "%s\n", fmu_load_error()); exit(2); }
+    f->instantiate = fmu_need(f->lib, "fmi2Instantiate");
+    f->free_instance = fmu_need(f->lib, "fmi2FreeInstance");
+    f->setup = fmu_need(f->lib, "fmi2SetupExperiment");
+    f->enter = fmu_need(f->lib, "fmi2EnterInitializationMode");
+    f->exit_init = fmu_need(f->lib, "fmi2ExitInitializationMode");
+    f->set_real = fmu_need(f->lib, "fmi2SetReal");
+    f->set_integer = fmu_sym(f->lib, "fmi2SetInteger");
+    f->set_boolean = fmu_sym(f->lib, "fmi2SetBoolean");
+    f->get_real = fmu_need(f->lib, "fmi2GetReal");
+    f->do_step = fmu_need(f->lib, "fmi2DoStep");
     f->guid = guid;
-    if (parse_vrs(in, f->in, 3) != 3) { fprintf(stderr, "need 3 inputs\n"); exit(2); }
-    f->n_out = parse_vrs(out, f->out, 64);
+    if ((size_t)fmu_parse_vrs(in, f->in, 3) != 3) { fprintf(stderr, "need 3 inputs\n"); exit(2); }
+    f->n_out = (size_t)fmu_parse_vrs(out, f->out, 64);
 }
 
 static fmi2CallbackFunctions callbacks = { logger, calloc, free, NULL, NULL };

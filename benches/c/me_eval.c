@@ -15,13 +15,13 @@
  *   IN, OUT: comma-separated value references (3 crank inputs; the outputs read)
  *   NX: the FMU's number of continuous states
  *   SET: r:VR=VALUE, i:VR=VALUE or b:VR=VALUE, set in initialization mode */
-#include <dlfcn.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 #include "fmi2Functions.h"
+#include "../../tests/c/fmu_load.h"
 
 static fmi2InstantiateTYPE *instantiate;
 static fmi2FreeInstanceTYPE *free_instance;
@@ -49,20 +49,6 @@ static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status sta
     vfprintf(stderr, message, ap);
     fprintf(stderr, "\n");
     va_end(ap);
-}
-
-static void *sym(void *lib, const char *name) {
-    void *p = dlsym(lib, name);
-    if (!p) { fprintf(stderr, "missing %s\n", name); exit(2); }
-    return p;
-}
-
-static size_t parse_vrs(const char *s, fmi2ValueReference *v, size_t max) {
-    size_t n = 0;
-    char *copy = strdup(s), *save = NULL;
-    for (char *t = strtok_r(copy, ",", &save); t && n < max; t = strtok_r(NULL, ",", &save)) v[n++] = (fmi2ValueReference)strtoul(t, NULL, 10);
-    free(copy);
-    return n;
 }
 
 static fmi2CallbackFunctions callbacks = { logger, calloc, free, NULL, NULL };
@@ -137,27 +123,27 @@ static int cmp(const void *a, const void *b) {
 
 int main(int argc, char **argv) {
     if (argc < 10) { fprintf(stderr, "usage: see me_eval.c\n"); return 2; }
-    void *lib = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
-    if (!lib) { fprintf(stderr, "%s\n", dlerror()); return 2; }
-    instantiate = sym(lib, "fmi2Instantiate");
-    free_instance = sym(lib, "fmi2FreeInstance");
-    setup = sym(lib, "fmi2SetupExperiment");
-    enter = sym(lib, "fmi2EnterInitializationMode");
-    exit_init = sym(lib, "fmi2ExitInitializationMode");
-    set_real = sym(lib, "fmi2SetReal");
-    set_integer = sym(lib, "fmi2SetInteger");
-    set_boolean = sym(lib, "fmi2SetBoolean");
-    get_real = sym(lib, "fmi2GetReal");
-    do_step = sym(lib, "fmi2DoStep");
-    set_time = sym(lib, "fmi2SetTime");
-    new_discrete_states = sym(lib, "fmi2NewDiscreteStates");
-    enter_ct = sym(lib, "fmi2EnterContinuousTimeMode");
-    set_states = sym(lib, "fmi2SetContinuousStates");
-    get_states = sym(lib, "fmi2GetContinuousStates");
-    get_derivatives = sym(lib, "fmi2GetDerivatives");
+    void *lib = fmu_load(argv[1]);
+    if (!lib) { fprintf(stderr, "%s\n", fmu_load_error()); return 2; }
+    instantiate = fmu_need(lib, "fmi2Instantiate");
+    free_instance = fmu_need(lib, "fmi2FreeInstance");
+    setup = fmu_need(lib, "fmi2SetupExperiment");
+    enter = fmu_need(lib, "fmi2EnterInitializationMode");
+    exit_init = fmu_need(lib, "fmi2ExitInitializationMode");
+    set_real = fmu_need(lib, "fmi2SetReal");
+    set_integer = fmu_need(lib, "fmi2SetInteger");
+    set_boolean = fmu_need(lib, "fmi2SetBoolean");
+    get_real = fmu_need(lib, "fmi2GetReal");
+    do_step = fmu_need(lib, "fmi2DoStep");
+    set_time = fmu_need(lib, "fmi2SetTime");
+    new_discrete_states = fmu_need(lib, "fmi2NewDiscreteStates");
+    enter_ct = fmu_need(lib, "fmi2EnterContinuousTimeMode");
+    set_states = fmu_need(lib, "fmi2SetContinuousStates");
+    get_states = fmu_need(lib, "fmi2GetContinuousStates");
+    get_derivatives = fmu_need(lib, "fmi2GetDerivatives");
     guid = argv[2];
-    if (parse_vrs(argv[3], in_vr, 3) != 3) { fprintf(stderr, "need 3 inputs\n"); return 2; }
-    n_out = parse_vrs(argv[4], out_vr, 64);
+    if ((size_t)fmu_parse_vrs(argv[3], in_vr, 3) != 3) { fprintf(stderr, "need 3 inputs\n"); return 2; }
+    n_out = (size_t)fmu_parse_vrs(argv[4], out_vr, 64);
     nx = strtoul(argv[5], NULL, 10);
     double speed = strtod(argv[6], NULL), h = strtod(argv[7], NULL);
     long steps = strtol(argv[8], NULL, 10);

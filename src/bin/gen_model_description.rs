@@ -8,7 +8,8 @@
 //! * `--page FILE.md`: one Markdown page as HTML (links to other pages become .html).
 use std::path::Path;
 
-use reciprocating_drive::fmi2::{documentation, model::FmuModel, model_description};
+use reciprocating_drive::fmi::{documentation, model::FmuModel};
+use reciprocating_drive::fmi2::model_description;
 use reciprocating_drive::fmi3::model_description as model_description3;
 use reciprocating_drive::fmus::drive_train::DriveTrainFmu;
 use reciprocating_drive::fmus::reciprocating_drive::ReciprocatingDrive;

@@ -1,19 +1,7 @@
-//! The FMI 2.0 co-simulation layer, shared by every FMU of the crate: no physics here. It owns
-//! instances, the state machine, value references, FMU state snapshots, logging, the generators of
-//! modelDescription.xml and documentation, and the C ABI, generic over a model ([`model::FmuModel`]).
-//! The models and their variable tables live in [`crate::fmus`].
+//! The FMI 2.0 layer: its C ABI (co-simulation [`abi`] and Model Exchange [`model_exchange`],
+//! thin functions over the core [`crate::fmi`]) and its modelDescription.xml dialect
+//! ([`model_description`]). It does not use the FMI 3.0 layer.
 
 pub mod abi;
-pub mod directional;
-pub mod display_units;
-pub mod documentation;
-pub mod fmu_state;
-pub(crate) mod handle;
-pub mod instance;
-pub mod logging;
-pub mod model;
 pub mod model_description;
 pub mod model_exchange;
-mod plans;
-pub mod resources;
-pub mod variables;

@@ -1,25 +1,19 @@
+//! FMI 2.0 layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! Generates a model's modelDescription.xml from its variable table. The output is deterministic
 //! (no generation date), so the checked-in copy under `modelDescription/` can be compared byte for
 //! byte with what this produces.
 
 use std::fmt::Write;
 
-use crate::fmi2::display_units;
-use crate::fmi2::logging::CATEGORIES;
-use crate::fmi2::model::FmuModel;
-use crate::fmi2::variables::{Binding, Causality, VarType, Variability};
-use crate::fmi3::model_description::own_state;
+use crate::fmi::model::FmuModel;
+use crate::fmi::structure::{dependencies_of, derivative_vr, own_state, state_vr};
+use crate::fmi::variables::{Binding, Causality, VarType, Variability};
+use crate::fmi::xml::{
+    bool_attr, categories_and_experiment, causality_name, esc, interface_id, type_attributes, units,
+};
 
 const GUID_PLACEHOLDER: &str = "@GUID@";
-
-pub(crate) fn esc(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
-}
-
-/// xs:double text that round-trips (Rust's shortest representation).
-pub(crate) fn num(v: f64) -> String {
-    format!("{v:?}")
-}
 
 fn ty_name(t: VarType) -> &'static str {
     match t {
@@ -32,16 +26,14 @@ fn ty_name(t: VarType) -> &'static str {
 /// The knowns the output or state derivative `vr` depends on, as 1-based indices in
 /// ModelVariables: its inputs and, for Model Exchange, its continuous states (FMI 2.0 §3.3.1:
 /// the knowns of <Outputs> and <Derivatives> are the inputs and the continuous states), the same
-/// dependencies as the FMI 3.0 file (`crate::fmi3::model_description::dependencies_of`).
+/// dependencies as the FMI 3.0 file (`dependencies_of`).
 fn dependency_indices<M: FmuModel>(vr: usize) -> Vec<String> {
     let n = M::CONTINUOUS_STATES.len();
-    let deps = crate::fmi3::model_description::dependencies_of::<M>(vr).unwrap_or_default();
+    let deps = dependencies_of::<M>(vr).unwrap_or_default();
     deps.iter()
-        .map(|&d| {
-            match (0..n).find(|&k| crate::fmi3::model_description::state_vr::<M>(k) == d as usize) {
-                Some(k) => state_index::<M>(k),
-                None => d as usize + 1,
-            }
+        .map(|&d| match (0..n).find(|&k| state_vr::<M>(k) == d as usize) {
+            Some(k) => state_index::<M>(k),
+            None => d as usize + 1,
         })
         .map(|i| i.to_string())
         .collect()
@@ -49,7 +41,6 @@ fn dependency_indices<M: FmuModel>(vr: usize) -> Vec<String> {
 
 fn body<M: FmuModel>() -> String {
     let info = M::info();
-    let (start, stop, step) = info.default_experiment;
     let mut x = String::new();
     let w = &mut x;
     let _ = writeln!(w, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
@@ -66,48 +57,15 @@ fn body<M: FmuModel>() -> String {
         w,
         r#"  <CoSimulation modelIdentifier="{}" needsExecutionTool="false" canHandleVariableCommunicationStepSize="true" canInterpolateInputs="false" maxOutputDerivativeOrder="0" canRunAsynchronuously="false" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="true" canSerializeFMUstate="true" providesDirectionalDerivative="{}"/>"#,
         info.model_identifier,
-        provides_directional_derivative::<M>()
+        bool_attr(M::DIRECTIONAL_DERIVATIVES)
     );
     let _ = writeln!(w, "  <UnitDefinitions>");
-    for (name, [kg, m, s, rad]) in M::table().units {
-        let mut attrs = String::new();
-        for (sym, e) in [("kg", kg), ("m", m), ("s", s), ("rad", rad)] {
-            if *e != 0 {
-                let _ = write!(attrs, r#" {sym}="{e}""#);
-            }
-        }
-        let mut display = String::new();
-        for d in display_units::for_unit(name) {
-            let _ = write!(
-                display,
-                r#"<DisplayUnit name="{}" factor="{}"/>"#,
-                esc(d.name),
-                num(d.factor)
-            );
-        }
-        let _ = writeln!(w, r#"    <Unit name="{}"><BaseUnit{attrs}/>{display}</Unit>"#, esc(name));
-    }
+    units::<M>(w);
     let _ = writeln!(w, "  </UnitDefinitions>");
-    let _ = writeln!(w, "  <LogCategories>");
-    for (name, desc) in CATEGORIES {
-        let _ = writeln!(w, r#"    <Category name="{name}" description="{}"/>"#, esc(desc));
-    }
-    let _ = writeln!(w, "  </LogCategories>");
-    let _ = writeln!(
-        w,
-        r#"  <DefaultExperiment startTime="{}" stopTime="{}" stepSize="{}"/>"#,
-        num(start),
-        num(stop),
-        num(step)
-    );
+    categories_and_experiment::<M>(w);
     let _ = writeln!(w, "  <ModelVariables>");
     for (vr, v) in M::table().variables.iter().enumerate() {
-        let causality = match v.causality {
-            Causality::Parameter => "parameter",
-            Causality::CalculatedParameter => "calculatedParameter",
-            Causality::Input => "input",
-            Causality::Output => "output",
-        };
+        let causality = causality_name(v.causality);
         let variability = match v.variability {
             Variability::Fixed => "fixed",
             Variability::Tunable => "tunable",
@@ -120,31 +78,7 @@ fn body<M: FmuModel>() -> String {
             esc(v.name),
             esc(v.description)
         );
-        let mut attrs = String::new();
-        if v.ty == VarType::Real && !v.unit.is_empty() {
-            let _ = write!(attrs, r#" unit="{}""#, esc(v.unit));
-            if let Some(d) = display_units::default_for(v.unit) {
-                let _ = write!(attrs, r#" displayUnit="{}""#, esc(d));
-            }
-        }
-        if v.ty != VarType::Boolean {
-            let fmt =
-                |b: f64| if v.ty == VarType::Integer { format!("{}", b as i64) } else { num(b) };
-            if v.range.min.is_finite() {
-                let _ = write!(attrs, r#" min="{}""#, fmt(v.range.min));
-            }
-            if v.range.max.is_finite() {
-                let _ = write!(attrs, r#" max="{}""#, fmt(v.range.max));
-            }
-        }
-        if let Some(s) = v.start() {
-            let text = match v.ty {
-                VarType::Real => num(s),
-                VarType::Integer => format!("{}", s as i64),
-                VarType::Boolean => (if s != 0.0 { "true" } else { "false" }).to_string(),
-            };
-            let _ = write!(attrs, r#" start="{text}""#);
-        }
+        let attrs = type_attributes(v);
         let _ = writeln!(w, "      <{}{attrs}/>", ty_name(v.ty));
         let _ = writeln!(w, "    </ScalarVariable>");
     }
@@ -194,12 +128,12 @@ fn model_exchange_element<M: FmuModel>(w: &mut String) {
     }
     // completedIntegratorStepNotNeeded: the FMU has no events a step could trigger.
     // providesDirectionalDerivative: with the states as knowns and their derivatives as unknowns
-    // (`crate::fmi2::directional`), as in the FMI 3.0 file.
+    // (`crate::fmi::directional`), as in the FMI 3.0 file.
     let _ = writeln!(
         w,
         r#"  <ModelExchange modelIdentifier="{}" needsExecutionTool="false" completedIntegratorStepNotNeeded="true" canBeInstantiatedOnlyOncePerProcess="false" canNotUseMemoryManagementFunctions="true" canGetAndSetFMUstate="true" canSerializeFMUstate="true" providesDirectionalDerivative="{}"/>"#,
         M::info().model_identifier,
-        provides_directional_derivative::<M>()
+        bool_attr(M::DIRECTIONAL_DERIVATIVES)
     );
 }
 
@@ -208,7 +142,7 @@ fn model_exchange_element<M: FmuModel>(w: &mut String) {
 fn state_index<M: FmuModel>(k: usize) -> usize {
     match own_state::<M>(k) {
         Some(_) => M::table().variables.len() + M::CONTINUOUS_STATES.len() + 1 + k,
-        None => crate::fmi3::model_description::state_vr::<M>(k) + 1,
+        None => state_vr::<M>(k) + 1,
     }
 }
 
@@ -223,7 +157,7 @@ fn derivative_variables<M: FmuModel>(w: &mut String) {
             w,
             r#"    <ScalarVariable name="der({})" valueReference="{}" causality="local" variability="continuous" description="Derivative of {} (Model Exchange)">"#,
             esc(state),
-            crate::fmi2::model_exchange::derivative_vr::<M>(k),
+            derivative_vr::<M>(k),
             esc(state)
         );
         let _ = writeln!(
@@ -242,7 +176,7 @@ fn derivative_variables<M: FmuModel>(w: &mut String) {
                 w,
                 r#"    <ScalarVariable name="{}" valueReference="{}" causality="local" variability="continuous" description="{}">"#,
                 esc(M::CONTINUOUS_STATES[k].0),
-                crate::fmi3::model_description::state_vr::<M>(k),
+                state_vr::<M>(k),
                 esc(description)
             );
             let _ = writeln!(w, r#"      <Real unit="{}"/>"#, esc(unit));
@@ -271,7 +205,7 @@ fn derivatives_structure<M: FmuModel>(w: &mut String) {
             let _ = writeln!(w, r#"      <Unknown index="{}"/>"#, derivative_index::<M>(k));
             continue;
         }
-        let vr = crate::fmi2::model_exchange::derivative_vr::<M>(k) as usize;
+        let vr = derivative_vr::<M>(k) as usize;
         let deps = dependency_indices::<M>(vr);
         let kinds: Vec<&str> = deps.iter().map(|_| "dependent").collect();
         let _ = writeln!(
@@ -294,32 +228,7 @@ fn derivative_initial_unknowns<M: FmuModel>(w: &mut String) {
 /// GUID derived from the interface itself: any change to the table changes it, so an importer
 /// holding an old modelDescription.xml cannot instantiate a new binary by mistake.
 pub fn guid<M: FmuModel>() -> &'static str {
-    M::table().guid.get_or_init(|| {
-        let b = body::<M>();
-        let h = |seed: u64| {
-            b.bytes().fold(seed, |h, c| (h ^ c as u64).wrapping_mul(0x0000_0100_0000_01b3))
-        };
-        let (a, c) = (h(0xcbf2_9ce4_8422_2325), h(0x84222325cbf29ce4));
-        format!(
-            "{{{:08x}-{:04x}-{:04x}-{:04x}-{:012x}}}",
-            a >> 32,
-            (a >> 16) & 0xffff,
-            a & 0xffff,
-            c >> 48,
-            c & 0xffff_ffff_ffff
-        )
-    })
-}
-
-/// The value of `providesDirectionalDerivative` of the 2.0 interface elements (co-simulation and
-/// Model Exchange): whether the model gives exact directional derivatives
-/// ([`FmuModel::DIRECTIONAL_DERIVATIVES`], `crate::fmi2::directional`).
-pub fn provides_directional_derivative<M: FmuModel>() -> &'static str {
-    if M::DIRECTIONAL_DERIVATIVES {
-        "true"
-    } else {
-        "false"
-    }
+    M::table().guid.get_or_init(|| interface_id(&body::<M>()))
 }
 
 /// The complete modelDescription.xml.

@@ -1,4 +1,4 @@
-//! FMI 2.0 Model Exchange, in the same shared object as co-simulation (one `.fmu`, one model
+//! FMI 2.0 layer: Model Exchange, in the same shared object as co-simulation (one `.fmu`, one model
 //! description with both elements): the ten Model Exchange functions, generic over the model, and
 //! the FMI 2.0 Model Exchange state machine on top of the instance core that co-simulation and
 //! FMI 3.0 use (docs/fmi-interface.md "Model Exchange (FMI 2.0)").
@@ -15,18 +15,16 @@
 
 use fmi_sys::fmi2::*;
 
-use crate::fmi2::abi::{call, null_argument, slice};
-use crate::fmi2::instance::{Failure, Instance, Mode};
-use crate::fmi2::model::FmuModel;
-use crate::fmi2::variables::VarType;
-use crate::fmi3::model_description::own_state;
-
-/// The value reference of the derivative of the k-th continuous state: the same in the FMI 2.0
-/// and the FMI 3.0 model description (after the table's variables and FMI 3.0's `time`), so a
-/// master addresses both standards with the same numbers.
-pub fn derivative_vr<M: FmuModel>(k: usize) -> u32 {
-    crate::fmi3::model_description::derivative_vr::<M>(k)
-}
+use crate::fmi::ffi::{null_argument, slice};
+use crate::fmi::instance::{Failure, Instance, Mode};
+use crate::fmi::model::FmuModel;
+use crate::fmi::model_exchange::{
+    completed_integrator_step, get_continuous_states, get_derivatives, get_nominals,
+    set_continuous_states, set_time, state_value,
+};
+use crate::fmi::structure::{derivative_vr, own_state};
+use crate::fmi::variables::VarType;
+use crate::fmi2::abi::{call, Fmi2};
 
 /// Where a Model Exchange function may be called, after initialization.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -115,50 +113,15 @@ fn wrong_me_mode(function: &str, continuous_time: bool) -> Failure {
 /// mode, as after any failed fmi2ExitInitializationMode); on success the instance is in event
 /// mode (FMI 2.0 §3.2.3).
 pub fn exit_initialization_mode<M: FmuModel>(inst: &mut Instance<M>) -> Result<(), Failure> {
-    let before = inst.snapshot();
-    inst.exit_initialization_mode()?;
-    let refusal = inst.me_parts().and_then(|(built, _, _)| M::model_exchange_refusal(built));
-    if let Some(why) = refusal {
-        inst.restore(&before)?;
-        return Err(Failure::error(format!("fmi2ExitInitializationMode: {why}")));
-    }
+    crate::fmi::model_exchange::exit_initialization_mode(inst, "fmi2ExitInitializationMode")?;
     inst.me_continuous_time = false;
     Ok(())
 }
 
-#[inline]
-fn state_count<M: FmuModel>(function: &str, nx: usize) -> Result<(), Failure> {
-    let n = M::CONTINUOUS_STATES.len();
-    if n != nx {
-        return Err(wrong_state_count(function, nx, n));
-    }
-    Ok(())
-}
-
-#[cold]
-#[inline(never)]
-fn wrong_state_count(function: &str, nx: usize, n: usize) -> Failure {
-    Failure::error(format!("{function}: nx = {nx}; this FMU has {n} continuous states"))
-}
-
-unsafe fn out_slice<'a>(
-    function: &str,
-    what: &str,
-    p: *mut fmi2Real,
-    n: usize,
-) -> Result<&'a mut [f64], Failure> {
-    if n == 0 {
-        Ok(&mut [])
-    } else if p.is_null() {
-        Err(null_argument(function, what))
-    } else {
-        Ok(std::slice::from_raw_parts_mut(p, n))
-    }
-}
-
 /// fmi2GetReal of a list that names a state derivative (`der(...)`) or a state's own variable
 /// ([`FmuModel::STATE_VARIABLES`]), which are not in the table: each value read on its own,
-/// those from the model. None: the list names none (the ordinary fmi2GetReal answers).
+/// those from the model (`crate::fmi::model_exchange::state_value`). None: the list names none
+/// (the ordinary fmi2GetReal answers).
 pub unsafe fn get_real_with_derivatives<M: FmuModel>(
     c: fmi2Component,
     vr: *const fmi2ValueReference,
@@ -174,42 +137,22 @@ pub unsafe fn get_real_with_derivatives<M: FmuModel>(
     let is_der = |r: u32| r >= first && r < first + n as u32;
     let own = |r: u32| {
         let k = r.wrapping_sub(first + n as u32) as usize;
-        (k < n && own_state::<M>(k).is_some()).then_some(k)
+        k < n && own_state::<M>(k).is_some()
     };
-    if !vrs.iter().any(|&r| is_der(r) || own(r).is_some()) {
+    if !vrs.iter().any(|&r| is_der(r) || own(r)) {
         return None;
     }
     let f = "fmi2GetReal";
     Some(call::<M>(c, f, |inst| {
-        let mut dx: Option<Vec<f64>> = None;
+        let mut dx = None;
         for (k, &r) in vrs.iter().enumerate() {
-            *value.add(k) = if is_der(r) {
-                if dx.is_none() {
-                    let (built, values, state) = inst.me_parts_initial()?.ok_or_else(|| {
-                        Failure::error(format!(
-                            "{f}: der({}) is not available before fmi2EnterInitializationMode",
-                            M::CONTINUOUS_STATES[(r - first) as usize].0
-                        ))
-                    })?;
-                    let mut d = vec![0.0; n];
-                    M::derivatives(built, values, state, &mut d)?;
-                    dx = Some(d);
+            *value.add(k) = match state_value::<Fmi2, M>(inst, f, r, &mut dx)? {
+                Some(v) => v,
+                None => {
+                    let mut x = f64::NAN;
+                    inst.get(f, VarType::Real, &[r], |_, v| x = v)?;
+                    x
                 }
-                dx.as_ref().map_or(f64::NAN, |d| d[(r - first) as usize])
-            } else if let Some(j) = own(r) {
-                let (_, _, state) = inst.me_parts_initial()?.ok_or_else(|| {
-                    Failure::error(format!(
-                        "{f}: {} is not available before fmi2EnterInitializationMode",
-                        M::CONTINUOUS_STATES[j].0
-                    ))
-                })?;
-                let mut x = vec![0.0; n];
-                M::continuous_states(state, &mut x);
-                x[j]
-            } else {
-                let mut x = f64::NAN;
-                inst.get(f, VarType::Real, &[r], |_, v| x = v)?;
-                x
             };
         }
         Ok(())
@@ -217,8 +160,18 @@ pub unsafe fn get_real_with_derivatives<M: FmuModel>(
 }
 
 pub unsafe fn fmi2EnterEventMode<M: FmuModel>(c: fmi2Component) -> fmi2Status {
-    me::<M>(c, "fmi2EnterEventMode", Allowed::ContinuousTime, |inst| {
-        inst.me_continuous_time = false;
+    enter_mode::<M>(c, "fmi2EnterEventMode", Allowed::ContinuousTime, false)
+}
+
+/// Enters event mode or continuous-time mode (`continuous_time`) from the other.
+unsafe fn enter_mode<M: FmuModel>(
+    c: fmi2Component,
+    function: &str,
+    from: Allowed,
+    continuous_time: bool,
+) -> fmi2Status {
+    me::<M>(c, function, from, |inst| {
+        inst.me_continuous_time = continuous_time;
         Ok(())
     })
 }
@@ -238,10 +191,7 @@ pub unsafe fn fmi2NewDiscreteStates<M: FmuModel>(
 }
 
 pub unsafe fn fmi2EnterContinuousTimeMode<M: FmuModel>(c: fmi2Component) -> fmi2Status {
-    me::<M>(c, "fmi2EnterContinuousTimeMode", Allowed::Event, |inst| {
-        inst.me_continuous_time = true;
-        Ok(())
-    })
+    enter_mode::<M>(c, "fmi2EnterContinuousTimeMode", Allowed::Event, true)
 }
 
 pub unsafe fn fmi2CompletedIntegratorStep<M: FmuModel>(
@@ -250,70 +200,14 @@ pub unsafe fn fmi2CompletedIntegratorStep<M: FmuModel>(
     enterEventMode: *mut fmi2Boolean,
     terminateSimulation: *mut fmi2Boolean,
 ) -> fmi2Status {
-    me::<M>(c, "fmi2CompletedIntegratorStep", Allowed::ContinuousTime, |_| {
-        if enterEventMode.is_null() || terminateSimulation.is_null() {
-            return Err(null_argument(
-                "fmi2CompletedIntegratorStep",
-                "enterEventMode or terminateSimulation",
-            ));
-        }
-        *enterEventMode = 0;
-        *terminateSimulation = 0;
-        Ok(())
+    let f = "fmi2CompletedIntegratorStep";
+    me::<M>(c, f, Allowed::ContinuousTime, |_| {
+        completed_integrator_step(f, enterEventMode, terminateSimulation)
     })
 }
 
 pub unsafe fn fmi2SetTime<M: FmuModel>(c: fmi2Component, time: fmi2Real) -> fmi2Status {
     me::<M>(c, "fmi2SetTime", Allowed::Both, |inst| set_time(inst, "fmi2SetTime", time))
-}
-
-/// fmi2SetTime and fmi3SetTime: the new time, and what the model carries forward to it
-/// ([`FmuModel::time_moved`]: the pump's crank, as between co-simulation steps). Inlined into
-/// both callers, its refusals out of line (cold): a solver calls it at every evaluation.
-#[inline(always)]
-pub fn set_time<M: FmuModel>(
-    inst: &mut Instance<M>,
-    function: &str,
-    time: f64,
-) -> Result<(), Failure> {
-    if !time.is_finite() {
-        return Err(time_not_finite(function, time));
-    }
-    let from = inst.time();
-    let mut carried = true;
-    inst.me_update(|t, state| {
-        carried = M::time_moved(state, time - *t);
-        if carried {
-            *t = time;
-        }
-    });
-    if !carried {
-        return Err(carry_overflows(function, time, from));
-    }
-    Ok(())
-}
-
-#[cold]
-#[inline(never)]
-fn state_not_finite(function: &str, name: &str, x: f64) -> Failure {
-    Failure::error(format!("{function}: {name} = {x}; allowed: a finite number"))
-}
-
-#[cold]
-#[inline(never)]
-fn time_not_finite(function: &str, time: f64) -> Failure {
-    Failure::error(format!("{function}: time = {time}; allowed: a finite number"))
-}
-
-#[cold]
-#[inline(never)]
-fn carry_overflows(function: &str, time: f64, from: f64) -> Failure {
-    Failure::error(format!(
-        "{function}: time = {}: the crank inputs carried forward from t = {} overflow there; set \
-         them at the new time",
-        crate::model::error::given(time),
-        crate::model::error::num(from)
-    ))
 }
 
 pub unsafe fn fmi2SetContinuousStates<M: FmuModel>(
@@ -322,15 +216,7 @@ pub unsafe fn fmi2SetContinuousStates<M: FmuModel>(
     nx: usize,
 ) -> fmi2Status {
     let f = "fmi2SetContinuousStates";
-    me::<M>(c, f, Allowed::ContinuousTime, |inst| {
-        state_count::<M>(f, nx)?;
-        let x = slice(x, nx).ok_or_else(|| null_argument(f, "x"))?;
-        if let Some(k) = x.iter().position(|v| !v.is_finite()) {
-            return Err(state_not_finite(f, M::CONTINUOUS_STATES[k].0, x[k]));
-        }
-        inst.me_update(|_, state| M::set_continuous_states(state, x));
-        Ok(())
-    })
+    me::<M>(c, f, Allowed::ContinuousTime, |inst| set_continuous_states::<Fmi2, M>(inst, f, x, nx))
 }
 
 pub unsafe fn fmi2GetDerivatives<M: FmuModel>(
@@ -339,15 +225,7 @@ pub unsafe fn fmi2GetDerivatives<M: FmuModel>(
     nx: usize,
 ) -> fmi2Status {
     let f = "fmi2GetDerivatives";
-    me::<M>(c, f, Allowed::Getter, |inst| {
-        state_count::<M>(f, nx)?;
-        let dx = out_slice(f, "derivatives", derivatives, nx)?;
-        let mode = inst.mode();
-        let (built, values, state) =
-            inst.me_parts_initial()?.ok_or_else(|| Failure::illegal(f, mode))?;
-        M::derivatives(built, values, state, dx)?;
-        Ok(())
-    })
+    me::<M>(c, f, Allowed::Getter, |inst| get_derivatives::<Fmi2, M>(inst, f, derivatives, nx))
 }
 
 /// No event indicators: the drive train's torque curve and load, and the pump's outputs as
@@ -374,14 +252,7 @@ pub unsafe fn fmi2GetContinuousStates<M: FmuModel>(
     nx: usize,
 ) -> fmi2Status {
     let f = "fmi2GetContinuousStates";
-    me::<M>(c, f, Allowed::Getter, |inst| {
-        state_count::<M>(f, nx)?;
-        let out = out_slice(f, "x", x, nx)?;
-        let mode = inst.mode();
-        let (_, _, state) = inst.me_parts_initial()?.ok_or_else(|| Failure::illegal(f, mode))?;
-        M::continuous_states(state, out);
-        Ok(())
-    })
+    me::<M>(c, f, Allowed::Getter, |inst| get_continuous_states::<Fmi2, M>(inst, f, x, nx))
 }
 
 pub unsafe fn fmi2GetNominalsOfContinuousStates<M: FmuModel>(
@@ -390,11 +261,7 @@ pub unsafe fn fmi2GetNominalsOfContinuousStates<M: FmuModel>(
     nx: usize,
 ) -> fmi2Status {
     let f = "fmi2GetNominalsOfContinuousStates";
-    me::<M>(c, f, Allowed::Getter, |_| {
-        state_count::<M>(f, nx)?;
-        out_slice(f, "x_nominal", nominals, nx)?.fill(1.0);
-        Ok(())
-    })
+    me::<M>(c, f, Allowed::Getter, |_| get_nominals::<Fmi2, M>(f, nominals, nx))
 }
 
 /// Exports the ten FMI 2.0 Model Exchange functions for one model (called by
@@ -406,92 +273,21 @@ macro_rules! export_fmu2_model_exchange {
             use $crate::fmi2::model_exchange as glue;
             use $crate::fmi_sys::fmi2::*;
             type M = $model;
+            type C = fmi2Component;
+            type S = fmi2Status;
 
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2EnterEventMode(c: fmi2Component) -> fmi2Status {
-                glue::fmi2EnterEventMode::<M>(c)
+            $crate::__fmi_exports! {
+                fmi2EnterEventMode: fmi2EnterEventModeTYPE(c: C) -> S;
+                fmi2NewDiscreteStates: fmi2NewDiscreteStatesTYPE(c: C, eventInfo: *mut fmi2EventInfo) -> S;
+                fmi2EnterContinuousTimeMode: fmi2EnterContinuousTimeModeTYPE(c: C) -> S;
+                fmi2CompletedIntegratorStep: fmi2CompletedIntegratorStepTYPE(c: C, noSetFMUStatePriorToCurrentPoint: fmi2Boolean, enterEventMode: *mut fmi2Boolean, terminateSimulation: *mut fmi2Boolean) -> S;
+                fmi2SetTime: fmi2SetTimeTYPE(c: C, time: fmi2Real) -> S;
+                fmi2SetContinuousStates: fmi2SetContinuousStatesTYPE(c: C, x: *const fmi2Real, nx: usize) -> S;
+                fmi2GetDerivatives: fmi2GetDerivativesTYPE(c: C, derivatives: *mut fmi2Real, nx: usize) -> S;
+                fmi2GetEventIndicators: fmi2GetEventIndicatorsTYPE(c: C, eventIndicators: *mut fmi2Real, ni: usize) -> S;
+                fmi2GetContinuousStates: fmi2GetContinuousStatesTYPE(c: C, x: *mut fmi2Real, nx: usize) -> S;
+                fmi2GetNominalsOfContinuousStates: fmi2GetNominalsOfContinuousStatesTYPE(c: C, x_nominal: *mut fmi2Real, nx: usize) -> S;
             }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2NewDiscreteStates(
-                c: fmi2Component,
-                eventInfo: *mut fmi2EventInfo,
-            ) -> fmi2Status {
-                glue::fmi2NewDiscreteStates::<M>(c, eventInfo)
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2EnterContinuousTimeMode(c: fmi2Component) -> fmi2Status {
-                glue::fmi2EnterContinuousTimeMode::<M>(c)
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2CompletedIntegratorStep(
-                c: fmi2Component,
-                noSetFMUStatePriorToCurrentPoint: fmi2Boolean,
-                enterEventMode: *mut fmi2Boolean,
-                terminateSimulation: *mut fmi2Boolean,
-            ) -> fmi2Status {
-                glue::fmi2CompletedIntegratorStep::<M>(
-                    c,
-                    noSetFMUStatePriorToCurrentPoint,
-                    enterEventMode,
-                    terminateSimulation,
-                )
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2SetTime(c: fmi2Component, time: fmi2Real) -> fmi2Status {
-                glue::fmi2SetTime::<M>(c, time)
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2SetContinuousStates(
-                c: fmi2Component,
-                x: *const fmi2Real,
-                nx: usize,
-            ) -> fmi2Status {
-                glue::fmi2SetContinuousStates::<M>(c, x, nx)
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetDerivatives(
-                c: fmi2Component,
-                derivatives: *mut fmi2Real,
-                nx: usize,
-            ) -> fmi2Status {
-                glue::fmi2GetDerivatives::<M>(c, derivatives, nx)
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetEventIndicators(
-                c: fmi2Component,
-                eventIndicators: *mut fmi2Real,
-                ni: usize,
-            ) -> fmi2Status {
-                glue::fmi2GetEventIndicators::<M>(c, eventIndicators, ni)
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetContinuousStates(
-                c: fmi2Component,
-                x: *mut fmi2Real,
-                nx: usize,
-            ) -> fmi2Status {
-                glue::fmi2GetContinuousStates::<M>(c, x, nx)
-            }
-            #[no_mangle]
-            pub unsafe extern "C" fn fmi2GetNominalsOfContinuousStates(
-                c: fmi2Component,
-                x_nominal: *mut fmi2Real,
-                nx: usize,
-            ) -> fmi2Status {
-                glue::fmi2GetNominalsOfContinuousStates::<M>(c, x_nominal, nx)
-            }
-
-            const _: fmi2EnterEventModeTYPE = Some(fmi2EnterEventMode);
-            const _: fmi2NewDiscreteStatesTYPE = Some(fmi2NewDiscreteStates);
-            const _: fmi2EnterContinuousTimeModeTYPE = Some(fmi2EnterContinuousTimeMode);
-            const _: fmi2CompletedIntegratorStepTYPE = Some(fmi2CompletedIntegratorStep);
-            const _: fmi2SetTimeTYPE = Some(fmi2SetTime);
-            const _: fmi2SetContinuousStatesTYPE = Some(fmi2SetContinuousStates);
-            const _: fmi2GetDerivativesTYPE = Some(fmi2GetDerivatives);
-            const _: fmi2GetEventIndicatorsTYPE = Some(fmi2GetEventIndicators);
-            const _: fmi2GetContinuousStatesTYPE = Some(fmi2GetContinuousStates);
-            const _: fmi2GetNominalsOfContinuousStatesTYPE =
-                Some(fmi2GetNominalsOfContinuousStates);
         };
     };
 }

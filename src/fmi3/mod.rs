@@ -1,7 +1,7 @@
-//! The FMI 3.0 layer: a second dialect over the FMI 2.0 layer's instance core
-//! ([`crate::fmi2::instance::Instance`]) and variable table, so both standards share the state
-//! machine, get/set, FMU states and the numbers. Only the C ABI ([`abi`]) and the
-//! modelDescription.xml dialect ([`model_description`]) are FMI 3.0's own.
+//! The FMI 3.0 layer: its C ABI ([`abi`], thin functions over the core [`crate::fmi`], the same
+//! instance core and variable tables as FMI 2.0, so both standards share the state machine,
+//! get/set, FMU states and the numbers) and its modelDescription.xml dialect
+//! ([`model_description`]). It does not use the FMI 2.0 layer.
 
 pub mod abi;
 pub mod model_description;

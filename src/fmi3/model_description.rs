@@ -1,5 +1,7 @@
+//! FMI 3.0 layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! Generates a model's FMI 3.0 modelDescription.xml from the same variable table as the FMI 2.0
-//! one (`crate::fmi2::model_description`): names, value references, units and display units,
+//! one (the FMI 2.0 writer): names, value references, units and display units,
 //! descriptions, causality, variability, ranges, start values and output dependencies come from
 //! the one table, so the two descriptions cannot disagree (docs/fmi-interface.md "FMI 3.0").
 //! Deterministic (no generation date): the checked-in copy under `modelDescription/fmi3/` is
@@ -11,11 +13,12 @@
 
 use std::fmt::Write;
 
-use crate::fmi2::display_units;
-use crate::fmi2::logging::CATEGORIES;
-use crate::fmi2::model::FmuModel;
-use crate::fmi2::model_description::{esc, num};
-use crate::fmi2::variables::{Binding, Causality, VarType, Variability};
+use crate::fmi::model::FmuModel;
+use crate::fmi::structure::{dependencies_of, derivative_vr, own_state, state_vr, time_vr};
+use crate::fmi::variables::{Binding, Causality, VarType, Variability};
+use crate::fmi::xml::{
+    bool_attr, categories_and_experiment, causality_name, esc, interface_id, type_attributes, units,
+};
 
 const TOKEN_PLACEHOLDER: &str = "@TOKEN@";
 
@@ -30,7 +33,6 @@ fn ty_name(t: VarType) -> &'static str {
 fn body<M: FmuModel>() -> String {
     let info = M::info();
     let table = M::table();
-    let (start, stop, step) = info.default_experiment;
     let mut x = String::new();
     let w = &mut x;
     let _ = writeln!(w, r#"<?xml version="1.0" encoding="UTF-8"?>"#);
@@ -47,51 +49,23 @@ fn body<M: FmuModel>() -> String {
             w,
             r#"  <ModelExchange modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="{}" providesAdjointDerivatives="false" needsCompletedIntegratorStep="false" providesEvaluateDiscreteStates="false"/>"#,
             info.model_identifier,
-            crate::fmi2::model_description::provides_directional_derivative::<M>()
+            bool_attr(M::DIRECTIONAL_DERIVATIVES)
         );
     }
     let _ = writeln!(
         w,
         r#"  <CoSimulation modelIdentifier="{}" needsExecutionTool="false" canBeInstantiatedOnlyOncePerProcess="false" canGetAndSetFMUState="true" canSerializeFMUState="true" providesDirectionalDerivatives="{}" providesAdjointDerivatives="false" canHandleVariableCommunicationStepSize="true" maxOutputDerivativeOrder="0" providesIntermediateUpdate="false" mightReturnEarlyFromDoStep="false" canReturnEarlyAfterIntermediateUpdate="false" hasEventMode="false"/>"#,
         info.model_identifier,
-        crate::fmi2::model_description::provides_directional_derivative::<M>()
+        bool_attr(M::DIRECTIONAL_DERIVATIVES)
     );
     let _ = writeln!(w, "  <UnitDefinitions>");
-    for (name, [kg, m, s, rad]) in table.units {
-        let mut attrs = String::new();
-        for (sym, e) in [("kg", kg), ("m", m), ("s", s), ("rad", rad)] {
-            if *e != 0 {
-                let _ = write!(attrs, r#" {sym}="{e}""#);
-            }
-        }
-        let mut display = String::new();
-        for d in display_units::for_unit(name) {
-            let _ = write!(
-                display,
-                r#"<DisplayUnit name="{}" factor="{}"/>"#,
-                esc(d.name),
-                num(d.factor)
-            );
-        }
-        let _ = writeln!(w, r#"    <Unit name="{}"><BaseUnit{attrs}/>{display}</Unit>"#, esc(name));
-    }
+    units::<M>(w);
     // The unit of the independent variable `time`, unless the table has it already.
     if !table.units.iter().any(|(name, _)| *name == "s") {
         let _ = writeln!(w, r#"    <Unit name="s"><BaseUnit s="1"/></Unit>"#);
     }
     let _ = writeln!(w, "  </UnitDefinitions>");
-    let _ = writeln!(w, "  <LogCategories>");
-    for (name, desc) in CATEGORIES {
-        let _ = writeln!(w, r#"    <Category name="{name}" description="{}"/>"#, esc(desc));
-    }
-    let _ = writeln!(w, "  </LogCategories>");
-    let _ = writeln!(
-        w,
-        r#"  <DefaultExperiment startTime="{}" stopTime="{}" stepSize="{}"/>"#,
-        num(start),
-        num(stop),
-        num(step)
-    );
+    categories_and_experiment::<M>(w);
     let _ = writeln!(w, "  <ModelVariables>");
     // FMI 3.0 requires the independent variable; it takes the value reference after the table's.
     let _ = writeln!(
@@ -100,12 +74,7 @@ fn body<M: FmuModel>() -> String {
         time_vr::<M>()
     );
     for (vr, v) in table.variables.iter().enumerate() {
-        let causality = match v.causality {
-            Causality::Parameter => "parameter",
-            Causality::CalculatedParameter => "calculatedParameter",
-            Causality::Input => "input",
-            Causality::Output => "output",
-        };
+        let causality = causality_name(v.causality);
         // FMI 3.0 allows "continuous" for Float variables only; an Int32 or Boolean input or
         // output changes only at communication points (discrete).
         let variability = match (v.variability, v.ty) {
@@ -114,31 +83,7 @@ fn body<M: FmuModel>() -> String {
             (Variability::Continuous, VarType::Real) => "continuous",
             (Variability::Continuous, _) => "discrete",
         };
-        let mut attrs = String::new();
-        if v.ty == VarType::Real && !v.unit.is_empty() {
-            let _ = write!(attrs, r#" unit="{}""#, esc(v.unit));
-            if let Some(d) = display_units::default_for(v.unit) {
-                let _ = write!(attrs, r#" displayUnit="{}""#, esc(d));
-            }
-        }
-        if v.ty != VarType::Boolean {
-            let fmt =
-                |b: f64| if v.ty == VarType::Integer { format!("{}", b as i64) } else { num(b) };
-            if v.range.min.is_finite() {
-                let _ = write!(attrs, r#" min="{}""#, fmt(v.range.min));
-            }
-            if v.range.max.is_finite() {
-                let _ = write!(attrs, r#" max="{}""#, fmt(v.range.max));
-            }
-        }
-        if let Some(s) = v.start() {
-            let text = match v.ty {
-                VarType::Real => num(s),
-                VarType::Integer => format!("{}", s as i64),
-                VarType::Boolean => (if s != 0.0 { "true" } else { "false" }).to_string(),
-            };
-            let _ = write!(attrs, r#" start="{text}""#);
-        }
+        let attrs = type_attributes(v);
         let _ = writeln!(
             w,
             r#"    <{} name="{}" valueReference="{vr}" causality="{causality}" variability="{variability}" description="{}"{attrs}/>"#,
@@ -208,69 +153,8 @@ fn body<M: FmuModel>() -> String {
     x
 }
 
-/// The knowns (value references of inputs and continuous states, ascending) the output or state
-/// derivative `vr` depends on: the table's `depends_on` and [`FmuModel::OUTPUT_STATES`], or
-/// [`FmuModel::DERIVATIVE_DEPENDENCIES`]; None for any other value reference (or a derivative
-/// whose dependencies are not declared).
-pub fn dependencies_of<M: FmuModel>(vr: usize) -> Option<Vec<u32>> {
-    let table = M::table();
-    let (inputs, states): (&[M::Input], &[usize]) = match table.variables.get(vr) {
-        Some(v) => match v.binding {
-            Binding::Output { depends_on, .. } => (depends_on, M::output_states(v.name)),
-            _ => return None,
-        },
-        None => {
-            let k =
-                (0..M::CONTINUOUS_STATES.len()).find(|&k| derivative_vr::<M>(k) as usize == vr)?;
-            let (i, s) = M::DERIVATIVE_DEPENDENCIES.get(k)?;
-            (i, s)
-        }
-    };
-    let mut deps: Vec<u32> = inputs
-        .iter()
-        .filter_map(|s| table.input_vr(*s))
-        .chain(states.iter().map(|&k| state_vr::<M>(k)))
-        .map(|i| i as u32)
-        .collect();
-    deps.sort_unstable();
-    deps.dedup();
-    Some(deps)
-}
-
 fn dependencies<M: FmuModel>(vr: usize) -> Vec<u32> {
     dependencies_of::<M>(vr).unwrap_or_default()
-}
-
-/// The value reference of the independent variable `time`: the first after the table's.
-pub fn time_vr<M: FmuModel>() -> u32 {
-    M::table().variables.len() as u32
-}
-
-/// The value reference of the derivative of the k-th continuous state (Model Exchange): after
-/// `time`'s.
-pub fn derivative_vr<M: FmuModel>(k: usize) -> u32 {
-    time_vr::<M>() + 1 + k as u32
-}
-
-/// The value reference of the variable that is the k-th continuous state: the table's variable
-/// of that name, or the state's own variable ([`FmuModel::STATE_VARIABLES`]) after the
-/// derivatives.
-pub fn state_vr<M: FmuModel>(k: usize) -> usize {
-    let name = M::CONTINUOUS_STATES[k].0;
-    M::table()
-        .variables
-        .iter()
-        .position(|v| v.name == name)
-        .unwrap_or_else(|| derivative_vr::<M>(M::CONTINUOUS_STATES.len() + k) as usize)
-}
-
-/// The k-th continuous state's own variable (unit, description), if it is no table variable.
-pub fn own_state<M: FmuModel>(k: usize) -> Option<(&'static str, &'static str)> {
-    let name = M::CONTINUOUS_STATES[k].0;
-    if M::table().variables.iter().any(|v| v.name == name) {
-        return None;
-    }
-    M::STATE_VARIABLES.iter().find(|s| s.0 == name).map(|s| (s.1, s.2))
 }
 
 /// Model Exchange: the states that are no table variable, as local continuous variables.
@@ -293,21 +177,7 @@ fn own_state_variables<M: FmuModel>(w: &mut String) {
 /// 2.0 one): any change to the table changes it, so an importer holding an old
 /// modelDescription.xml cannot instantiate a new binary by mistake.
 pub fn token<M: FmuModel>() -> &'static str {
-    M::table().token3.get_or_init(|| {
-        let b = body::<M>();
-        let h = |seed: u64| {
-            b.bytes().fold(seed, |h, c| (h ^ c as u64).wrapping_mul(0x0000_0100_0000_01b3))
-        };
-        let (a, c) = (h(0xcbf2_9ce4_8422_2325), h(0x84222325cbf29ce4));
-        format!(
-            "{{{:08x}-{:04x}-{:04x}-{:04x}-{:012x}}}",
-            a >> 32,
-            (a >> 16) & 0xffff,
-            a & 0xffff,
-            c >> 48,
-            c & 0xffff_ffff_ffff
-        )
-    })
+    M::table().token3.get_or_init(|| interface_id(&body::<M>()))
 }
 
 /// The complete FMI 3.0 modelDescription.xml.

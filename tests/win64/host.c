@@ -14,15 +14,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <stdarg.h>
-#ifdef _WIN32
-#include <windows.h>
-#define LOAD(p) ((void *)LoadLibraryA(p))
-#define SYM(h, n) ((void *)GetProcAddress((HMODULE)(h), n))
-#else
-#include <dlfcn.h>
-#define LOAD(p) dlopen(p, RTLD_NOW | RTLD_LOCAL)
-#define SYM(h, n) dlsym(h, n)
-#endif
+#include "../c/fmu_load.h"
 
 typedef void *C;
 typedef struct {
@@ -52,28 +44,19 @@ typedef int (*GetReal)(C, const unsigned *, size_t, double *);
 typedef int (*DoStep)(C, double, double, int);
 typedef void (*Free)(C);
 
-static int parse_list(const char *s, unsigned *out, int max) {
-    int n = 0;
-    while (*s && n < max) {
-        out[n++] = (unsigned)strtoul(s, (char **)&s, 10);
-        if (*s == ',') s++;
-    }
-    return n;
-}
-
 int main(int argc, char **argv) {
     if (argc < 8) { fprintf(stderr, "usage: host LIB ID GUID STEPS H INPUTS OUTPUTS [vr=value...]\n"); return 2; }
-    void *lib = LOAD(argv[1]);
+    void *lib = fmu_load(argv[1]);
     if (!lib) { fprintf(stderr, "cannot load %s\n", argv[1]); return 3; }
-    Instantiate inst = (Instantiate)SYM(lib, "fmi2Instantiate");
-    Setup setup = (Setup)SYM(lib, "fmi2SetupExperiment");
-    Mode enter = (Mode)SYM(lib, "fmi2EnterInitializationMode"), exit_ = (Mode)SYM(lib, "fmi2ExitInitializationMode");
-    SetReal setr = (SetReal)SYM(lib, "fmi2SetReal");
-    SetInt seti = (SetInt)SYM(lib, "fmi2SetInteger");
-    SetInt setb = (SetInt)SYM(lib, "fmi2SetBoolean");
-    GetReal getr = (GetReal)SYM(lib, "fmi2GetReal");
-    DoStep step = (DoStep)SYM(lib, "fmi2DoStep");
-    Free freei = (Free)SYM(lib, "fmi2FreeInstance");
+    Instantiate inst = (Instantiate)fmu_sym(lib, "fmi2Instantiate");
+    Setup setup = (Setup)fmu_sym(lib, "fmi2SetupExperiment");
+    Mode enter = (Mode)fmu_sym(lib, "fmi2EnterInitializationMode"), exit_ = (Mode)fmu_sym(lib, "fmi2ExitInitializationMode");
+    SetReal setr = (SetReal)fmu_sym(lib, "fmi2SetReal");
+    SetInt seti = (SetInt)fmu_sym(lib, "fmi2SetInteger");
+    SetInt setb = (SetInt)fmu_sym(lib, "fmi2SetBoolean");
+    GetReal getr = (GetReal)fmu_sym(lib, "fmi2GetReal");
+    DoStep step = (DoStep)fmu_sym(lib, "fmi2DoStep");
+    Free freei = (Free)fmu_sym(lib, "fmi2FreeInstance");
     if (!inst || !setup || !enter || !exit_ || !setr || !seti || !setb || !getr || !step || !freei) { fprintf(stderr, "missing export\n"); return 3; }
     Callbacks cb = {logger, NULL, NULL, NULL, NULL};
     C c = inst(argv[2], 1 /* fmi2CoSimulation */, argv[3], NULL, &cb, 0, 0);
@@ -81,8 +64,8 @@ int main(int argc, char **argv) {
     int steps = atoi(argv[4]);
     double h = atof(argv[5]);
     unsigned in[2], out[256];
-    int nin = strcmp(argv[6], "-") ? parse_list(argv[6], in, 2) : 0;
-    int nout = parse_list(argv[7], out, 256);
+    int nin = strcmp(argv[6], "-") ? fmu_parse_vrs(argv[6], in, 2) : 0;
+    int nout = fmu_parse_vrs(argv[7], out, 256);
     if (setup(c, 0, 0.0, 0.0, 0, 0.0) || enter(c)) return 5;
     for (int i = 8; i < argc; i++) {
         char *eq = strchr(argv[i], '=');

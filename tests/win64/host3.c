@@ -15,15 +15,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef _WIN32
-#include <windows.h>
-#define LOAD(p) ((void *)LoadLibraryA(p))
-#define SYM(h, n) ((void *)GetProcAddress((HMODULE)(h), n))
-#else
-#include <dlfcn.h>
-#define LOAD(p) dlopen(p, RTLD_NOW | RTLD_LOCAL)
-#define SYM(h, n) dlsym(h, n)
-#endif
+#include "../c/fmu_load.h"
 
 typedef void *I;
 typedef void (*LogMessage)(void *, int, const char *, const char *);
@@ -44,36 +36,27 @@ typedef int (*GetF64)(I, const unsigned *, size_t, double *, size_t);
 typedef int (*DoStep)(I, double, double, bool, bool *, bool *, bool *, double *);
 typedef void (*Free)(I);
 
-static int parse_list(const char *s, unsigned *out, int max) {
-    int n = 0;
-    while (*s && n < max) {
-        out[n++] = (unsigned)strtoul(s, (char **)&s, 10);
-        if (*s == ',') s++;
-    }
-    return n;
-}
-
 int main(int argc, char **argv) {
     if (argc < 8) { fprintf(stderr, "usage: host3 LIB ID TOKEN STEPS H INPUTS OUTPUTS [vr=value...]\n"); return 2; }
-    void *lib = LOAD(argv[1]);
+    void *lib = fmu_load(argv[1]);
     if (!lib) { fprintf(stderr, "cannot load %s\n", argv[1]); return 3; }
-    Instantiate inst = (Instantiate)SYM(lib, "fmi3InstantiateCoSimulation");
-    Enter enter = (Enter)SYM(lib, "fmi3EnterInitializationMode");
-    Mode exit_ = (Mode)SYM(lib, "fmi3ExitInitializationMode");
-    SetF64 setr = (SetF64)SYM(lib, "fmi3SetFloat64");
-    SetI32 seti = (SetI32)SYM(lib, "fmi3SetInt32");
-    SetBool setb = (SetBool)SYM(lib, "fmi3SetBoolean");
-    GetF64 getr = (GetF64)SYM(lib, "fmi3GetFloat64");
-    DoStep step = (DoStep)SYM(lib, "fmi3DoStep");
-    Free freei = (Free)SYM(lib, "fmi3FreeInstance");
+    Instantiate inst = (Instantiate)fmu_sym(lib, "fmi3InstantiateCoSimulation");
+    Enter enter = (Enter)fmu_sym(lib, "fmi3EnterInitializationMode");
+    Mode exit_ = (Mode)fmu_sym(lib, "fmi3ExitInitializationMode");
+    SetF64 setr = (SetF64)fmu_sym(lib, "fmi3SetFloat64");
+    SetI32 seti = (SetI32)fmu_sym(lib, "fmi3SetInt32");
+    SetBool setb = (SetBool)fmu_sym(lib, "fmi3SetBoolean");
+    GetF64 getr = (GetF64)fmu_sym(lib, "fmi3GetFloat64");
+    DoStep step = (DoStep)fmu_sym(lib, "fmi3DoStep");
+    Free freei = (Free)fmu_sym(lib, "fmi3FreeInstance");
     if (!inst || !enter || !exit_ || !setr || !seti || !setb || !getr || !step || !freei) { fprintf(stderr, "missing export\n"); return 3; }
     I c = inst(argv[2], argv[3], NULL, false, false, false, false, NULL, 0, NULL, log_message, NULL);
     if (!c) { fprintf(stderr, "fmi3InstantiateCoSimulation failed\n"); return 4; }
     int steps = atoi(argv[4]);
     double h = atof(argv[5]);
     unsigned in[2], out[256];
-    int nin = strcmp(argv[6], "-") ? parse_list(argv[6], in, 2) : 0;
-    int nout = parse_list(argv[7], out, 256);
+    int nin = strcmp(argv[6], "-") ? fmu_parse_vrs(argv[6], in, 2) : 0;
+    int nout = fmu_parse_vrs(argv[7], out, 256);
     if (enter(c, false, 0.0, 0.0, false, 0.0)) return 5;
     for (int i = 8; i < argc; i++) {
         char *eq = strchr(argv[i], '=');

@@ -5,8 +5,8 @@
 
 pub mod variables;
 
-use crate::fmi2::model::{FmuModel, ModelInfo};
-use crate::fmi2::variables::Table;
+use crate::fmi::model::{FmuModel, ModelInfo};
+use crate::fmi::variables::Table;
 use crate::model::drive_train::{DriveOutputs, DriveState, DriveTrain, DriveTrainParams};
 use crate::model::error::ModelError;
 use crate::model::integrator::IntegratorStats;

@@ -1,7 +1,7 @@
 //! The variable table of the DriveTrain FMU (docs/closed-loop.md): the one source of truth for
 //! its names, value references, units, start values, ranges, descriptions and dependencies.
 
-use crate::fmi2::variables::{input, output, param, Range, Table, Var};
+use crate::fmi::variables::{input, output, param, Range, Table, Var};
 use crate::fmus::drive_train::DriveTrainFmu;
 
 /// Where an input's value goes in the model.
@@ -68,11 +68,11 @@ pub const LOAD_TORQUE_VR: usize = 0;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fmi2::variables::Binding;
+    use crate::fmi::variables::Binding;
 
     #[test]
     fn the_glue_accepts_the_table() {
-        crate::fmi2::variables::check_table::<DriveTrainFmu>();
+        crate::fmi::variables::check_table::<DriveTrainFmu>();
         assert!(matches!(
             VARIABLES[LOAD_TORQUE_VR].binding,
             Binding::Input { slot: LoadTorque, .. }

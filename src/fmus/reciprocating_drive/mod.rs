@@ -13,8 +13,8 @@ pub mod variables;
 
 use serde::{Deserialize, Serialize};
 
-use crate::fmi2::model::{FmuModel, GroupedOutput, ModelInfo};
-use crate::fmi2::variables::Table;
+use crate::fmi::model::{FmuModel, GroupedOutput, ModelInfo};
+use crate::fmi::variables::Table;
 use crate::model::crank::CrankState;
 use crate::model::drive::{Inputs, Model, Outputs, RodState, Seed};
 use crate::model::error::{num, ModelError};

@@ -1,11 +1,11 @@
 //! The variable table of the ReciprocatingDrive FMU: the one source of truth for its names,
 //! value references, types, causality, variability, units, start values, ranges, descriptions and
-//! output dependencies (the shape is `crate::fmi2::variables`). Names are the contract of
+//! output dependencies (the shape is `crate::fmi::variables`). Names are the contract of
 //! docs/model.md §10.
 //!
 //! The value reference of a variable is its index in [`VARIABLES`].
 
-use crate::fmi2::variables::{
+use crate::fmi::variables::{
     input, output, param, param_at, param_bool, Binding, Range, Table, Var,
 };
 use crate::fmus::reciprocating_drive::ReciprocatingDrive;
@@ -244,12 +244,12 @@ pub fn input_vr(slot: InputSlot) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fmi2::variables::VarType::*;
+    use crate::fmi::variables::VarType::*;
     use crate::model::params::Params;
 
     #[test]
     fn the_glue_accepts_the_table() {
-        crate::fmi2::variables::check_table::<ReciprocatingDrive>();
+        crate::fmi::variables::check_table::<ReciprocatingDrive>();
     }
 
     #[test]

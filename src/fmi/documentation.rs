@@ -1,10 +1,12 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! An FMU's documentation/index.html: the model's own text (its conventions) and the variable
 //! list, generated from the variable table so it cannot drift from the interface.
 
 use std::fmt::Write;
 
-use crate::fmi2::model::FmuModel;
-use crate::fmi2::variables::{Causality, VarType, Variability};
+use crate::fmi::model::FmuModel;
+use crate::fmi::variables::{Causality, VarType, Variability};
 
 pub fn generate<M: FmuModel>() -> String {
     let info = M::info();

@@ -1,3 +1,5 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! Messages through the importer's logger (docs/fmi-interface.md "State machine"): the caller's
 //! componentEnvironment is passed back unchanged on every call; error messages always reach the
 //! logger; other categories only while debug logging is on and the category is enabled.
@@ -121,7 +123,7 @@ impl Logger {
     fn emit(&self, status: fmi2Status, category: Category, message: &str) {
         // Through an FMI 3.0 instance the message names the 3.0 functions.
         let text = match self.callback {
-            Sink::Fmi3(_) => crate::fmi3::abi::dialect(message),
+            Sink::Fmi3(_) => dialect(message),
             Sink::Fmi2(_) => std::borrow::Cow::Borrowed(message),
         };
         // Interior NULs cannot cross a C string; replace them rather than drop the message.
@@ -151,4 +153,39 @@ impl Logger {
             Sink::Fmi2(None) | Sink::Fmi3(None) => {}
         }
     }
+}
+
+/// The instance core names the FMI 2.0 function a message comes from; through an FMI 3.0
+/// instance's logger the message names the 3.0 function the importer called instead.
+pub fn dialect(message: &str) -> std::borrow::Cow<'_, str> {
+    const NAMES: &[(&str, &str)] = &[
+        ("fmi2SetupExperiment", "fmi3EnterInitializationMode"),
+        ("fmi2EnterInitializationMode", "fmi3EnterInitializationMode"),
+        ("fmi2ExitInitializationMode", "fmi3ExitInitializationMode"),
+        ("fmi2Terminate", "fmi3Terminate"),
+        ("fmi2Reset", "fmi3Reset"),
+        ("fmi2DoStep", "fmi3DoStep"),
+        ("fmi2GetFMUstate", "fmi3GetFMUState"),
+        ("fmi2SetFMUstate", "fmi3SetFMUState"),
+        ("fmi2FreeFMUstate", "fmi3FreeFMUState"),
+        ("fmi2DeSerializeFMUstate", "fmi3DeserializeFMUState"),
+        ("fmi2SerializeFMUstate", "fmi3SerializeFMUState"),
+        ("fmi2GetReal", "fmi3GetFloat64"),
+        ("fmi2SetReal", "fmi3SetFloat64"),
+        ("fmi2GetInteger", "fmi3GetInt32"),
+        ("fmi2SetInteger", "fmi3SetInt32"),
+        ("fmi2GetBoolean", "fmi3GetBoolean"),
+        ("fmi2SetBoolean", "fmi3SetBoolean"),
+        ("fmi2Instantiate", "fmi3InstantiateCoSimulation"),
+    ];
+    if !message.contains("fmi2") {
+        return std::borrow::Cow::Borrowed(message);
+    }
+    let mut s = message.to_string();
+    for (from, to) in NAMES {
+        if s.contains(from) {
+            s = s.replace(from, to);
+        }
+    }
+    std::borrow::Cow::Owned(s)
 }

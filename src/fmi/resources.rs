@@ -1,6 +1,7 @@
-//! Parsing of `fmuResourceLocation` (docs/fmi-interface.md "What importers pass"): `file:///path`,
-//! `file:/path`, `file://host/path`, percent-encoding, an optional trailing slash, or NULL
-//! (fmusim passes NULL when the FMU has no resources folder).
+//! Core layer: where the resources folder is. FMI 2.0's `fmuResourceLocation`
+//! (docs/fmi-interface.md "What importers pass"): `file:///path`, `file:/path`,
+//! `file://host/path`, percent-encoding, an optional trailing slash, or NULL (fmusim passes NULL
+//! when the FMU has no resources folder); FMI 3.0's `resourcePath`, a native path.
 
 use std::path::PathBuf;
 
@@ -20,6 +21,18 @@ pub fn resource_dir(location: Option<&str>) -> Option<PathBuf> {
     let decoded = percent_decode(path)?;
     let trimmed = if decoded.len() > 1 { decoded.trim_end_matches('/') } else { decoded.as_str() };
     Some(PathBuf::from(trimmed))
+}
+
+/// FMI 3.0 passes the resources folder as a native path with a trailing separator (FMI 2.0: a
+/// file URI); NULL or empty: none.
+pub fn resource_path(p: Option<&str>) -> Option<PathBuf> {
+    let p = p?;
+    let trimmed = p.trim_end_matches(['/', '\\']);
+    match (p.is_empty(), trimmed.is_empty()) {
+        (true, _) => None,
+        (false, true) => Some(PathBuf::from(&p[..1])),
+        (false, false) => Some(PathBuf::from(trimmed)),
+    }
 }
 
 fn percent_decode(s: &str) -> Option<String> {

@@ -1,7 +1,9 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! What an `fmi2Component` and an `fmi3Instance` point to: a handle to the instance, not the
 //! instance itself, so that an instance freed by fmi2FreeInstance or fmi3FreeInstance is
 //! recognised (docs/fmi-interface.md "A freed instance"). Both standards' C ABIs
-//! ([`crate::fmi2::abi`], [`crate::fmi3::abi`]) share it, as they share the instance core.
+//! (`fmi2::abi`, `fmi3::abi`) share it, as they share the instance core.
 //!
 //! The handle outlives its instance, its pointer set to NULL by the free, and a second free or
 //! any call on it returns an error instead of reading freed memory. A handle is never freed nor
@@ -17,8 +19,8 @@ use std::ptr;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Mutex;
 
-use crate::fmi2::instance::{Instance, Snapshot};
-use crate::fmi2::model::FmuModel;
+use crate::fmi::instance::{Instance, Snapshot};
+use crate::fmi::model::FmuModel;
 
 /// See the module's documentation.
 struct Handle {

@@ -1,5 +1,8 @@
-//! What a model gives the shared FMI 2.0 glue: the counterpart of the `config.h` + `model.c`
-//! pair of each of the Modelica Reference FMUs over their one shared `fmi2Functions.c`.
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
+//! What a model gives the shared FMI glue (the core and both standards' layers): the counterpart
+//! of the `config.h` + `model.c` pair of each of the Modelica Reference FMUs over their one shared
+//! `fmi2Functions.c`.
 //!
 //! The glue (instances, state machine, get/set, logging, FMU states, modelDescription.xml and
 //! documentation generation, the C ABI) is written once, generic over [`FmuModel`]. A model
@@ -17,7 +20,7 @@ use std::fmt::Debug;
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 
-use crate::fmi2::variables::Table;
+use crate::fmi::variables::Table;
 use crate::model::error::ModelError;
 
 /// The identity of an FMU and the texts the generators put around its variable table.

@@ -1,3 +1,5 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! The serialized FMU state (fmi2SerializeFMUstate): self-contained (no pointers), versioned, and
 //! checked on the way back in. Layout, all integers little-endian:
 //!
@@ -13,8 +15,8 @@
 //! Foreign, truncated or corrupted bytes fail one of these checks, and a payload that passes them
 //! is still validated like any untrusted input (`Instance::snapshot_from_core`).
 
-use crate::fmi2::instance::{Core, Failure};
-use crate::fmi2::model::FmuModel;
+use crate::fmi::instance::{Core, Failure};
+use crate::fmi::model::FmuModel;
 
 const MAGIC: &[u8; 8] = b"RDRVFMU\0";
 pub const FORMAT_VERSION: u16 = 1;

@@ -1,3 +1,5 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! The glue of `fmi2GetDirectionalDerivative` and `fmi3GetDirectionalDerivative`
 //! (docs/fmi-interface.md "Directional derivatives"), for any instance kind: value references
 //! resolved and checked, the model's exact tangent ([`FmuModel::tangent`]) evaluated once for
@@ -11,14 +13,14 @@
 //! wants (docs/closed-loop.md "In OMSimulator"). In co-simulation the state is the one the
 //! instance holds at its communication point.
 
-use crate::fmi2::instance::{Failure, Instance, Mode};
-use crate::fmi2::model::FmuModel;
-use crate::fmi2::variables::Causality;
-use crate::fmi3::model_description::derivative_vr;
+use crate::fmi::instance::{Failure, Instance, Mode};
+use crate::fmi::model::FmuModel;
+use crate::fmi::structure::derivative_vr;
+use crate::fmi::variables::Causality;
 use crate::model::error::num;
 
 /// How an importer's value references map onto the continuous states of a Model Exchange
-/// instance, which each standard numbers its own way (FMI 3.0: `crate::fmi3::model_description`).
+/// instance, which each standard numbers its own way (`crate::fmi::structure`).
 pub struct StateRefs<'a> {
     /// The index of the continuous state whose value reference this is, if any.
     pub state: &'a dyn Fn(u32) -> Option<usize>,
@@ -27,7 +29,7 @@ pub struct StateRefs<'a> {
 }
 
 /// The index of the continuous state whose variable has value reference `vr`: the same number
-/// in the FMI 2.0 and the FMI 3.0 model description (`crate::fmi3::model_description`).
+/// in the FMI 2.0 and the FMI 3.0 model description (`crate::fmi::structure`).
 fn state_of<M: FmuModel>(vr: u32) -> Option<usize> {
     // From the table's cached list: looking the names up at every call cost about 2 700
     // instructions per derivative (docs/performance.md "Directional derivatives").

@@ -1,3 +1,5 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! The shape of a variable table: each model's table (e.g. `crate::fmus::reciprocating_drive::variables`)
 //! is the one source of truth for names, value references, types, causality, variability, units,
 //! start values, ranges, descriptions and output dependencies. The runtime (get/set, range checks,
@@ -9,7 +11,7 @@
 
 use std::sync::OnceLock;
 
-use crate::fmi2::model::FmuModel;
+use crate::fmi::model::FmuModel;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum VarType {
@@ -188,11 +190,11 @@ pub struct Table<M: FmuModel> {
     pub units: &'static [(&'static str, [i32; 4])],
     info: OnceLock<Vec<VarInfo<M>>>,
     pub(crate) guid: OnceLock<String>,
-    /// The FMI 3.0 instantiationToken (`crate::fmi3::model_description::token`).
+    /// The FMI 3.0 instantiationToken (written by the FMI 3.0 model-description writer).
     pub(crate) token3: OnceLock<String>,
     pub(crate) fingerprint: OnceLock<u64>,
     /// The value references of the continuous states (Model Exchange), found once by name: the
-    /// directional derivatives ask for them at every call (`crate::fmi2::directional`).
+    /// directional derivatives ask for them at every call (`crate::fmi::directional`).
     state_vrs: OnceLock<Vec<usize>>,
 }
 
@@ -213,14 +215,12 @@ impl<M: FmuModel> Table<M> {
     }
 
     /// The value reference of each continuous state, in the order of
-    /// [`FmuModel::CONTINUOUS_STATES`] (`crate::fmi3::model_description::state_vr`, derived once:
+    /// [`FmuModel::CONTINUOUS_STATES`] (`crate::fmi::structure::state_vr`, derived once:
     /// it looks the names up in the table).
     #[inline]
     pub fn state_vrs(&self) -> &[usize] {
         self.state_vrs.get_or_init(|| {
-            (0..M::CONTINUOUS_STATES.len())
-                .map(crate::fmi3::model_description::state_vr::<M>)
-                .collect()
+            (0..M::CONTINUOUS_STATES.len()).map(crate::fmi::structure::state_vr::<M>).collect()
         })
     }
 
@@ -325,15 +325,15 @@ pub fn check_table<M: FmuModel>() {
 /// A parameter bound to a field (or field path, e.g. `supports[1].z`) of the model's parameters.
 macro_rules! param {
     ($name:literal, $ty:ident, $field:ident $([$i:literal].$sub:ident)?, $var:ident, $unit:literal, $range:expr, $desc:literal) => {
-        $crate::fmi2::variables::Var {
+        $crate::fmi::variables::Var {
             name: $name,
-            ty: $crate::fmi2::variables::VarType::$ty,
-            causality: $crate::fmi2::variables::Causality::Parameter,
-            variability: $crate::fmi2::variables::Variability::$var,
+            ty: $crate::fmi::variables::VarType::$ty,
+            causality: $crate::fmi::variables::Causality::Parameter,
+            variability: $crate::fmi::variables::Variability::$var,
             unit: $unit,
             description: $desc,
             range: $range,
-            binding: $crate::fmi2::variables::Binding::Param {
+            binding: $crate::fmi::variables::Binding::Param {
                 get: |p| p.$field $([$i].$sub)? as f64,
                 set: |p, v| p.$field $([$i].$sub)? = v as _,
             },
@@ -344,15 +344,15 @@ macro_rules! param {
 /// An element of an array field of the parameters (e.g. `link_lengths[2]`).
 macro_rules! param_at {
     ($name:literal, $field:ident[$i:literal], $unit:literal, $range:expr, $desc:literal) => {
-        $crate::fmi2::variables::Var {
+        $crate::fmi::variables::Var {
             name: $name,
-            ty: $crate::fmi2::variables::VarType::Real,
-            causality: $crate::fmi2::variables::Causality::Parameter,
-            variability: $crate::fmi2::variables::Variability::Fixed,
+            ty: $crate::fmi::variables::VarType::Real,
+            causality: $crate::fmi::variables::Causality::Parameter,
+            variability: $crate::fmi::variables::Variability::Fixed,
             unit: $unit,
             description: $desc,
             range: $range,
-            binding: $crate::fmi2::variables::Binding::Param {
+            binding: $crate::fmi::variables::Binding::Param {
                 get: |p| p.$field[$i],
                 set: |p, v| p.$field[$i] = v,
             },
@@ -362,15 +362,15 @@ macro_rules! param_at {
 
 macro_rules! param_bool {
     ($name:literal, $field:ident, $var:ident, $desc:literal) => {
-        $crate::fmi2::variables::Var {
+        $crate::fmi::variables::Var {
             name: $name,
-            ty: $crate::fmi2::variables::VarType::Boolean,
-            causality: $crate::fmi2::variables::Causality::Parameter,
-            variability: $crate::fmi2::variables::Variability::$var,
+            ty: $crate::fmi::variables::VarType::Boolean,
+            causality: $crate::fmi::variables::Causality::Parameter,
+            variability: $crate::fmi::variables::Variability::$var,
             unit: "",
             description: $desc,
-            range: $crate::fmi2::variables::Range::closed(0.0, 1.0),
-            binding: $crate::fmi2::variables::Binding::Param {
+            range: $crate::fmi::variables::Range::closed(0.0, 1.0),
+            binding: $crate::fmi::variables::Binding::Param {
                 get: |p| p.$field as i32 as f64,
                 set: |p, v| p.$field = v != 0.0,
             },
@@ -381,15 +381,15 @@ macro_rules! param_bool {
 /// A continuous Real input bound to the model's input slot `$slot`.
 macro_rules! input {
     ($name:literal, $slot:ident, $start:expr, $unit:literal, $desc:literal) => {
-        $crate::fmi2::variables::Var {
+        $crate::fmi::variables::Var {
             name: $name,
-            ty: $crate::fmi2::variables::VarType::Real,
-            causality: $crate::fmi2::variables::Causality::Input,
-            variability: $crate::fmi2::variables::Variability::Continuous,
+            ty: $crate::fmi::variables::VarType::Real,
+            causality: $crate::fmi::variables::Causality::Input,
+            variability: $crate::fmi::variables::Variability::Continuous,
             unit: $unit,
             description: $desc,
-            range: $crate::fmi2::variables::Range::ANY,
-            binding: $crate::fmi2::variables::Binding::Input { slot: $slot, start: $start },
+            range: $crate::fmi::variables::Range::ANY,
+            binding: $crate::fmi::variables::Binding::Input { slot: $slot, start: $start },
         }
     };
 }
@@ -410,18 +410,18 @@ macro_rules! output {
     };
     ($group:path => $causality:ident, $variability:ident, $name:literal, $($field:ident).+, $unit:literal, [$($dep:ident),*], $desc:literal) => {
         output!(@var $causality, $variability, $name,
-            $crate::fmi2::model::GroupedOutput { group: $group, get: |o| o.$($field).+ }, $unit, [$($dep),*], $desc)
+            $crate::fmi::model::GroupedOutput { group: $group, get: |o| o.$($field).+ }, $unit, [$($dep),*], $desc)
     };
     (@var $causality:ident, $variability:ident, $name:literal, $get:expr, $unit:literal, [$($dep:ident),*], $desc:literal) => {
-        $crate::fmi2::variables::Var {
+        $crate::fmi::variables::Var {
             name: $name,
-            ty: $crate::fmi2::variables::VarType::Real,
-            causality: $crate::fmi2::variables::Causality::$causality,
-            variability: $crate::fmi2::variables::Variability::$variability,
+            ty: $crate::fmi::variables::VarType::Real,
+            causality: $crate::fmi::variables::Causality::$causality,
+            variability: $crate::fmi::variables::Variability::$variability,
             unit: $unit,
             description: $desc,
-            range: $crate::fmi2::variables::Range::ANY,
-            binding: $crate::fmi2::variables::Binding::Output { get: $get, depends_on: &[$($dep),*] },
+            range: $crate::fmi::variables::Range::ANY,
+            binding: $crate::fmi::variables::Binding::Output { get: $get, depends_on: &[$($dep),*] },
         }
     };
 }

@@ -1,3 +1,5 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! One FMU instance and the FMI 2.0 co-simulation state machine. Every public method returns
 //! `Result<_, Failure>`; the ABI layer turns a failure into its status plus one log line.
 //!
@@ -11,10 +13,10 @@ use serde::{Deserialize, Serialize};
 use std::ffi::CString;
 use std::path::PathBuf;
 
-use crate::fmi2::logging::{Category, Logger};
-use crate::fmi2::model::FmuModel;
-use crate::fmi2::plans::{InputPlan, ReadPlan, Source};
-use crate::fmi2::variables::{Binding, Causality, Range, VarType, Variability};
+use crate::fmi::logging::{Category, Logger};
+use crate::fmi::model::FmuModel;
+use crate::fmi::plans::{InputPlan, ReadPlan, Source};
+use crate::fmi::variables::{Binding, Causality, Range, VarType, Variability};
 use crate::model::error::{given, num, ModelError};
 
 /// The states of the FMI 2.0 co-simulation state machine this FMU can be in. It never returns
@@ -171,7 +173,7 @@ pub const SNAPSHOT_MAGIC: u64 = 0x5244_4655_5354_4154; // "RDFUSTAT"
 /// The snapshot magic of model `M`: a state of another model (another FMU loaded in the same
 /// process) is refused.
 pub fn snapshot_magic<M: FmuModel>() -> u64 {
-    SNAPSHOT_MAGIC ^ crate::fmi2::fmu_state::interface_fingerprint::<M>()
+    SNAPSHOT_MAGIC ^ crate::fmi::fmu_state::interface_fingerprint::<M>()
 }
 
 pub struct Instance<M: FmuModel> {
@@ -200,7 +202,7 @@ pub struct Instance<M: FmuModel> {
     /// Instantiated for Model Exchange (FMI 3.0, `crate::fmi3`): the ME functions are allowed,
     /// fmi3DoStep is not.
     pub model_exchange: bool,
-    /// FMI 2.0 Model Exchange (`crate::fmi2::model_exchange`): after initialization, in
+    /// FMI 2.0 Model Exchange (`fmi2::model_exchange`): after initialization, in
     /// continuous-time mode (true) or event mode (false).
     pub me_continuous_time: bool,
 }

@@ -1,3 +1,5 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! Display units: the engineering units a person reads (deg, rpm, kN, kN.m, MPa, mm), declared in
 //! `<UnitDefinitions>` so that importers with a GUI (Dymola, OMEdit, Simulink's FMU block) show
 //! and accept values in them. The FMU itself always exchanges SI values; FMI 2.0 defines

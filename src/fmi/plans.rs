@@ -1,10 +1,12 @@
+//! Core layer (docs/architecture.md "The FMUs (Rust)").
+//!
 //! The value references of the arrays a master passes to fmi2GetReal and fmi2SetReal at every
 //! step, resolved once per instance (docs/performance.md "Read and input plans"): the variable
 //! table is consulted again only when the array's contents change. Used by the fast paths of
 //! `Instance::quick_get_real` and `Instance::quick_set_real`.
 
-use crate::fmi2::model::FmuModel;
-use crate::fmi2::variables::{VarInfo, VarType};
+use crate::fmi::model::FmuModel;
+use crate::fmi::variables::{VarInfo, VarType};
 
 /// The input slots of the value references of one fmi2SetReal of inputs only, resolved once
 /// for the array a master passes at every step (as [`ReadPlan`] for fmi2GetReal).
