@@ -1,0 +1,307 @@
+"""Any range of a run's per-sample outputs, recomputed from the stored input (docs/plant.md
+"Recomputing a range"): the twin restored from the last snapshot before the range, fed the
+stored input blocks from there, gives the rows the live run computed, bit for bit (the core is
+deterministic, and the checkpoint-and-resume path is the one every restart of the plant takes).
+
+    from reciprocating_drive.plant.query import recompute
+    seq, rows, header = recompute("results/twin/sample-replay.sqlite", "sample-replay", 2.0, 3.0)
+
+`recompute_chunks` yields the rows block by block (an hour at 1 kHz is 3.6 million rows of 26
+doubles: written out as they come, never held whole); `rdrive twin-query` writes them as CSV or
+Parquet.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+
+import numpy as np
+
+from .. import artifacts
+from ..fmu import FmuError
+from ..twin import CheckpointError, DataError, Twin
+from .storage import BlockError, checksum, decode_lines, decode_state
+
+
+class QueryError(RuntimeError):
+    """A range that cannot be recomputed (one line: the run, the range, why)."""
+
+
+class Database:
+    """A plant database to read: an SQLite file (read-only) or a PostgreSQL connection string."""
+
+    def __init__(self, target, password: str | None = None):
+        if isinstance(target, Database):
+            self.conn, self.name, self.pg = target.conn, target.name, target.pg
+            return
+        target = str(target)
+        self.pg = "=" in target or target.startswith(("postgres://", "postgresql://"))
+        if self.pg:
+            import psycopg
+
+            from .config import mask_dsn
+
+            self.name = f"postgres {mask_dsn(target)}"
+            kw = {"password": password} if password is not None else {}
+            try:
+                self.conn = psycopg.connect(target, autocommit=True, **kw)
+            except psycopg.Error as e:
+                raise QueryError(f"{self.name}: {str(e).strip().splitlines()[-1]}") from None
+        else:
+            import pathlib
+
+            self.name = f"sqlite {target}"
+            if not pathlib.Path(target).is_file():
+                raise QueryError(f"{self.name}: no such database file")
+            self.conn = sqlite3.connect(f"file:{target}?mode=ro", uri=True)
+
+    def ex(self, sql: str, args=()):
+        if self.pg:
+            return self.conn.execute(sql.replace("?", "%s"), args)
+        return self.conn.execute(sql, args)
+
+
+def _feed(twin: Twin, lines: list[str], first_lineno: int) -> tuple[np.ndarray, bool]:
+    """The one place the recomputation drives the core (its narrowest entry point: the input
+    lines, as the live run fed them). Returns the rows and whether the input stopped the run
+    (the live run stopped there too, after committing these rows)."""
+    try:
+        rows, _ = twin.feed(lines, first_lineno)
+        return rows, False
+    except DataError as e:
+        return (e.rows if e.rows is not None else twin._empty()), True
+
+
+def run_info(db: Database, run: str) -> dict:
+    row = db.ex(
+        "SELECT run, outputs, fmu_guid, status, time_origin FROM runs WHERE name = ?", (run,)
+    ).fetchone()
+    if row is None:
+        names = [r[0] for r in db.ex("SELECT name FROM runs ORDER BY run")]
+        raise QueryError(
+            f"{db.name}: no run {run!r} (runs: {', '.join(names[:10]) or 'none'}"
+            f"{', ...' if len(names) > 10 else ''})"
+        )
+    key, outputs, guid, status, origin = row
+    return {
+        "key": key,
+        "outputs": json.loads(outputs),
+        "fmu_guid": guid,
+        "status": status,
+        "time_origin": origin,
+    }
+
+
+def _snapshot(db: Database, info: dict, run: str, t_from: float) -> tuple:
+    key = info["key"]
+    row = db.ex(
+        "SELECT lines, samples, t, checksum, state FROM snapshots WHERE run = ? "
+        "AND (t IS NULL OR t < ?) ORDER BY lines DESC LIMIT 1",
+        (key, t_from),
+    ).fetchone()
+    if row is None:
+        first = db.ex(
+            "SELECT lines, t FROM snapshots WHERE run = ? ORDER BY lines LIMIT 1", (key,)
+        ).fetchone()
+        if first is None:
+            raise QueryError(
+                f"{db.name}: run {run!r} has no stored input (a run written before schema "
+                "version 3): its ranges cannot be recomputed"
+            )
+        raise QueryError(
+            f"{db.name}: run {run!r}: the input before t = {first[1]!r} s was removed "
+            "(sink.keep_input); a range from there on can be recomputed"
+        )
+    lines, samples, t, cs, data = row
+    data = bytes(data)
+    if checksum(data) != cs:
+        raise QueryError(
+            f"{db.name}: run {run!r}: the snapshot at input line {lines} (after t = {t!r} s) is "
+            "damaged (its checksum does not match)"
+        )
+    return lines, samples, decode_state(data)
+
+
+def check_blocks(db: Database, run: str) -> list[str]:
+    """Every input block of a run whose checksum does not match, as a line naming its lines and
+    times (the resume reports them: nothing else is affected)."""
+    key = run_info(db, run)["key"]
+    out = []
+    for first, last, t0, t1, cs, data in db.ex(
+        "SELECT first_line, last_line, t_first, t_last, checksum, data FROM input_blocks "
+        "WHERE run = ? ORDER BY first_line",
+        (key,),
+    ):
+        if checksum(bytes(data)) != cs:
+            out.append(_damaged(db, run, first, last, t0, t1))
+    return out
+
+
+def _damaged(db, run, first, last, t0, t1) -> str:
+    return (
+        f"{db.name}: run {run!r}: the input block of lines {first}-{last} (t = {t0!r} s to "
+        f"{t1!r} s) is damaged (its checksum does not match): outputs after t = {t0!r} s up to "
+        "the next snapshot after it cannot be recomputed"
+    )
+
+
+def recompute_chunks(
+    target,
+    run: str,
+    t_from: float,
+    t_to: float,
+    fmu: str | None = None,
+    other_fmu: bool = False,
+    password: str | None = None,
+):
+    """Yields (seq, rows) pieces of the run's per-sample outputs with t_from <= t <= t_to (rows:
+    time then the outputs, as the samples table holds them). The FMU is the run's (by GUID):
+    another is refused unless `other_fmu`, and then its results are its own."""
+    if not t_from <= t_to:
+        raise QueryError(f"the range {t_from!r} s to {t_to!r} s is empty (from > to)")
+    db = Database(target, password)
+    info = run_info(db, run)
+    lines_at, samples_at, state = _snapshot(db, info, run, t_from)
+    fmu = str(fmu or artifacts.fmu())
+    try:
+        from ..fmu import Fmu
+
+        guid = Fmu(fmu).model_description.guid
+    except Exception as e:  # noqa: BLE001 - not a zip, not an FMU: one line
+        raise QueryError(f"--fmu {fmu!r}: not a usable FMU ({e})") from None
+    used = info["fmu_guid"] or state.get("fmu_guid")
+    if used != guid:
+        if not other_fmu:
+            raise QueryError(
+                f"run {run!r} was computed with the FMU {used!r}; {fmu!r} is {guid!r}: name "
+                "that FMU with --fmu, or give --other-fmu to recompute with this one"
+            )
+        state = {**state, "fmu_guid": guid}
+    try:
+        twin = Twin.from_checkpoint(fmu, state)
+    except (CheckpointError, ValueError, FmuError) as e:
+        raise QueryError(f"run {run!r}: the snapshot at input line {lines_at}: {e}") from None
+    key = info["key"]
+    nxt = lines_at + 1
+    cur = db.ex(
+        "SELECT first_line, last_line, t_first, t_last, codec, checksum, data FROM input_blocks "
+        "WHERE run = ? AND last_line >= ? ORDER BY first_line",
+        (key, nxt),
+    )
+    stopped = False
+    while not stopped:
+        got = cur.fetchmany(8)
+        if not got:
+            break
+        for first, last, t0, t1, codec, cs, data in got:
+            data = bytes(data)
+            if checksum(data) != cs:
+                raise QueryError(_damaged(db, run, first, last, t0, t1))
+            if first > nxt:
+                raise QueryError(
+                    f"{db.name}: run {run!r}: the input lines {nxt}-{first - 1} are missing"
+                )
+            try:
+                lines = decode_lines(codec, data)
+            except (BlockError, ValueError) as e:
+                raise QueryError(_damaged(db, run, first, last, t0, t1) + f" ({e})") from None
+            lines = lines[nxt - first :]
+            rows, stopped = _feed(twin, lines, nxt)
+            nxt = last + 1
+            piece = _within(rows, twin.rows_out - len(rows), t_from, t_to)
+            if piece is not None:
+                yield piece
+            if len(rows) and rows[-1, 0] > t_to:
+                return
+            if stopped:
+                break
+    if not stopped and info["status"] == "finished":
+        # The live run's end: the rows the core held for its smoothing window.
+        try:
+            rows, _ = twin.finish()
+        except DataError as e:
+            rows = e.rows if e.rows is not None else twin._empty()
+        piece = _within(rows, twin.rows_out - len(rows), t_from, t_to)
+        if piece is not None:
+            yield piece
+
+
+def _within(rows: np.ndarray, first_seq: int, t_from: float, t_to: float):
+    if not len(rows):
+        return None
+    t = rows[:, 0]
+    keep = (t >= t_from) & (t <= t_to)
+    if not keep.any():
+        return None
+    seq = np.arange(first_seq, first_seq + len(rows))
+    return seq[keep], rows[keep]
+
+
+def recompute(target, run: str, t_from: float, t_to: float, **kw):
+    """(seq, rows, header) of the range, in memory (for a few minutes at 1 kHz; larger ranges
+    through `recompute_chunks` or `rdrive twin-query`)."""
+    db = Database(target, kw.pop("password", None))
+    info = run_info(db, run)
+    seqs, parts = [np.empty(0, dtype=np.int64)], [np.empty((0, 1 + len(info["outputs"])))]
+    for s, r in recompute_chunks(db, run, t_from, t_to, **kw):
+        seqs.append(s)
+        parts.append(r)
+    return np.concatenate(seqs), np.concatenate(parts), ["time", *info["outputs"]]
+
+
+def write_range(target, run: str, t_from: float, t_to: float, out: str, **kw) -> int:
+    """The range into a CSV file (as `rdrive twin` writes its rows: `time [s]` and `name [unit]`
+    columns, numbers as repr) or a Parquet file (`seq`, `t` and the samples table's columns,
+    float64), written as it is recomputed; `out` "-" is CSV on standard output. Returns the
+    number of samples."""
+    import pathlib
+    import sys
+
+    from ..batch import format_csv
+    from ..fmu import Fmu
+    from ..twin import with_unit
+    from .schema import column
+
+    db = Database(target, kw.pop("password", None))
+    info = run_info(db, run)
+    outputs = info["outputs"]
+    n = 0
+    import itertools
+
+    chunks = recompute_chunks(db, run, t_from, t_to, **kw)
+    # The run, the range and the FMU are checked before a file is made.
+    head = next(chunks, None)
+    chunks = itertools.chain([head] if head is not None else [], chunks)
+    if out.endswith(".parquet"):
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        schema = pa.schema(
+            [("seq", pa.int64()), ("t", pa.float64())]
+            + [(column(o), pa.float64()) for o in outputs]
+        )
+        with pq.ParquetWriter(out, schema) as w:
+            for seq, rows in chunks:
+                cols = [pa.array(seq, pa.int64())]
+                cols += [pa.array(rows[:, j]) for j in range(rows.shape[1])]
+                w.write_table(pa.Table.from_arrays(cols, schema=schema))
+                n += len(seq)
+            if n == 0:
+                w.write_table(schema.empty_table())
+        return n
+    variables = Fmu(kw.get("fmu") or str(artifacts.fmu())).variables  # loaded above already
+    header = ["time [s]"] + [with_unit(o, variables[o].unit or "-") for o in outputs]
+    f = sys.stdout.buffer if out == "-" else open(pathlib.Path(out), "wb")
+    try:
+        f.write((",".join(header) + "\n").encode())
+        buf = bytearray()
+        for seq, rows in chunks:
+            f.write(format_csv(rows, buf))
+            n += len(seq)
+    finally:
+        if out != "-":
+            f.close()
+        else:
+            f.flush()
+    return n
