@@ -381,3 +381,54 @@ def test_an_older_schema_is_migrated(tmp_path):
     assert np.array_equal(pu.bits(_recompute(db, "new", 0, 1)), pu.bits(_slice(ref, 0, 1)))
     p = _query_cli(db, "old", 0, 1, tmp_path / "o.csv")
     assert p.returncode == 1 and "no stored input" in p.stderr, p.stderr
+
+
+def test_opcua_run_killed_before_its_first_checkpoint_restarts_from_its_first_sample(tmp_path):
+    """An OPC UA run killed before its first checkpoint (rows committed, no checkpoint yet):
+    its run and time origin were committed at once, so the restart reads the server's history
+    from the run's first sample and the run holds the file replay's rows bit for bit."""
+    ref = pu.clean_run(FMU)
+    plc = pu.PlcProcess("--speed", "2", "--start-delay", "2")
+    source = (
+        f'type = "opcua"\nendpoint = "{plc.endpoint}"\nangle_node = "ns=2;s=Pump.CrankAngle"\n'
+        'end_node = "ns=2;s=Pump.Finished"\nangle_unit = "counts"\ncounts_per_rev = 4096\n'
+        "reconnect_max = 0.5\n"
+    )
+    db = tmp_path / "early.sqlite"
+    cfg = pu.write_config(
+        tmp_path / "early.toml",
+        run="early",
+        source=source,
+        sinks=pu.sqlite_sink(db),
+        fmu=FMU,
+        run_extra="checkpoint_interval = 1000\n",
+    )
+
+    def rows_held():
+        try:
+            return pu.query(str(db), "SELECT COUNT(*) FROM samples")[0][0]
+        except sqlite3.Error:
+            return 0
+
+    p = pu.start(cfg)
+    try:
+        with plc:
+            deadline = time.monotonic() + 60
+            while rows_held() < 500:
+                assert p.poll() is None and time.monotonic() < deadline, p.stderr.read()
+                time.sleep(0.02)
+            p.send_signal(signal.SIGKILL)
+            p.wait(timeout=10)
+            assert pu.query(str(db), "SELECT state FROM checkpoints") in ([], [("",)])
+            assert pu.query(str(db), "SELECT time_origin FROM runs")[0][0] is not None
+            p = pu.start(cfg)
+            out, err = p.communicate(timeout=90)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait(timeout=10)
+    assert p.returncode == 0, err
+    got = pu.samples(str(db), "early")
+    assert got.shape == ref[0].shape, (got.shape, ref[0].shape)
+    assert pu.same_values(got, ref[0], sqlite=True)
+    assert [r[1:] for r in pu.revolutions(str(db), "early")] == ref[1]
