@@ -432,3 +432,31 @@ def test_opcua_run_killed_before_its_first_checkpoint_restarts_from_its_first_sa
     assert got.shape == ref[0].shape, (got.shape, ref[0].shape)
     assert pu.same_values(got, ref[0], sqlite=True)
     assert [r[1:] for r in pu.revolutions(str(db), "early")] == ref[1]
+
+
+def test_the_page_opens_a_range_at_full_resolution(tmp_path):
+    """The page's /api/range: every output of a range as CSV, recomputed, the clean run's values
+    bit for bit; a range too long or of no run is a status and one line."""
+    import urllib.error
+    import urllib.request
+
+    from reciprocating_drive.page.server import PageServer
+
+    cfg, db = _config(tmp_path, pu.SAMPLE, pace=0.0)
+    assert pu.run(cfg).returncode == 0
+    ref = _slice(pu.clean_run(FMU)[0], 2.5, 3.5)
+    page = PageServer(port=0, database=str(db), run="r1").start()
+    try:
+        base = f"http://127.0.0.1:{page.port}"
+        with urllib.request.urlopen(f"{base}/api/range?from=2.5&to=3.5", timeout=60) as r:
+            text = r.read().decode().splitlines()
+        got = np.array([[float(v) for v in x.split(",")] for x in text[1:]])
+        assert np.array_equal(pu.bits(got), pu.bits(ref[:, 1:]))
+        for q, code in (("from=0&to=1000", 400), ("from=x&to=1", 400)):
+            with pytest.raises(urllib.error.HTTPError) as e:
+                urllib.request.urlopen(f"{base}/api/range?{q}", timeout=60)
+            assert e.value.code == code
+        index = urllib.request.urlopen(f"{base}/", timeout=10).read().decode()
+        assert 'action="/api/range"' in index
+    finally:
+        page.close()

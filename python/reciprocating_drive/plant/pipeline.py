@@ -157,6 +157,8 @@ class Pipeline:
             self.page.add(rows, first, summaries, self.c.revolutions, events)
         if len(rows):
             self.last_row_t = float(rows[-1, 0])
+            if self.block_t0 is None:  # the run's first block: from its first sample's time
+                self.block_t0 = float(rows[0, 0])
         self.c.samples = self.twin.rows_out
         self.c.revolutions += len(summaries)
         if summaries:

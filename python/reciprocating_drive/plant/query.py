@@ -305,3 +305,62 @@ def write_range(target, run: str, t_from: float, t_to: float, out: str, **kw) ->
         else:
             f.flush()
     return n
+
+
+def status(target, password: str | None = None) -> list[str]:
+    """The database's size and growth (docs/plant.md "Retention"): its bytes, the samples its
+    runs cover and the bytes per sample, the input rate of the latest blocks, and the days until
+    its disk is full at that rate (SQLite; a PostgreSQL server's disk is not seen from here)."""
+    import pathlib
+    import shutil
+
+    db = Database(target, password)
+    if db.pg:
+        size = db.ex("SELECT pg_database_size(current_database())").fetchone()[0]
+        free = None
+    else:
+        p = pathlib.Path(str(target))
+        size = sum(q.stat().st_size for q in p.parent.glob(p.name + "*") if q.is_file())
+        free = shutil.disk_usage(p.parent).free
+    runs, samples = db.ex("SELECT COUNT(*), COALESCE(SUM(samples), 0) FROM checkpoints").fetchone()
+    held = db.ex("SELECT COUNT(*) FROM samples").fetchone()[0]
+    per = size / samples if samples else float("nan")
+    out = [
+        f"{db.name}: {size / 1e6:.1f} MB, {samples} samples in {runs} run(s), "
+        f"{per:.1f} bytes a sample all inclusive ({held} per-sample rows held)"
+    ]
+    # The rate of the latest input: the last blocks' lines over their time.
+    rows = db.ex(
+        "SELECT first_line, last_line, t_first, t_last FROM input_blocks "
+        "WHERE t_first IS NOT NULL ORDER BY run DESC, first_line DESC LIMIT 200"
+    ).fetchall()
+    span = sum(r[3] - r[2] for r in rows)
+    if rows and span > 0 and samples:
+        rate = sum(r[1] - r[0] + 1 for r in rows) / span
+        # Per sample beyond the rows of the recent window, which stay as many as it holds.
+        grow = max(size - _rows_bytes(db, held), 0) / samples
+        day = grow * rate * 86400
+        text = f"input {rate:.0f} samples/s: {day / 1e9:.2f} GB a day ({grow:.1f} bytes a sample)"
+        if free is not None:
+            text += f"; {free / 1e9:.1f} GB free: full in {free / day:.0f} days at this rate"
+        else:
+            text += "; the server's free disk is not known from here"
+        out.append(text)
+    db.conn.close()
+    return out
+
+
+def _rows_bytes(db: Database, held: int) -> float:
+    """What the per-sample rows held take, estimated from the table's own size (SQLite: the
+    pages of the table and its index when the dbstat table exists; else 8 bytes a column)."""
+    if db.pg:
+        got = db.ex("SELECT pg_total_relation_size('samples')").fetchone()
+        return float(got[0] or 0)
+    try:
+        got = db.ex(
+            "SELECT SUM(pgsize) FROM dbstat WHERE name IN ('samples', 'samples_time')"
+        ).fetchone()
+        return float(got[0] or 0)
+    except sqlite3.Error:
+        cols = len(db.ex("PRAGMA table_info(samples)").fetchall())
+        return held * 8.0 * cols
