@@ -460,3 +460,49 @@ def test_the_page_opens_a_range_at_full_resolution(tmp_path):
         assert 'action="/api/range"' in index
     finally:
         page.close()
+
+
+@pytest.fixture(scope="module")
+def pg():
+    from pg_server import PgServer, pg_bindir
+
+    if pg_bindir() is None:
+        pytest.fail(
+            "PostgreSQL is not installed: scripts/test.sh installs it (scripts/lib/postgres.sh)"
+        )
+    with PgServer() as server:
+        yield server
+
+
+def test_postgres_stores_the_input_and_recomputes_bit_for_bit(pg, tmp_path, long_sample, reference):
+    """PostgreSQL: the same storage; killed once and finished, a recomputed range equals the rows
+    the live run committed (float8, -0.0 included) bit for bit; keep_samples deletes there too."""
+    run_id = "pg-" + str(time.time_ns())
+    cfg = pu.write_config(
+        tmp_path / "pg.toml",
+        run=run_id,
+        source=pu.csv_source(long_sample, pace=8.0),
+        sinks=pu.pg_sink(pg.dsn, extra="keep_samples = 20\n"),
+        fmu=FMU,
+        run_extra="commit_interval = 0.05\ncommit_samples = 2000\nsnapshot_interval = 4\n",
+    )
+    p = pu.start(cfg)
+    try:
+        pu.wait_for_commit(pg.dsn, run_id, 8000, p)
+        p.send_signal(signal.SIGKILL)
+        p.wait(timeout=10)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait(timeout=10)
+    done = pu.run(cfg)
+    assert done.returncode == 0, done.stderr
+    held = pu.samples(pg.dsn, run_id)
+    ref = reference[0]
+    assert 0 < len(held) < len(ref)
+    from reciprocating_drive.plant.query import recompute
+
+    seq, rows, _ = recompute(pg.dsn, run_id, float(held[0, 1]), float(held[-1, 1]), fmu=str(FMU))
+    assert np.array_equal(pu.bits(np.column_stack([seq, rows])), pu.bits(held))
+    seq, rows, _ = recompute(pg.dsn, run_id, 0.0, 5.0, fmu=str(FMU))
+    assert np.array_equal(pu.bits(np.column_stack([seq, rows])), pu.bits(_slice(ref, 0.0, 5.0)))
