@@ -273,6 +273,12 @@ def write_range(target, run: str, t_from: float, t_to: float, out: str, **kw) ->
     # The run, the range and the FMU are checked before a file is made.
     head = next(chunks, None)
     chunks = itertools.chain([head] if head is not None else [], chunks)
+    if out != "-":
+        try:  # its folder is made as an output folder is (results/twin/ of a fresh clone)
+            pathlib.Path(out).parent.mkdir(parents=True, exist_ok=True)
+            pathlib.Path(out).touch()
+        except OSError as e:
+            raise QueryError(f"--out {out!r}: {e.strerror or e}") from None
     if out.endswith(".parquet"):
         import pyarrow as pa
         import pyarrow.parquet as pq
