@@ -109,7 +109,7 @@ def sizes(db: pathlib.Path, machine: str) -> None:
         print(f"         {name:28s} {b / samples:6.2f} bytes a sample")
 
 
-def recompute(db: pathlib.Path, machine: str, t_end: float) -> None:
+def recompute(db: pathlib.Path, machine: str, t_end: float, workers: int) -> None:
     import resource
 
     from reciprocating_drive.plant.query import recompute_chunks
@@ -118,15 +118,21 @@ def recompute(db: pathlib.Path, machine: str, t_end: float) -> None:
     c0 = resource.getrusage(resource.RUSAGE_SELF)
     w0 = time.monotonic()
     n = 0
-    for seq, _rows in recompute_chunks(str(db), "bench", t0, t_end, fmu=FMU):
+    for seq, _rows in recompute_chunks(str(db), "bench", t0, t_end, fmu=FMU, workers=workers):
         n += len(seq)
     wall = time.monotonic() - w0
     c1 = resource.getrusage(resource.RUSAGE_SELF)
+    k1 = resource.getrusage(resource.RUSAGE_CHILDREN)  # the workers, once ended
     cpu = c1.ru_utime + c1.ru_stime - c0.ru_utime - c0.ru_stime
+    cpu += k1.ru_utime + k1.ru_stime - CHILDREN[0]
+    CHILDREN[0] = k1.ru_utime + k1.ru_stime
     print(
-        f"query  {machine}: {n} samples ({t_end - t0:.0f} s of data) recomputed in {wall:.1f} s "
-        f"wall, {cpu:.1f} s CPU"
+        f"query  {machine}: {n} samples ({t_end - t0:.0f} s of data) recomputed by {workers} "
+        f"process(es) in {wall:.1f} s wall, {cpu:.1f} s CPU"
     )
+
+
+CHILDREN = [0.0]  # CPU seconds of the ended worker processes counted so far
 
 
 def main() -> None:
@@ -144,7 +150,8 @@ def main() -> None:
     for m in a.machines.split(","):
         db = run(d, data, m)
         sizes(db, m)
-        recompute(db, m, span)
+        for w in (1, 2):
+            recompute(db, m, span, w)
     if a.keep:
         print("kept", d)
     else:

@@ -506,3 +506,15 @@ def test_postgres_stores_the_input_and_recomputes_bit_for_bit(pg, tmp_path, long
     assert np.array_equal(pu.bits(np.column_stack([seq, rows])), pu.bits(held))
     seq, rows, _ = recompute(pg.dsn, run_id, 0.0, 5.0, fmu=str(FMU))
     assert np.array_equal(pu.bits(np.column_stack([seq, rows])), pu.bits(_slice(ref, 0.0, 5.0)))
+
+
+def test_a_range_recomputed_by_two_processes_is_the_same(tmp_path, long_sample, reference):
+    """--workers 2: the stretches between the snapshots inside the range, each in a process of
+    its own, joined in order: the clean run's rows, each once."""
+    cfg, db = _config(tmp_path, long_sample, pace=0.0, run_extra="snapshot_interval = 4\n")
+    assert pu.run(cfg).returncode == 0
+    ref = reference[0]
+    got = _recompute(db, "r1", 3.0, 30.0, workers=2)
+    assert np.array_equal(pu.bits(got), pu.bits(_slice(ref, 3.0, 30.0)))
+    p = _query_cli(db, "r1", 3.0, 30.0, tmp_path / "w.parquet", "--workers", "2")
+    assert p.returncode == 0, p.stderr

@@ -14,6 +14,7 @@ GUID is stored); another is refused unless --other-fmu.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from .. import artifacts
@@ -58,7 +59,17 @@ def _main(argv, prog: str) -> int:
         action="store_true",
         help="recompute with --fmu even though it is not the FMU the run used (its own results)",
     )
+    ap.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="processes recomputing the stretches between snapshots at once (default: the "
+        "machine's cores, at most 2)",
+    )
     a = ap.parse_args(argv)
+    workers = a.workers if a.workers is not None else min(2, os.cpu_count() or 1)
+    if workers < 1:
+        raise UserError(f"--workers {a.workers}: allowed: a whole number >= 1")
     t0, t1 = _number("--from", a.t_from), _number("--to", a.t_to)
     if t1 < t0:
         raise UserError(f"--to {a.t_to}: before --from {a.t_from}")
@@ -91,6 +102,7 @@ def _main(argv, prog: str) -> int:
             fmu=fmu or str(artifacts.fmu()),
             other_fmu=a.other_fmu,
             password=password,
+            workers=workers,
         )
     except QueryError as e:
         raise RunFailed(str(e)) from None
