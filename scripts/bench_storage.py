@@ -116,6 +116,7 @@ def recompute(db: pathlib.Path, machine: str, t_end: float, workers: int) -> Non
 
     t0 = max(0.0, t_end - 3600.0)
     c0 = resource.getrusage(resource.RUSAGE_SELF)
+    k0 = resource.getrusage(resource.RUSAGE_CHILDREN)  # the replay's process is one already
     w0 = time.monotonic()
     n = 0
     for seq, _rows in recompute_chunks(str(db), "bench", t0, t_end, fmu=FMU, workers=workers):
@@ -124,15 +125,11 @@ def recompute(db: pathlib.Path, machine: str, t_end: float, workers: int) -> Non
     c1 = resource.getrusage(resource.RUSAGE_SELF)
     k1 = resource.getrusage(resource.RUSAGE_CHILDREN)  # the workers, once ended
     cpu = c1.ru_utime + c1.ru_stime - c0.ru_utime - c0.ru_stime
-    cpu += k1.ru_utime + k1.ru_stime - CHILDREN[0]
-    CHILDREN[0] = k1.ru_utime + k1.ru_stime
+    cpu += k1.ru_utime + k1.ru_stime - k0.ru_utime - k0.ru_stime
     print(
         f"query  {machine}: {n} samples ({t_end - t0:.0f} s of data) recomputed by {workers} "
         f"process(es) in {wall:.1f} s wall, {cpu:.1f} s CPU"
     )
-
-
-CHILDREN = [0.0]  # CPU seconds of the ended worker processes counted so far
 
 
 def main() -> None:

@@ -71,8 +71,9 @@ def _feed(twin: Twin, lines: list[str], first_lineno: int) -> tuple[np.ndarray, 
     try:
         rows, _ = twin.feed(lines, first_lineno)
         return rows, False
-    except DataError as e:
-        return (e.rows if e.rows is not None else twin._empty()), True
+    except (DataError, FmuError) as e:
+        rows = getattr(e, "rows", None)
+        return (rows if rows is not None else twin._empty()), True
 
 
 def run_info(db: Database, run: str) -> dict:
@@ -237,10 +238,10 @@ def recompute_chunks(
 
 
 def _parallel(target, run, t_from, t_to, workers, fmu, other_fmu, password):
-    """The range cut just after the snapshots inside it (a snapshot at t follows the row at t,
-    so a stretch from the next double after t starts from it with no lead-in), each stretch in
-    a process of its own, yielded in order (each written to a temporary file: a stretch of five
-    minutes at 1 kHz is about 65 MB)."""
+    """The range cut just after snapshots inside it (a snapshot at t follows the row at t, so a
+    stretch from the next double after t starts from it with no lead-in), each stretch in
+    a process of its own, yielded in order (each written to a temporary file as it is computed:
+    half an hour at 1 kHz is about 400 MB)."""
     import concurrent.futures
     import multiprocessing
     import os
@@ -256,6 +257,10 @@ def _parallel(target, run, t_from, t_to, workers, fmu, other_fmu, password):
         )
     ]
     kw = {"fmu": fmu, "other_fmu": other_fmu, "password": password}
+    # One stretch per worker: the snapshots nearest to equal parts (each stretch loads the FMU
+    # and hands its rows over through a file, so fewer is cheaper).
+    even = [t_from + k * (t_to - t_from) / workers for k in range(1, workers)]
+    cuts = sorted({min(cuts, key=lambda c, e=e: abs(c - e)) for e in even}) if cuts else []
     if not cuts:
         yield from recompute_chunks(db, run, t_from, t_to, **kw)
         return
@@ -272,12 +277,13 @@ def _parallel(target, run, t_from, t_to, workers, fmu, other_fmu, password):
             for f in futures:
                 path = f.result()
                 try:
-                    with np.load(path) as d:
-                        seq, rows = d["seq"], d["rows"]
+                    with open(path, "rb") as fh:
+                        end = os.fstat(fh.fileno()).st_size
+                        while fh.tell() < end:
+                            seq = np.load(fh)
+                            yield seq, np.load(fh)
                 finally:
                     os.unlink(path)
-                if len(seq):
-                    yield seq, rows
         finally:
             for f in futures:
                 f.cancel()
@@ -292,14 +298,12 @@ def _stretch(target, run, a, b, open_end, kw) -> str:
     import os
     import tempfile
 
-    seqs, parts = [np.empty(0, dtype=np.int64)], []
-    for s, r in recompute_chunks(target, run, a, b, open_end=open_end, **kw):
-        seqs.append(s)
-        parts.append(r)
-    fd, path = tempfile.mkstemp(prefix="twin-query-", suffix=".npz")
-    os.close(fd)
-    rows = np.concatenate(parts) if parts else np.empty((0, 0))
-    np.savez(path, seq=np.concatenate(seqs), rows=rows)
+    fd, path = tempfile.mkstemp(prefix="twin-query-", suffix=".npy")
+    # The rows as they come, array after array (bounded memory; the parent reads them in turn).
+    with os.fdopen(fd, "wb") as f:
+        for s, r in recompute_chunks(target, run, a, b, open_end=open_end, **kw):
+            np.save(f, s)
+            np.save(f, r)
     return path
 
 
