@@ -518,3 +518,32 @@ def test_a_range_recomputed_by_two_processes_is_the_same(tmp_path, long_sample, 
     assert np.array_equal(pu.bits(got), pu.bits(_slice(ref, 3.0, 30.0)))
     p = _query_cli(db, "r1", 3.0, 30.0, tmp_path / "w.parquet", "--workers", "2")
     assert p.returncode == 0, p.stderr
+
+
+def test_plant_status_shows_size_bytes_per_sample_and_days_until_full(tmp_path):
+    """`rdrive plant --status`: the database's size and samples, bytes a sample (its file size
+    over the checkpoint's samples), and the days until its disk is full at the input's rate."""
+    import shutil
+
+    cfg, db = _config(tmp_path, pu.SAMPLE, pace=0.0)
+    assert pu.run(cfg).returncode == 0
+    size = db.stat().st_size  # the run's end emptied its write-ahead log into the file
+    p = subprocess.run(
+        [sys.executable, str(pu.SCRIPT), "--status", "--config", str(cfg)],
+        env=pu.env(),
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert p.returncode == 0, p.stderr
+    first, second = p.stdout.splitlines()[:2]
+    n = len(pu.samples(str(db)))
+    assert f"{size / 1e6:.1f} MB, {n} samples in 1 run(s), {size / n:.1f} bytes a sample" in first
+    rate = float(second.split(" samples/s")[0].split()[-1])
+    assert 950 < rate < 1000, second  # the shipped sample: 11 801 samples in 12 s
+    free = shutil.disk_usage(tmp_path).free / 1e9
+    said = float(second.split(" GB free")[0].split()[-1])
+    day = float(second.split(" GB a day")[0].split()[-1])
+    days = float(second.split("full in ")[1].split()[0])
+    assert abs(said - free) < 1.0 and day > 0, second
+    assert abs(days - said / day) <= max(1.0, 0.05 * days), second

@@ -406,7 +406,8 @@ def status(target, password: str | None = None) -> list[str]:
         free = None
     else:
         p = pathlib.Path(str(target))
-        size = sum(q.stat().st_size for q in p.parent.glob(p.name + "*") if q.is_file())
+        # The file and its write-ahead log (the -shm index is a reader's scratch).
+        size = sum(q.stat().st_size for q in (p, p.with_name(p.name + "-wal")) if q.is_file())
         free = shutil.disk_usage(p.parent).free
     runs, samples = db.ex("SELECT COUNT(*), COALESCE(SUM(samples), 0) FROM checkpoints").fetchone()
     held = db.ex("SELECT COUNT(*) FROM samples").fetchone()[0]
