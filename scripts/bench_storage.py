@@ -41,7 +41,9 @@ def blocks() -> None:
     t = np.array([float(x.split(",")[0]) for x in body])
     a = np.array([float(x.split(",")[1]) for x in body])
     opc = sample_lines(t, a)
-    for name, lines in (("CSV file", body), ("OPC UA (repr)", opc)):
+    # The demo's process force: a 7 Hz ripple of doubles, noise in every one of its 17 digits.
+    force = sample_lines(t, a, None, 2000.0 + 10.0 * np.sin(2 * np.pi * 7.0 * t))
+    for name, lines in (("CSV file", body), ("OPC UA (repr)", opc), ("OPC UA + force", force)):
         for n in (2000, 20000):
             size = cnt = 0
             for i in range(0, len(lines), n):
