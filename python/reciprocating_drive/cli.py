@@ -3,6 +3,7 @@
     rdrive run [PRESET]          the main job: simulate a machine over whole revolutions
     rdrive twin ...              the digital twin (measured crank data in, loads out)
     rdrive plant --config F      the twin in a plant (OPC UA, SQLite/PostgreSQL, live page)
+    rdrive twin-query ...        a range of a plant run's outputs, recomputed from its input
     rdrive plc-sim ...           a simulated pump PLC (OPC UA server) for demos and tests
     rdrive sweep STUDY ...       a design sweep on Dask
     rdrive closed-loop ...       the pump and its drive train in one system
@@ -30,6 +31,10 @@ COMMANDS = {
     "run": ("simulate", "the main job: simulate a machine over whole crank revolutions"),
     "twin": ("twin", "the digital twin: measured crank data in, the FMU's loads out"),
     "plant": ("twin_plant", "the twin in a plant: a configuration file (OPC UA, databases, page)"),
+    "twin-query": (
+        "twin_query",
+        "a range of a plant run's outputs, recomputed bit for bit from its stored input",
+    ),
     "plc-sim": ("plc_sim", "a simulated pump PLC: an OPC UA server playing crank data"),
     "sweep": ("sweep", "a design sweep on Dask (a local cluster, or --scheduler)"),
     "closed-loop": ("closed_loop", "the pump and its drive train in one SSP system"),

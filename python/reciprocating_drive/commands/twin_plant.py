@@ -72,7 +72,17 @@ def _main(argv, prog: str) -> int:
         help="with --demo: the PLC plays N stop/start cycles (ramp down, rollback, dither, "
         "standstill, ramp up; 22 s each) instead of the sample",
     )
+    ap.add_argument(
+        "--status",
+        action="store_true",
+        help="with --config: each database's size, bytes per sample, and days until its disk is "
+        'full at the current rate (docs/plant.md "Retention")',
+    )
     a = ap.parse_args(argv)
+    if a.status:
+        if not a.config:
+            raise UserError("--status: only with --config (the databases it names)")
+        return _status(a.config)
     if a.stop_cycle is not None and (a.stop_cycle < 1 or not a.demo):
         raise UserError(f"--stop-cycle {a.stop_cycle}: a whole number >= 1, with --demo")
     if a.seconds is not None:
@@ -87,6 +97,25 @@ def _main(argv, prog: str) -> int:
     from ..plant.pipeline import run_config
 
     return run_config(a.config)
+
+
+def _status(path: str) -> int:
+    from ..plant.config import ConfigError, load
+    from ..plant.query import QueryError, status
+
+    try:
+        cfg = load(path)
+    except ConfigError as e:
+        raise UserError(str(e)) from None
+    for s in cfg.sinks:
+        if s.type == "csv":
+            continue
+        try:
+            for line in status(s.settings.get("path") or s.settings["dsn"], s.password):
+                print(line)
+        except QueryError as e:
+            print(e)
+    return 0
 
 
 if __name__ == "__main__":

@@ -74,6 +74,12 @@ def main(argv=None) -> int:
             a.host, a.port, token, a.database, a.run, limits, a.title, on_alarm=log_alarm
         )
         page.follows = True
+        if a.run:
+            # The range form recomputes from the run's stored input (docs/plant.md "Recomputing a
+            # range"); this command is the one place of the page that knows the plant's storage.
+            from ..plant.query import page_recompute
+
+            page.recompute = page_recompute(a.database, a.run)
         warmup = max((t.recent + t.reference for t in limits.trends), default=0.0) if limits else 0
         follower = Follower(a.database, page, a.run, warmup)
         page.start()

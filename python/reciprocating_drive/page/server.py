@@ -191,6 +191,10 @@ class PageServer:
             )
         self.host, self.port, self.token = host, port, token
         self.database, self.run = database, run
+        #: Writes the outputs of a time range, recomputed, to a CSV file: `recompute(t0, t1, path)`,
+        #: raising RangeUnavailable (one line) when it cannot; set by whoever knows the run's
+        #: stored input (the plant, docs/plant.md "Recomputing a range"). None: no range form.
+        self.recompute = None
         self.limits = limits
         self.engine = AlarmEngine(limits) if limits is not None else None
         self.on_alarm = on_alarm
@@ -548,6 +552,7 @@ class PageServer:
                 (r"/login", _Login, args),
                 (r"/api/state", _StateApi, args),
                 (r"/api/trend", _TrendApi, args),
+                (r"/api/range", _RangeApi, args),
                 (r"/stream", _Stream, args),
                 (r"/favicon.ico", _NoIcon, args),
                 (r"/static/(.*)", _Static, {"path": str(STATIC), "page": self}),
@@ -673,6 +678,54 @@ class _TrendApi(_Base):
         data = {k: [_clean(v) for v in vals] for k, vals in data.items()}
         self.set_header("Content-Type", "application/json")
         self.finish(json.dumps({"source": source, "window": window, **data}, allow_nan=False))
+
+
+class RangeUnavailable(RuntimeError):
+    """A range the page's `recompute` cannot give (one line: the run, the range, why)."""
+
+
+class _RangeApi(_Base):
+    """Every output of a time range at full resolution, recomputed from the run's stored input
+    (docs/plant.md "Recomputing a range"), as CSV: `?from=T0&to=T1` in s of the run's time, at
+    most RANGE_MAX s (a response of tens of MB)."""
+
+    RANGE_MAX = 60.0
+
+    async def get(self):
+        try:
+            t0 = float(self.get_query_argument("from"))
+            t1 = float(self.get_query_argument("to"))
+            if not (math.isfinite(t0) and math.isfinite(t1) and 0 <= t1 - t0 <= self.RANGE_MAX):
+                raise ValueError
+        except (ValueError, tornado.web.MissingArgumentError):
+            self.set_status(400)
+            self.finish(
+                f"400: from and to must be seconds of the run, to - from in [0, {self.RANGE_MAX:g}]\n"
+            )
+            return
+        if self.page.recompute is None:
+            self.set_status(404)
+            self.finish("404: this page has no database to recompute from\n")
+            return
+
+        def make():
+            import tempfile
+
+            with tempfile.NamedTemporaryFile(suffix=".csv") as f:
+                self.page.recompute(t0, t1, f.name)
+                return open(f.name, "rb").read()
+
+        try:
+            body = await asyncio.wrap_future(self.page._reader.submit(make))
+        except RangeUnavailable as e:
+            self.set_status(404)
+            self.finish(f"404: {e}\n")
+            return
+        self.set_header("Content-Type", "text/csv; charset=utf-8")
+        self.set_header(
+            "Content-Disposition", f'attachment; filename="{self.page.run}-{t0:g}-{t1:g}.csv"'
+        )
+        self.finish(body)
 
 
 class _Stream(_Base):

@@ -115,6 +115,7 @@ class Config:
     commit_samples: int = 20000
     checkpoint_interval: float = 2.0
     page: dict | None = None  # the [page] table (docs/page.md), checked when the page is made
+    snapshot_interval: float = 300.0  # s of input between stored snapshots (docs/plant.md)
 
 
 def _secret(t: _Table, what: str) -> str | None:
@@ -187,6 +188,7 @@ def parse(data: dict, path: str = "<config>") -> Config:
     commit_samples = run.get(
         "commit_samples", int, 20000, "must be an integer >= 1", lambda v: v >= 1
     )
+    snapshot_interval = run.positive("snapshot_interval", 300.0)
     run.done()
 
     src = _Table(path, "source", data.get("source", {}))
@@ -259,6 +261,20 @@ def parse(data: dict, path: str = "<config>") -> Config:
             "retry_max": s.positive("retry_max", 5.0),
             "notice_interval": s.positive("notice_interval", 30.0),
         }
+        if stype_ != "csv":
+            # Retention (docs/plant.md "Retention"): seconds, or "all" (kept for ever).
+            for key, default in (("keep_samples", 3600.0), ("keep_input", "all")):
+                v = s.get(
+                    key,
+                    (str, int, float),
+                    default,
+                    'allowed: "all" or a number of seconds > 0',
+                    lambda v: (
+                        v == "all"
+                        or (not isinstance(v, (str, bool)) and math.isfinite(v) and v > 0)
+                    ),
+                )
+                common[key] = None if v == "all" else float(v)
         pw = None
         if stype_ == "sqlite":
             settings_ = {"path": _path(path, s.get("path", str, allowed="the database file"))}
@@ -291,6 +307,7 @@ def parse(data: dict, path: str = "<config>") -> Config:
         commit_samples,
         checkpoint_interval,
         data.get("page"),
+        snapshot_interval,
     )
 
 

@@ -27,7 +27,7 @@ from ..cli_errors import one_line
 from ..fmu.instance import FmuError
 from ..twin.core import DataError, Options, Twin
 from .config import Config, ConfigError, load
-from .samples import Event
+from .samples import Event, input_lines
 from .sinks.base import Counters, RunInfo, SinkError
 from .sources.base import SourceError
 
@@ -57,6 +57,10 @@ def make_sinks(cfg: Config) -> list:
         common = {
             k: s.settings[k] for k in ("samples", "retry_for", "retry_max", "notice_interval")
         }
+        if s.type != "csv":
+            common.update(
+                keep_samples=s.settings["keep_samples"], keep_input=s.settings["keep_input"]
+            )
         if s.type == "sqlite":
             from .sinks.sqlite import SqliteSink
 
@@ -90,7 +94,7 @@ def make_page(cfg: Config, on_alarm):
 
     sqlite = next((s for s in cfg.sinks if s.type == "sqlite"), None)
     try:
-        return page_from_table(
+        page = page_from_table(
             cfg.page,
             cfg.path,
             base=pathlib.Path(cfg.path).resolve().parent,
@@ -100,6 +104,11 @@ def make_page(cfg: Config, on_alarm):
         )
     except PageError as e:  # a bad [page] table or limits file: a configuration error (exit 2)
         raise ConfigError(str(e)) from None
+    if sqlite:
+        from .query import page_recompute
+
+        page.recompute = page_recompute(sqlite.settings["path"], cfg.run_id)
+    return page
 
 
 def _make_twin(cfg: Config, opts: dict) -> Twin:
@@ -152,6 +161,10 @@ class Pipeline:
                 self.page_origin = origin
                 self.page.clock(origin)
             self.page.add(rows, first, summaries, self.c.revolutions, events)
+        if len(rows):
+            self.last_row_t = float(rows[-1, 0])
+            if self.block_t0 is None:  # the run's first block: from its first sample's time
+                self.block_t0 = float(rows[0, 0])
         self.c.samples = self.twin.rows_out
         self.c.revolutions += len(summaries)
         if summaries:
@@ -218,9 +231,13 @@ class Pipeline:
             }
             if self.page is not None and self.page.engine is not None:
                 state["alarms"] = self.page.engine.checkpoint()
+            state["last_row_t"] = self.last_row_t
             self.last_checkpoint = time.monotonic()
             self.lines_since_checkpoint = 0
+            self._store_input(state["twin"])
+        origin = self.source_origin()
         for s in self.sinks:
+            s.batch.origin = origin  # stored at once: a restart reads the history from it
             s.commit(state, self.c, status)
         if status is not None:
             for s in self.sinks:
@@ -229,6 +246,41 @@ class Pipeline:
         self.dirty = False
         self.last_commit = time.monotonic()
         self.lines_since = 0
+
+    def _store_input(self, twin_state: dict) -> None:
+        """The input lines consumed since the last checkpoint, as a block that commits with it,
+        and a snapshot of the twin every `snapshot_interval` s of input time (docs/plant.md
+        "Storage"): what a recomputation of any range starts from."""
+        tw = self.twin
+        t_in = tw.last_t
+        if self.last_snap_t is None:
+            self.last_snap_t = t_in
+        elif t_in is not None and t_in - self.last_snap_t >= self.cfg.snapshot_interval:
+            self.snaps.append((tw.lines_read, tw.rows_out, self.last_row_t, t_in, twin_state))
+            self.last_snap_t = t_in
+        self.c.lines = tw.lines_read
+        for s in self.sinks:
+            s.add_input(self.block_first, self.block_lines, self.block_t0, t_in, self.snaps)
+        self.block_first, self.block_lines = tw.lines_read + 1, []
+        self.block_t0, self.snaps = t_in, []
+
+    def _check_input(self) -> list[str]:
+        """The stored input's blocks checked at resume (docs/plant.md "Storage"): a damaged one
+        is named with its lines and times; the run goes on (only that range cannot be
+        recomputed)."""
+        from .query import Database, QueryError, check_blocks
+
+        out = []
+        for sc in self.cfg.sinks:
+            if sc.type == "csv":
+                continue
+            try:
+                db = Database(sc.settings.get("path") or sc.settings["dsn"], sc.password)
+                out += check_blocks(db, self.cfg.run_id)
+                db.conn.close()
+            except QueryError as e:
+                out.append(str(e))
+        return out
 
     def source_origin(self):
         """Unix seconds of the twin's time 0: the source's clock (OPC UA), or the input's ISO 8601
@@ -289,6 +341,7 @@ class Pipeline:
             cfg.options,
             cfg.source.public(),
             header=twin.header_with_units(),
+            fmu_guid=twin.fmu.model_description.guid,
         )
         states = [s.open(info) for s in self.sinks]
         have = [st for st in states if st is not None]
@@ -318,26 +371,44 @@ class Pipeline:
                     "or name a new run"
                 ) from None
             c = state["counters"]
-            self.c = Counters(c["samples"], c["revolutions"], c["events"], 0, c.get("rev_upto"))
+            self.c = Counters(
+                c["samples"], c["revolutions"], c["events"], 0, c.get("rev_upto"), twin.lines_read
+            )
             self.dups_seen = state.get("duplicates_reported", 0)
+            # Several sinks: those ahead go back to the checkpoint that covers least, so that
+            # all hold the same events, numbered alike (docs/plant.md "Exactly once").
+            key = ("samples", "revolutions", "events")
+            for s, st in zip(self.sinks, states):
+                if st is not None and any(st["counters"][k] != c[k] for k in key):
+                    s.rewind(state)
         self.twin = twin
+        self.last_row_t = state.get("last_row_t") if state else None
+        # The stored input (docs/plant.md "Storage"): a fresh run's first snapshot is the twin
+        # before any line, so that every range can be recomputed.
+        self.snaps = [] if state else [(0, 0, None, None, twin.checkpoint())]
+        self.last_snap_t = twin.last_t
+        self.block_first, self.block_lines, self.block_t0 = twin.lines_read + 1, [], twin.last_t
+        # A run without a checkpoint whose time origin is stored (killed before its first
+        # checkpoint): an OPC UA source reads the server's history from the run's first sample.
+        origin = state.get("time_origin") if state else None
+        if state is None:
+            origin = next(
+                (s.stored_origin for s in self.sinks if s.stored_origin is not None), None
+            )
         self.gaps_seen, self.short_seen = len(twin.gaps), len(twin.short_dropped)
         self.motion_seen = twin.motion_count
         self.sparse_seen = len(twin.sparse) - twin.sparse_open
         self.last_gap = tuple(twin.gaps[-1]) if twin.gaps else None
         self.gap_count = state.get("gaps_reported", 0) if state else 0
         resumed = state is not None
-        self.source.start(
-            lines_read=twin.lines_read,
-            last_t=twin.last_t,
-            time_origin=state.get("time_origin") if state else None,
-        )
+        self.source.start(lines_read=twin.lines_read, last_t=twin.last_t, time_origin=origin)
         if self.page is not None:
             if state is not None and "alarms" in state and self.page.engine is not None:
                 self.page.engine.restore(state["alarms"])
             self.page_origin = self.source_origin()
             kind = twin.values.get("rod.kind", twin.fmu.variables["rod.kind"].start)
             self.page.open(twin.outputs, self.page_origin, elastic=int(float(kind)) != 0)
+        damaged = self._check_input() if resumed else []
         self._event(
             Event(
                 "resumed" if resumed else "started",
@@ -345,6 +416,9 @@ class Pipeline:
                 f"{cfg.machine_id!r} at input line {twin.lines_read}",
             )
         )
+        for msg in damaged:
+            self.log(msg)
+            self._event(Event("damaged_input", msg))
         self.dirty = True
         self.last_commit = self.last_checkpoint = time.monotonic()
         self.lines_since = self.lines_since_checkpoint = 0
@@ -379,6 +453,14 @@ class Pipeline:
                     if chunk.events:
                         self.dirty = True
                     if chunk.lines or chunk.samples is not None:
+                        # Consumed: the stored input (docs/plant.md "Storage"). A source of
+                        # numbers is stored as the CSV form it stands for (repr reads back to the
+                        # same double), its header first when these are the run's first samples.
+                        self.block_lines.extend(
+                            chunk.lines
+                            if chunk.samples is None
+                            else input_lines(chunk.samples, header=twin.cols is None)
+                        )
                         had_origin = twin.time_origin is not None
                         try:
                             if chunk.samples is None:

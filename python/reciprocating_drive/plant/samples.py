@@ -59,3 +59,19 @@ def sample_lines(t, angle, speed=None, force=None) -> list[str]:
         ",".join([repr(float(t[i])), repr(float(angle[i]))] + [_num(c[i]) for c in cols[2:]])
         for i in range(len(t))
     ]
+
+
+def input_lines(samples: Samples, header: bool) -> list[str]:
+    """The CSV form of `samples` as `sample_lines` writes it (the columns `samples.names()`, with
+    their header first when `header`): how the stored input (docs/plant.md "Storage") keeps the
+    samples of a source of numbers, read back by the twin to the same doubles."""
+    names = samples.names()
+    cols = [samples.columns[n] for n in names]
+    out = [",".join(names)] if header else []
+    out += [
+        ",".join(
+            [repr(float(cols[0][i])), repr(float(cols[1][i]))] + [_num(c[i]) for c in cols[2:]]
+        )
+        for i in range(len(samples))
+    ]
+    return out

@@ -1,12 +1,14 @@
 """The database schema of the twin's sinks (docs/plant.md, "Schema"), for SQLite and PostgreSQL.
 
-Version 2 (version 1 had no `interrupted` column in `revolutions`). Every table is keyed by the run
-(an integer, `runs.run`); a run has a name (the configuration's `run.id`, unique) and a machine
-identifier. Per-sample and per-revolution rows have primary keys (run, seq) and (run, revolution),
-so a row can never be stored twice: a bug that tried would fail its transaction instead of
-duplicating data. The time index (run, t) serves the queries plants make ("this machine, this
-hour"). Times `t` are seconds from the run's `time_origin` (Unix seconds), the twin's own time;
-wall-clock times are Unix seconds.
+Version 3 (version 2 had no input blocks, snapshots, `runs.fmu_guid` and the checkpoint's checksum
+and first rows; version 1 no `interrupted` column in `revolutions`). A version 2 database is
+migrated when a twin opens it (`migrate`: columns and tables added, nothing removed). Every table
+is keyed by the run (an integer, `runs.run`); a run has a name (the configuration's `run.id`,
+unique) and a machine identifier. Per-sample and per-revolution rows have primary keys (run, seq)
+and (run, revolution), so a row can never be stored twice: a bug that tried would fail its
+transaction instead of duplicating data. The time index (run, t) serves the queries plants make
+("this machine, this hour"). Times `t` are seconds from the run's `time_origin` (Unix seconds), the
+twin's own time; wall-clock times are Unix seconds.
 
 Layer: workflows, the plant (docs/architecture.md).
 """
@@ -15,7 +17,7 @@ from __future__ import annotations
 
 from ..twin.core import SUMMARY_FIELDS
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 
 def column(output: str) -> str:
@@ -50,7 +52,8 @@ def ddl(dialect: str, outputs: list[str]) -> list[str]:
   time_origin {real},
   started_at {real} NOT NULL,
   finished_at {real},
-  status TEXT NOT NULL
+  status TEXT NOT NULL,
+  fmu_guid TEXT
 )""",
         f"""CREATE TABLE IF NOT EXISTS samples (
   run {big} NOT NULL REFERENCES runs(run),
@@ -85,8 +88,63 @@ def ddl(dialect: str, outputs: list[str]) -> list[str]:
   revolutions {big} NOT NULL,
   events {big} NOT NULL,
   wall_time {real} NOT NULL,
-  state TEXT NOT NULL
+  state TEXT NOT NULL,
+  checksum TEXT,
+  samples_from {big},
+  revolutions_from {big},
+  events_from {big}
 )""",
+        *storage_ddl(dialect),
+    ]
+
+
+def storage_ddl(dialect: str) -> list[str]:
+    """The tables of the stored input (docs/plant.md "Storage"): blocks of input lines (lines
+    first_line..last_line, input times t_first..t_last) and snapshots of the twin (at input line
+    `lines`, `samples` rows handed out, the last of them at time `t`)."""
+    real = "DOUBLE PRECISION" if dialect == "postgres" else "REAL"
+    big = "BIGINT" if dialect == "postgres" else "INTEGER"
+    blob = "BYTEA" if dialect == "postgres" else "BLOB"
+    return [
+        f"""CREATE TABLE IF NOT EXISTS input_blocks (
+  run {big} NOT NULL REFERENCES runs(run),
+  first_line {big} NOT NULL,
+  last_line {big} NOT NULL,
+  t_first {real},
+  t_last {real},
+  codec TEXT NOT NULL,
+  checksum TEXT NOT NULL,
+  data {blob} NOT NULL,
+  PRIMARY KEY (run, first_line)
+)""",
+        f"""CREATE TABLE IF NOT EXISTS snapshots (
+  run {big} NOT NULL REFERENCES runs(run),
+  lines {big} NOT NULL,
+  samples {big} NOT NULL,
+  t {real},
+  t_input {real},
+  checksum TEXT NOT NULL,
+  state {blob} NOT NULL,
+  PRIMARY KEY (run, lines)
+)""",
+    ]
+
+
+def migrate(dialect: str, version: int) -> list[str] | None:
+    """The statements that bring a database of schema `version` to SCHEMA_VERSION, or None if
+    it cannot be migrated. 2 -> 3 adds columns and tables: the runs of version 2 keep their rows;
+    their input was not kept, so their ranges cannot be recomputed."""
+    if version != 2:
+        return None
+    big = "BIGINT" if dialect == "postgres" else "INTEGER"
+    return [
+        "ALTER TABLE runs ADD COLUMN fmu_guid TEXT",
+        "ALTER TABLE checkpoints ADD COLUMN checksum TEXT",
+        f"ALTER TABLE checkpoints ADD COLUMN samples_from {big}",
+        f"ALTER TABLE checkpoints ADD COLUMN revolutions_from {big}",
+        f"ALTER TABLE checkpoints ADD COLUMN events_from {big}",
+        *storage_ddl(dialect),
+        f"UPDATE schema_info SET version = {SCHEMA_VERSION}",
     ]
 
 
@@ -104,15 +162,15 @@ def upsert_checkpoint(ph: str, rows_only: bool) -> str:
     """The checkpoint's row of a run, in the same transaction as the rows it covers (docs/plant.md
     "Exactly once"). `rows_only`: a commit without a new checkpoint moves only the commit number
     (to settle a COMMIT of unknown outcome); parameters (run, commits, wall_time). Otherwise
-    (run, commits, samples, revolutions, events, wall_time, state)."""
-    cols = "run, commits, samples, revolutions, events, wall_time, state"
+    (run, commits, samples, revolutions, events, wall_time, state, checksum)."""
+    cols = "run, commits, samples, revolutions, events, wall_time, state, checksum"
     if rows_only:
         return (
-            f"INSERT INTO checkpoints ({cols}) VALUES ({ph}, {ph}, 0, 0, 0, {ph}, '') "
+            f"INSERT INTO checkpoints ({cols}) VALUES ({ph}, {ph}, 0, 0, 0, {ph}, '', NULL) "
             "ON CONFLICT (run) DO UPDATE SET commits = excluded.commits"
         )
     update = ", ".join(f"{c} = excluded.{c}" for c in cols.split(", ")[1:])
     return (
-        f"INSERT INTO checkpoints ({cols}) VALUES ({', '.join([ph] * 7)}) "
+        f"INSERT INTO checkpoints ({cols}) VALUES ({', '.join([ph] * 8)}) "
         f"ON CONFLICT (run) DO UPDATE SET {update}"
     )

@@ -54,6 +54,7 @@ class RunInfo:
     source: dict  # the source's settings without secrets
     time_origin: float | None = None
     header: list[str] | None = None  # `time` and the outputs as `name [unit]` (the CSV sink's)
+    fmu_guid: str | None = None  # the FMU's guid (a recomputation uses the same FMU)
 
 
 @dataclass
@@ -67,6 +68,7 @@ class Counters:
     events: int = 0
     commits: int = 0
     rev_upto: int | None = None
+    lines: int = 0  # input lines consumed (where the stored input ends)
 
 
 @dataclass
@@ -74,6 +76,13 @@ class _Batch:
     rows: list = field(default_factory=list)  # (first seq, 2-D array) pieces
     summaries: list = field(default_factory=list)  # (index, dict)
     events: list = field(default_factory=list)  # (seq, wall time, Event)
+    # The stored input (docs/plant.md "Storage"): (first line, lines, t_first, t_last) and the
+    # twin's snapshots (lines, samples, t of the last row, t of the last input, state dict).
+    blocks: list = field(default_factory=list)
+    snapshots: list = field(default_factory=list)
+    origin: float | None = None  # the run's time origin, once known (stored at once)
+    first: dict = field(default_factory=dict)  # the first sample seq, revolution, event given
+    rewind: dict | None = None  # the state to go back to (several sinks, docs/plant.md)
 
 
 class Sink:
@@ -91,8 +100,14 @@ class Sink:
         retry_max: float = 5.0,
         depth: int = 2,
         notice_interval: float = 30.0,
+        keep_samples: float | None = None,
+        keep_input: float | None = None,
     ):
         self.samples = samples
+        # Retention (docs/plant.md "Retention"): seconds of the twin's time; None keeps all.
+        self.keep_samples, self.keep_input = keep_samples, keep_input
+        self.stored_origin = None  # the run's time origin as the database holds it
+        self.run_status = "running"
         self.retry_for, self.retry_max = retry_for, retry_max
         self.notice_interval = notice_interval
         self.log = lambda m: print(m, file=sys.stderr, flush=True)  # set by the pipeline
@@ -144,23 +159,57 @@ class Sink:
                 keep &= seq % int(self.samples) == 0
             if keep.all():
                 b.rows.append((first_seq, rows))
+                b.first.setdefault("samples", first_seq)
             elif keep.any():
                 # Decimated or partly held already: the kept rows with their own seq.
                 b.rows.append((seq[keep], rows[keep]))
+                b.first.setdefault("samples", int(seq[keep][0]))
         for i, s in enumerate(summaries):
             if first_rev + i >= self.skip.revolutions:
                 b.summaries.append(s)
+                b.first.setdefault("revolutions", first_rev + i)
         for seq, wall, ev in events:
             if seq >= self.skip.events:
                 b.events.append((seq, wall, ev))
+                b.first.setdefault("events", seq)
+
+    def add_input(self, first_line: int, lines: list, t_first, t_last, snapshots: list) -> None:
+        """The input lines first_line, ... consumed since the last checkpoint and the twin's
+        snapshots due; what this database holds already is skipped."""
+        have = self.skip.lines
+        if lines and first_line + len(lines) - 1 > have:
+            cut = max(0, have + 1 - first_line)
+            self.batch.blocks.append((first_line + cut, lines[cut:], t_first, t_last))
+        for snap in snapshots:
+            if snap[0] >= have:
+                self.batch.snapshots.append(snap)
+
+    def rewind(self, state: dict) -> None:
+        """Back to `state`, a checkpoint that covers less than this sink's own: several sinks
+        resume from the one that covers least, and every sink drops what lies beyond it and
+        stores it again, so all hold the same rows and events, numbered alike."""
+        # The input this sink holds already stays (the same lines come again; blocks end at
+        # checkpoints, which differ between sinks).
+        lines = max(self.done.lines, state["counters"].get("lines", 0))
+        self.skip = Counters(**{**state["counters"], "lines": lines})
+        self.done = Counters(**self.skip.__dict__)
+        self.batch.rewind = {**state, "counters": self.skip.__dict__}
+        self.commit({k: v for k, v in state.items() if k not in ("counters", "status")}, self.skip)
 
     def commit(self, state: dict | None, c: Counters, status: str | None = None) -> None:
         """Hands the batch and the checkpoint `state` (None: rows only) to the writer thread, which
         writes them in one transaction (retried, bounded). Raises the writer's failure, if any."""
         self._check()
         self.commits += 1
-        c = Counters(c.samples, c.revolutions, c.events, self.commits, c.rev_upto)
-        text = None if state is None else json.dumps({**state, "counters": c.__dict__})
+        c = Counters(c.samples, c.revolutions, c.events, self.commits, c.rev_upto, c.lines)
+        if status is not None:
+            self.run_status = status
+        # The run's status is in the checkpoint too: runs.status edited by hand is found.
+        text = (
+            None
+            if state is None
+            else json.dumps({**state, "counters": c.__dict__, "run_status": self.run_status})
+        )
         batch, self.batch = self.batch, _Batch()
         while True:
             try:
@@ -298,11 +347,13 @@ def parse_state(text, where: str, run: str) -> dict:
             f"{where}: the checkpoint of run {run!r} is not JSON ({one_line(e, 80)}); {fix}"
         ) from None
     c = state.get("counters") if isinstance(state, dict) else None
-    ints = ("samples", "revolutions", "events", "commits")
+    ints = ("samples", "revolutions", "events", "commits", "lines")
     bad = None
     if not isinstance(c, dict):
         bad = "it has no counters"
-    elif set(c) - {*ints, "rev_upto"} or any(type(c.get(k)) is not int or c[k] < 0 for k in ints):
+    elif set(c) - {*ints, "rev_upto"} or any(
+        type(c.get(k, 0)) is not int or c.get(k, 0) < 0 for k in ints
+    ):
         bad = f"its counters {one_line(c, 120)} are not {', '.join(ints)} (integers >= 0)"
     elif c.get("rev_upto") is not None and type(c["rev_upto"]) is not int:
         bad = f"its counter rev_upto = {c['rev_upto']!r} is not an integer"
@@ -330,3 +381,116 @@ def uncovered(state: dict | None, run: int) -> list:
 
 def new_event(seq: int, ev: Event) -> tuple:
     return (seq, time.time(), ev)
+
+
+# ---- the stored input and the checks at resume, the same SQL for SQLite and PostgreSQL ----------
+# `ex(sql, args)` runs a statement with ? marks in the open transaction and returns its cursor.
+
+
+def write_storage(ex, sink: Sink, run: int, batch: _Batch, state: str | None, c: Counters) -> None:
+    """In the commit's transaction (docs/plant.md "Storage"): the input blocks and snapshots, the
+    first rows this database holds, and with a checkpoint the retention's deletions."""
+    from ..storage import checksum, encode_lines, encode_state
+
+    for first, lines, t0, t1 in batch.blocks:
+        codec, data = encode_lines(lines)
+        ex(
+            "INSERT INTO input_blocks (run, first_line, last_line, t_first, t_last, codec, "
+            "checksum, data) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+            (run, first, first + len(lines) - 1, t0, t1, codec, checksum(data), data),
+        )
+    for lines, samples, t, t_in, st in batch.snapshots:
+        data = encode_state(st)
+        ex(
+            "INSERT INTO snapshots (run, lines, samples, t, t_input, checksum, state) "
+            "VALUES (?, ?, ?, ?, ?, ?, ?) ON CONFLICT (run, lines) DO NOTHING",
+            (run, lines, samples, t, t_in, checksum(data), data),
+        )
+    for k, v in batch.first.items():
+        ex(f"UPDATE checkpoints SET {k}_from = COALESCE({k}_from, ?) WHERE run = ?", (v, run))
+    if batch.rows:
+        sink.last_row_t = float(batch.rows[-1][1][-1, 0])
+    if batch.blocks:
+        sink.last_input_t = batch.blocks[-1][3]
+    if state is None:
+        return
+    if sink.keep_samples is not None and getattr(sink, "last_row_t", None) is not None:
+        # Rows older than the recent window (docs/plant.md "Retention"); the first one kept is
+        # found through the time index, the older ones deleted by the key.
+        row = ex(
+            "SELECT seq FROM samples WHERE run = ? AND t >= ? ORDER BY t LIMIT 1",
+            (run, sink.last_row_t - sink.keep_samples),
+        ).fetchone()
+        if row is not None:
+            ex("DELETE FROM samples WHERE run = ? AND seq < ?", (run, row[0]))
+            ex(
+                "UPDATE checkpoints SET samples_from = ? WHERE run = ? AND samples_from < ?",
+                (row[0], run, row[0]),
+            )
+    if sink.keep_input is not None and getattr(sink, "last_input_t", None) is not None:
+        # Input older than keep_input: from the last snapshot before the age on, what comes
+        # before it can no longer be recomputed, and goes.
+        row = ex(
+            "SELECT lines FROM snapshots WHERE run = ? AND t_input < ? ORDER BY lines DESC LIMIT 1",
+            (run, sink.last_input_t - sink.keep_input),
+        ).fetchone()
+        if row is not None:
+            ex("DELETE FROM snapshots WHERE run = ? AND lines < ?", (run, row[0]))
+            ex("DELETE FROM input_blocks WHERE run = ? AND last_line <= ?", (run, row[0]))
+
+
+def _kept(first, end: int, samples) -> int:
+    """How many of the seq first..end-1 a sink keeps as rows (`samples`: all, none, every N-th)."""
+    if first is None or end <= first or samples == "none":
+        return 0
+    if samples == "all":
+        return end - first
+    n = int(samples)
+    return (end - 1) // n - (first - 1) // n if first > 0 else (end - 1) // n + 1
+
+
+def verify(ex, sink: Sink, run: int, name: str, state: dict, status: str) -> None:
+    """The database against its checkpoint before the twin resumes (docs/plant.md "Exactly
+    once"): the checkpoint's checksum, its counts against its state, the run's status, and the
+    rows each table holds. A mismatch (rows deleted or a checkpoint edited by hand) is one line
+    naming the table and the counts, never a silent partial result."""
+    from ..storage import checksum
+
+    row = ex(
+        "SELECT samples, revolutions, events, checksum, samples_from, revolutions_from, "
+        "events_from, state FROM checkpoints WHERE run = ?",
+        (run,),
+    ).fetchone()
+    if row is None or row[3] is None:
+        return  # a checkpoint of schema version 2 (migrated): nothing to check it against
+    samples, revs, evs, cs, s_from, r_from, e_from, text = row
+    where, fix = sink.name, "restore the database from a copy, or name a new run"
+    if checksum(text.encode()) != cs:
+        raise SinkError(
+            f"{where}: table checkpoints: the checkpoint of run {name!r} does not match its "
+            f"checksum (edited or damaged); {fix}"
+        )
+    c = state["counters"]
+    for col, v in (("samples", samples), ("revolutions", revs), ("events", evs)):
+        if c[col] != v:
+            raise SinkError(
+                f"{where}: table checkpoints: run {name!r} has {col} = {v}, its checkpoint's "
+                f"state {c[col]}; {fix}"
+            )
+    if state.get("run_status", status) != status:
+        raise SinkError(
+            f"{where}: table runs: run {name!r} has status {status!r}, its checkpoint "
+            f"{state['run_status']!r}; {fix}"
+        )
+    expect = {
+        "samples": _kept(s_from, c["samples"], sink.samples),
+        "revolutions": 0 if r_from is None else c["revolutions"] - r_from,
+        "events": 0 if e_from is None else c["events"] - e_from,
+    }
+    for table, n_exp in expect.items():
+        n = ex(f"SELECT COUNT(*) FROM {table} WHERE run = ?", (run,)).fetchone()[0]
+        if n != n_exp:
+            raise SinkError(
+                f"{where}: table {table}: run {name!r} holds {n} rows, its checkpoint covers "
+                f"{n_exp}; {fix}"
+            )

@@ -205,6 +205,9 @@ class CsvSink(Sink):
         )
         _atomic_write(self.sidecar, json.dumps(self.meta))
 
+    def rewind(self, state: dict) -> None:
+        """Nothing to go back to: the files hold no events, and rows are skipped as held."""
+
     def _committed(self) -> int:
         return self.commits
 

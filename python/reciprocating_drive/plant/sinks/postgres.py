@@ -17,8 +17,15 @@ import psycopg
 
 from ...twin.core import SUMMARY_FIELDS
 from ..config import mask_dsn
-from ..schema import SCHEMA_VERSION, column, ddl, insert_events, upsert_checkpoint
-from .base import RunInfo, Sink, SinkError, parse_state, uncovered
+from ..schema import SCHEMA_VERSION, column, ddl, insert_events, migrate, upsert_checkpoint
+from ..storage import checksum
+from .base import RunInfo, Sink, SinkError, parse_state, uncovered, verify, write_storage
+
+
+def _ex(conn):
+    """`ex(sql, args)` with ? marks (base.py's shared statements) on a psycopg connection."""
+    return lambda sql, args=(): conn.execute(sql.replace("?", "%s"), args)
+
 
 _COPY_HEADER = b"PGCOPY\n\xff\r\n\x00" + (0).to_bytes(4, "big") + (0).to_bytes(4, "big")
 _COPY_TRAILER = (-1).to_bytes(2, "big", signed=True)
@@ -83,6 +90,11 @@ class PostgresSink(Sink):
                     for stmt in ddl("postgres", run.outputs):
                         c.execute(stmt)
                 got = c.execute("SELECT version FROM schema_info").fetchall()
+                if got and got[0][0] != SCHEMA_VERSION and migrate("postgres", got[0][0]):
+                    # An older schema that can be migrated is, in this transaction (schema.py).
+                    for stmt in migrate("postgres", got[0][0]):
+                        c.execute(stmt)
+                    got = [(SCHEMA_VERSION,)]
                 if not got:
                     c.execute("INSERT INTO schema_info VALUES (%s)", (SCHEMA_VERSION,))
                 elif got[0][0] != SCHEMA_VERSION:
@@ -104,15 +116,16 @@ class PostgresSink(Sink):
                         "was made for another FMU; use a new database)"
                     )
                 row = c.execute(
-                    "SELECT run, machine_id, machine, status FROM runs WHERE name = %s",
+                    "SELECT run, machine_id, machine, status, time_origin FROM runs "
+                    "WHERE name = %s",
                     (run.name,),
                 ).fetchone()
                 state = None
                 if row is None:
                     key = c.execute(
                         "INSERT INTO runs (name, machine_id, machine, outputs, options, source, "
-                        "time_origin, started_at, status) VALUES (%s, %s, %s, %s, %s, %s, %s, %s, "
-                        "'running') RETURNING run",
+                        "time_origin, started_at, status, fmu_guid) VALUES (%s, %s, %s, %s, %s, "
+                        "%s, %s, %s, 'running', %s) RETURNING run",
                         (
                             run.name,
                             run.machine_id,
@@ -122,10 +135,12 @@ class PostgresSink(Sink):
                             json.dumps(run.source),
                             run.time_origin,
                             time.time(),
+                            run.fmu_guid,
                         ),
                     ).fetchone()[0]
                 else:
-                    key, machine_id, machine, status = row
+                    key, machine_id, machine, status, self.stored_origin = row
+                    self.run_status = status
                     if (machine_id, machine) != (run.machine_id, run.machine):
                         raise SinkError(
                             f"{self.name}: run {run.name!r} belongs to machine {machine_id!r} "
@@ -140,6 +155,8 @@ class PostgresSink(Sink):
                     # What the last checkpoint does not cover is computed again (base.py).
                     for stmt, args in uncovered(state, key):
                         c.execute(stmt.replace("?", "%s"), args)
+                    if state is not None:
+                        verify(_ex(c), self, key, run.name, state, status)
         except psycopg.errors.UniqueViolation:
             # Another twin created the same run at the same moment.
             raise SinkError(
@@ -156,6 +173,9 @@ class PostgresSink(Sink):
         try:
             with conn.transaction():
                 with conn.cursor() as cur:
+                    if batch.rewind is not None:
+                        for stmt, args in uncovered(batch.rewind, run):
+                            cur.execute(stmt.replace("?", "%s"), args)
                     if batch.rows:
                         cols = ", ".join(["run", "seq", "t", *map(column, self.outputs)])
                         with cur.copy(f"COPY samples ({cols}) FROM STDIN (FORMAT BINARY)") as cp:
@@ -200,9 +220,13 @@ class PostgresSink(Sink):
                                 c.events,
                                 time.time(),
                                 state,
+                                checksum(state.encode()),
                             ),
                         )
-                    origin = json.loads(state).get("time_origin") if state else None
+                    write_storage(_ex(conn), self, run, batch, state, c)
+                    origin = batch.origin
+                    if origin is None and state:
+                        origin = json.loads(state).get("time_origin")
                     cur.execute(
                         "UPDATE runs SET time_origin = COALESCE(time_origin, %s), "
                         "status = COALESCE(%s, status), finished_at = CASE WHEN %s = 'finished' "

@@ -17,8 +17,9 @@ import time
 import numpy as np
 
 from ...twin.core import SUMMARY_FIELDS
-from ..schema import SCHEMA_VERSION, column, ddl, insert_events, upsert_checkpoint
-from .base import RunInfo, Sink, SinkError, parse_state, uncovered
+from ..schema import SCHEMA_VERSION, column, ddl, insert_events, migrate, upsert_checkpoint
+from ..storage import checksum
+from .base import RunInfo, Sink, SinkError, parse_state, uncovered, verify, write_storage
 
 
 class SqliteSink(Sink):
@@ -54,6 +55,14 @@ class SqliteSink(Sink):
         self.outputs = list(run.outputs)
         try:
             db.execute("BEGIN IMMEDIATE")
+            old = (
+                db.execute("SELECT name FROM sqlite_master WHERE name = 'schema_info'").fetchone()
+                and db.execute("SELECT version FROM schema_info").fetchall()
+            )
+            if old and old[0][0] != SCHEMA_VERSION and migrate("sqlite", old[0][0]):
+                # An older schema that can be migrated is, in this transaction (schema.py).
+                for stmt in migrate("sqlite", old[0][0]):
+                    db.execute(stmt)
             for stmt in ddl("sqlite", run.outputs):
                 db.execute(stmt)
             got = db.execute("SELECT version FROM schema_info").fetchall()
@@ -74,13 +83,15 @@ class SqliteSink(Sink):
                     "made for another FMU; use a new database file)"
                 )
             row = db.execute(
-                "SELECT run, machine_id, machine, status FROM runs WHERE name = ?", (run.name,)
+                "SELECT run, machine_id, machine, status, time_origin FROM runs WHERE name = ?",
+                (run.name,),
             ).fetchone()
             state = None
             if row is None:
                 cur = db.execute(
                     "INSERT INTO runs (name, machine_id, machine, outputs, options, source, "
-                    "time_origin, started_at, status) VALUES (?, ?, ?, ?, ?, ?, ?, ?, 'running')",
+                    "time_origin, started_at, status, fmu_guid) "
+                    "VALUES (?, ?, ?, ?, ?, ?, ?, ?, 'running', ?)",
                     (
                         run.name,
                         run.machine_id,
@@ -90,11 +101,13 @@ class SqliteSink(Sink):
                         json.dumps(run.source),
                         run.time_origin,
                         time.time(),
+                        run.fmu_guid,
                     ),
                 )
                 key = cur.lastrowid
             else:
-                key, machine_id, machine, status = row
+                key, machine_id, machine, status, self.stored_origin = row
+                self.run_status = status
                 if (machine_id, machine) != (run.machine_id, run.machine):
                     db.execute("ROLLBACK")
                     raise SinkError(
@@ -112,6 +125,12 @@ class SqliteSink(Sink):
                 # What the last checkpoint does not cover is computed again (base.py).
                 for stmt, args in uncovered(state, key):
                     db.execute(stmt, args)
+                if state is not None:
+                    try:
+                        verify(db.execute, self, key, run.name, state, status)
+                    except SinkError:
+                        db.execute("ROLLBACK")
+                        raise
             db.execute("COMMIT")
         except sqlite3.DatabaseError as e:
             if db.in_transaction:
@@ -127,6 +146,9 @@ class SqliteSink(Sink):
         marks = ", ".join("?" * (3 + len(self.outputs)))
         try:
             db.execute("BEGIN IMMEDIATE")
+            if batch.rewind is not None:
+                for stmt, args in uncovered(batch.rewind, run):
+                    db.execute(stmt, args)
             for first, rows in batch.rows:
                 seq = (
                     first if isinstance(first, np.ndarray) else np.arange(first, first + len(rows))
@@ -155,9 +177,21 @@ class SqliteSink(Sink):
             else:
                 db.execute(
                     upsert_checkpoint("?", rows_only=False),
-                    (run, c.commits, c.samples, c.revolutions, c.events, time.time(), state),
+                    (
+                        run,
+                        c.commits,
+                        c.samples,
+                        c.revolutions,
+                        c.events,
+                        time.time(),
+                        state,
+                        checksum(state.encode()),
+                    ),
                 )
-            origin = json.loads(state).get("time_origin") if state else None
+            write_storage(db.execute, self, run, batch, state, c)
+            origin = batch.origin
+            if origin is None and state:
+                origin = json.loads(state).get("time_origin")
             db.execute(
                 "UPDATE runs SET time_origin = COALESCE(time_origin, ?), status = COALESCE(?, status), "
                 "finished_at = CASE WHEN ? = 'finished' THEN ? ELSE finished_at END WHERE run = ?",

@@ -162,6 +162,12 @@ class OpcUaSource:
             self._origin_dt = EPOCH + dt.timedelta(seconds=time_origin)
             self.last_dt = self._origin_dt + dt.timedelta(microseconds=round(last_t * 1e6))
             self._resumed = True
+        elif time_origin is not None:
+            # Killed before its first checkpoint: the run's first sample is at or after its
+            # time origin (a whole second), and the history is read from there.
+            self._origin_dt = EPOCH + dt.timedelta(seconds=time_origin)
+            self.last_dt = self._origin_dt - dt.timedelta(microseconds=1)
+            self._resumed = True
         self.connected = threading.Event()
         self.thread = threading.Thread(target=self._thread, name="opcua-source", daemon=True)
         self.thread.start()
