@@ -441,11 +441,14 @@ def test_the_page_opens_a_range_at_full_resolution(tmp_path):
     import urllib.request
 
     from reciprocating_drive.page.server import PageServer
+    from reciprocating_drive.plant.query import page_recompute
 
     cfg, db = _config(tmp_path, pu.SAMPLE, pace=0.0)
     assert pu.run(cfg).returncode == 0
     ref = _slice(pu.clean_run(FMU)[0], 2.5, 3.5)
-    page = PageServer(port=0, database=str(db), run="r1").start()
+    page = PageServer(port=0, database=str(db), run="r1")
+    page.recompute = page_recompute(str(db), "r1")  # as the plant and the page's command do
+    page.start()
     try:
         base = f"http://127.0.0.1:{page.port}"
         with urllib.request.urlopen(f"{base}/api/range?from=2.5&to=3.5", timeout=60) as r:
