@@ -438,6 +438,12 @@ TABLE_SECTIONS = [
             and v.name.split(".")[0] in ("guide", "link", "support_A", "support_B", "support_C")
         ),
     ),
+    (
+        "Outputs: the pump (flow, powers) and its cylinders",
+        lambda v: (
+            v.causality == "output" and v.name.split(".")[0].startswith(("pump", "cylinder_"))
+        ),
+    ),
     ("Outputs", lambda v: v.causality == "output"),
     (
         "Model Exchange: the continuous states and their derivatives",
@@ -454,6 +460,10 @@ TABLE_SECTIONS = [
         lambda v: v.name.startswith("rod.") or v.name == "solver.tolerance",
     ),
     ("Parameters: balancer", lambda v: v.name.startswith("balancer.")),
+    (
+        "Parameters: the pump's cylinders",
+        lambda v: v.name.split(".")[0].startswith(("pump", "cylinder_")),
+    ),
     (
         "Parameters: link, supports and guide friction",
         lambda v: v.name.split(".")[0] in ("link", "guide", "support_A", "support_B", "support_C"),
