@@ -145,7 +145,7 @@ fn n_cylinders_equal_n_single_cylinder_machines_with_their_phases() {
 }
 
 /// Gauss–Legendre nodes and weights on [−1, 1] (Newton on P_n from Chebyshev guesses; the
-/// textbook construction, e.g. Numerical Recipes §4.6), to rounding.
+/// textbook construction, e.g. Numerical Recipes, chapter 4), to rounding.
 fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
     (0..n)
         .map(|i| {
