@@ -80,7 +80,15 @@ METRICS = {
     "rod_force_min": "minimum rod.force (signed) [N]",
     "rod_angle_amplitude": "largest |rod.angle| (ϑ) [rad]",
     "stress_max": "largest rod.stress_max [Pa]",
+    "flow_mean": "mean pump.flow [m3/s] (mean over the evaluated revolutions)",
+    "flow_pulsation": "flow pulsation (Q_max - Q_min)/Q_mean of pump.flow (mean over the evaluated revolutions)",
 }
+#: The metrics of a pump's flow (docs/sweeps.md "Metrics"): computed by the reference summary of
+#: each case (revolution.revolution_table), not by the batched arithmetic of sweep_cases.
+PUMP_METRICS = ("flow_mean", "flow_pulsation")
+
+#: The FMU's inputs a study (and the closed loop's --set) may set like parameters: held constant.
+PRESSURE_INPUTS = ("pump.discharge_pressure", "pump.suction_pressure")
 
 #: Study parameters that set the crank speed instead of an FMU parameter.
 SPEED_PARAMETERS = ("strokes_per_minute", "crank.speed")
@@ -252,7 +260,10 @@ def model_parameters(
     units = {}
     out = {}
     for v in md.modelVariables:
-        if v.causality != "parameter" or v.variability not in ("fixed", "tunable"):
+        # A pump's pressures are inputs, but a study or a closed loop holds them constant like a
+        # parameter (their start values): docs/sweeps.md "The study file".
+        held = v.causality == "input" and v.name in PRESSURE_INPUTS
+        if not held and (v.causality != "parameter" or v.variability not in ("fixed", "tunable")):
             continue
         dt = v.declaredType
         lo = v.min if v.min is not None else (dt.min if dt is not None else None)
@@ -721,7 +732,8 @@ _LINK_KEYS = (
     *(f"link.d{i}" for i in range(1, 5)),
     "link.E",
     "link.lateral_load",
-    "guide.velocity_scale",
+    # not guide.velocity_scale: it also rounds the pump's flow at the dead centres (pump.flow,
+    # docs/model.md §4.1), which every machine computes
     "guide.rod_side_force",
 )
 _ELASTIC_ROD = (

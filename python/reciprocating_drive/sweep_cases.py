@@ -336,6 +336,11 @@ def batch_metrics(
     meaningless. Every other value equals the reference's bit for bit: the operations of
     revolution.revolution_table and sweep.metrics_of on the same operands, for all runs and
     revolutions at once instead of one run at a time."""
+    from .study import PUMP_METRICS
+
+    if set(study.metrics) & set(PUMP_METRICS):
+        # A pump's flow metrics have no batched form: every run goes through the reference.
+        return np.full((data.shape[0], len(study.metrics)), np.nan), np.zeros(data.shape[0], bool)
     with np.errstate(all="ignore"):
         return _batch_metrics(h, data, study, outputs, work or Workspace())
 

@@ -91,8 +91,6 @@ def parser(prog: str = PROG) -> ArgumentParser:
     return ap
 
 
-#: The pump's pressure inputs, which --set and --pump give as start values (unconnected inputs).
-PRESSURES = ("pump.discharge_pressure", "pump.suction_pressure")
 #: The inputs the drive train drives: a preset's values of them are not applied.
 CONNECTED = ("crank.angle", "crank.speed", "crank.acceleration")
 
@@ -110,15 +108,6 @@ def overrides(items: list[str], fmu_dir: pathlib.Path) -> dict:
             raise UserError(
                 f"--set {show(item)}: allowed: pump.PARAMETER=VALUE or drivetrain.PARAMETER=VALUE"
             )
-        if comp == "pump" and name in PRESSURES:
-            try:
-                value = float(text)
-            except ValueError:
-                value = math.nan
-            if not math.isfinite(value):
-                raise UserError(f"--set {show(item)}: allowed: a finite pressure [Pa]")
-            out[comp][name] = value
-            continue
         params, _, _ = model_parameters(str(fmu_dir / COMPONENTS[comp]), require_pump=False)
         var = params.get(name)
         if var is None:
