@@ -45,11 +45,22 @@ from . import conditioning as cond
 from .batch import local_cubic, parse_csv
 from .fmu import Fmu, FmuError
 from .presets import available_presets, preset_values
-from .revolution import TWO_PI, revolution_table
+from .revolution import PUMP_COLUMNS, TWO_PI, revolution_table
 from .timestamps import LOOKS_ISO, Clock, TimestampError
 from .timestamps import zone as time_zone
 
-INPUTS = ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")
+INPUTS = (
+    "crank.angle",
+    "crank.speed",
+    "crank.acceleration",
+    "link.external_force",
+    "pump.discharge_pressure",
+    "pump.suction_pressure",
+)
+#: The optional CSV columns of the process (docs/twin.md "Input") and the FMU inputs they drive:
+#: a sample's `force` holds them in this order. A pressure column that is absent (NaN) leaves the
+#: machine's value (the preset's, else the FMU's start value).
+PROCESS_COLUMNS = ("process_force", "discharge_pressure", "suction_pressure")
 
 #: Absolute part of the measured speed's tolerance [rad/s] (docs/twin.md "Measured speed"): a
 #: crank at rest, whose estimated speed is rounding noise around 0.
@@ -194,6 +205,12 @@ SUMMARY_FIELDS = (
     "rod_angle_amplitude",
     "stress_max",
     "interrupted",
+    # A pump's (docs/twin.md "Output"): the time means of pump.flow, pump.hydraulic_power and
+    # pump.mechanical_power over the revolution and the flow pulsation (Q_max − Q_min)/Q_mean.
+    "flow_mean",
+    "flow_pulsation",
+    "hydraulic_power_mean",
+    "mechanical_power_mean",
 )
 
 #: The unit of each of SUMMARY_FIELDS ("-": a count or a ratio), written in the CSV header as
@@ -208,6 +225,10 @@ SUMMARY_UNITS = {
     "rod_angle_amplitude": "rad",
     "stress_max": "Pa",
     "interrupted": "-",
+    "flow_mean": "m3/s",
+    "flow_pulsation": "-",
+    "hydraulic_power_mean": "W",
+    "mechanical_power_mean": "W",
     **{
         f"{k}_{m}": u
         for k, u in (
@@ -298,9 +319,7 @@ def n_fields(cols: dict) -> int:
     return cols.get("\0fields", len(cols))
 
 
-def parse_line(
-    line: str, lineno: int, cols: dict
-) -> tuple[float, float, float | None, float | None]:
+def parse_line(line: str, lineno: int, cols: dict) -> tuple:
     parts = line.strip().split(",")
     if len(parts) != n_fields(cols):
         raise DataError(f"line {lineno}: {len(parts)} fields, the header names {n_fields(cols)}")
@@ -323,16 +342,17 @@ def parse_line(
 
     t, a = num("time"), num("crank_angle")
     w = num("crank_speed") if "crank_speed" in cols else None
-    f = num("process_force") if "process_force" in cols else None
+    f = tuple(num(c) if c in cols else None for c in PROCESS_COLUMNS)
     return t, a, w, f
 
 
 def parse_lines(lines: list[str], first_lineno: int, cols: dict):
     """Consecutive data lines (the first is line `first_lineno`) as arrays: line numbers, time,
-    angle, speed (NaN where absent) and force (0 where absent), blank lines skipped. Returns the
+    angle, speed (NaN where absent) and force (n × 3: PROCESS_COLUMNS, process_force 0 and the
+    pressures NaN where absent), blank lines skipped. Returns the
     arrays of the lines before the first bad one and its DataError (or None). The clean lines are
     parsed natively (`batch.parse_csv`), from the first other one on in Python."""
-    names = [c for c in ("time", "crank_angle", "crank_speed", "process_force") if c in cols]
+    names = [c for c in ("time", "crank_angle", "crank_speed", *PROCESS_COLUMNS) if c in cols]
     # Every field is required: an empty field is an error (docs/twin.md "Input").
     defaults = [None] * len(names)
     n, pos, parts = len(lines), 0, []
@@ -351,7 +371,14 @@ def parse_lines(lines: list[str], first_lineno: int, cols: dict):
                 got[0],
                 got[1],
                 got[names.index("crank_speed")] if "crank_speed" in cols else np.full(k, math.nan),
-                got[names.index("process_force")] if "process_force" in cols else np.zeros(k),
+                np.column_stack(
+                    [
+                        got[names.index(c)]
+                        if c in cols
+                        else np.full(k, 0.0 if i == 0 else math.nan)
+                        for i, c in enumerate(PROCESS_COLUMNS)
+                    ]
+                ),
             )
         )
         pos += k
@@ -378,9 +405,23 @@ def _parse_slowly(lines, first_lineno, cols):
         except DataError as e:
             err = e
             break
-        out.append((first_lineno + i, t, a, math.nan if w is None else w, 0.0 if f is None else f))
+        f = [(0.0 if i == 0 else math.nan) if x is None else x for i, x in enumerate(f)]
+        out.append((first_lineno + i, t, a, math.nan if w is None else w, f))
     cols_ = list(zip(*out)) if out else [()] * 5
-    return (np.array(cols_[0], dtype=np.int64), *(np.array(c, dtype=float) for c in cols_[1:])), err
+    return (
+        np.array(cols_[0], dtype=np.int64),
+        *(np.array(c, dtype=float) for c in cols_[1:4]),
+        np.array(cols_[4], dtype=float).reshape(-1, len(PROCESS_COLUMNS)),
+    ), err
+
+
+def _process_rows(saved) -> np.ndarray:
+    """A checkpoint's buffered process values as rows of PROCESS_COLUMNS: a checkpoint written
+    before the pressure columns holds the process force alone (its pressures: the machine's)."""
+    a = np.array(saved, dtype=float)
+    if a.ndim == 1:
+        return np.column_stack([a, np.full((len(a), len(PROCESS_COLUMNS) - 1), math.nan)])
+    return a.reshape(-1, len(PROCESS_COLUMNS))
 
 
 def remainder_2pi(x: np.ndarray) -> np.ndarray:
@@ -400,7 +441,8 @@ class _Segment:
     t: np.ndarray = field(default_factory=lambda: np.empty(0))
     theta: np.ndarray = field(default_factory=lambda: np.empty(0))
     speed: np.ndarray = field(default_factory=lambda: np.empty(0))  # NaN: not measured
-    force: np.ndarray = field(default_factory=lambda: np.empty(0))
+    # process_force and the pressures (PROCESS_COLUMNS), one row per sample
+    force: np.ndarray = field(default_factory=lambda: np.empty((0, len(PROCESS_COLUMNS))))
     line: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
     done: int = 0  # samples of the buffer already sent to the FMU
     segment_start: bool = True
@@ -450,6 +492,11 @@ class Twin:
             raise ValueError(f"--machine {machine!r}: not a readable .ssv file ({e})") from None
         self.values = {k: v for k, v in preset.items() if k not in INPUTS}
         self.values.update(extra_values or {})
+        # The pressures where the input has no column: the machine's (docs/twin.md "Input").
+        self.pressures = np.array(
+            [float({**preset, **(extra_values or {})}.get(n, 0.0)) for n in INPUTS[4:]],
+            dtype=float,
+        )
         try:
             # An Fmu already loaded is taken as it is: the distributed replay (replay.py) runs
             # many pieces in one worker process, and loading costs more than a small piece.
@@ -939,7 +986,11 @@ class Twin:
                 if k == 0:
                     raise err
             w = np.where(np.isnan(w_meas), w_est, w_meas)
-            inputs = np.column_stack([b.theta[centres], w, e_est, b.force[centres]])
+            fp = b.force[centres]
+            fp = np.column_stack(
+                [fp[:, 0], np.where(np.isnan(fp[:, 1:]), self.pressures, fp[:, 1:])]
+            )
+            inputs = np.column_stack([b.theta[centres], w, e_est, fp])
             block = np.empty((len(centres), 1 + len(self.outputs)))
             block[:, 0] = b.t[centres]
             try:
@@ -1093,6 +1144,8 @@ class Twin:
             if k > REV_SAMPLES_MAX:
                 # Not every sample was kept: these two need them all (docs/twin.md).
                 sm["friction_work"] = sm["speed_fluctuation"] = None
+                for key in PUMP_COLUMNS:
+                    sm[key] = None
         # Keep the samples from just before the next revolution's start (the first sample at
         # which the angle reaches it: the crank may have turned back before).
         reached = np.maximum.accumulate(arr[:, self.i_angle])
@@ -1255,7 +1308,7 @@ class Twin:
             t=np.array(bb["t"], dtype=float),
             theta=np.array(bb["theta"], dtype=float),
             speed=np.array([math.nan if v is None else v for v in bb["speed"]], dtype=float),
-            force=np.array(bb["force"], dtype=float),
+            force=_process_rows(bb["force"]),
             line=np.array(bb["line"], dtype=np.int64),
             done=int(bb["done"]),
             segment_start=bool(bb["segment_start"]),

@@ -75,6 +75,10 @@ LABELS = {
     "friction_work": "friction work",
     "rod_angle_amplitude": "rod angle amplitude ϑ (elastic rod)",
     "stress_max": "largest rod stress",
+    "flow_mean": "mean flow (pump)",
+    "flow_pulsation": "flow pulsation (pump)",
+    "hydraulic_power_mean": "mean hydraulic power (pump)",
+    "mechanical_power_mean": "mean mechanical power",
 }
 #: The plant's machine-state events (docs/plant.md "Machine states") and the state each enters.
 MACHINE_EVENTS = {

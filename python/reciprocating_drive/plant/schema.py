@@ -1,6 +1,7 @@
 """The database schema of the twin's sinks (docs/plant.md, "Schema"), for SQLite and PostgreSQL.
 
-Version 2 (version 1 had no `interrupted` column in `revolutions`). Every table is keyed by the run
+Version 3 (version 2 had no pump columns `flow_mean`, `flow_pulsation`, `hydraulic_power_mean`,
+`mechanical_power_mean` in `revolutions`, version 1 no `interrupted`). Every table is keyed by the run
 (an integer, `runs.run`); a run has a name (the configuration's `run.id`, unique) and a machine
 identifier. Per-sample and per-revolution rows have primary keys (run, seq) and (run, revolution),
 so a row can never be stored twice: a bug that tried would fail its transaction instead of
@@ -13,7 +14,7 @@ from __future__ import annotations
 
 from ..twin import SUMMARY_FIELDS
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 
 def column(output: str) -> str:
