@@ -127,3 +127,36 @@ def test_the_pages_pump_limits_watch_the_twins_summaries(fmu_path, tmp_path):
         assert bool(changes) == raised, (phase, [s["flow_pulsation"] for s in sums])
         if raised:
             assert changes[0].name == "flow_pulsation.limit"
+
+
+def test_the_page_shows_a_pumps_values(fmu_path, tmp_path, server, page_of):  # noqa: F811
+    """The live page (headless Chromium) shows a pump's mean flow, pulsation and powers of the
+    last revolution, bit for bit as the database holds them; for a machine that is no pump it
+    leaves them out (test_page.py's machine shows exactly its seven values)."""
+    import time
+
+    from test_page import Database, Feed, sample_lines, shown, wait_ready
+
+    db = Database(tmp_path / "twin.sqlite")
+    page = server(database=db.path)
+    extra = {k: v for k, v in machine().items() if not k.startswith("crank.")}
+    feed = Feed(fmu_path, page, db, extra=extra)
+    page.open(feed.twin.outputs, time_origin=None, elastic=False, pump=True)
+    feed.feed(sample_lines(0, 4, 0.0))
+    time.sleep(0.3)
+    tab = page_of()
+    tab.goto(page.url)
+    wait_ready(tab)
+    keys = ("flow_mean", "flow_pulsation", "hydraulic_power_mean", "mechanical_power_mean")
+    row = db.db.execute(
+        f"SELECT {', '.join(keys)} FROM revolutions ORDER BY revolution DESC LIMIT 1"
+    ).fetchone()
+    got = shown(tab)
+    assert {k: float(got[k]) for k in keys} == dict(zip(keys, row))
+    assert row[2] > 0 and row[1] > 0
+    assert "stress_max" not in got  # a rigid rod
+    assert not tab.errors, tab.errors
+
+
+# The page's fixtures (headless Chromium, a page server) from its own tests.
+from test_page import browser, chromium, page_of, server  # noqa: E402, F401
