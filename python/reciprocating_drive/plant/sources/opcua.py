@@ -135,6 +135,12 @@ class OpcUaSource:
             self.roles["speed"] = settings["speed_node"]
         if settings.get("force_node"):
             self.roles["force"] = settings["force_node"]
+        for role in PRESSURE_ROLES:
+            if settings.get(f"{role}_node"):
+                self.roles[role] = settings[f"{role}_node"]
+        # With a pressure node a sample's process value (the force's place in the clock's tuples)
+        # is the tuple (force, discharge, suction), None for a node not configured.
+        self.packed = any(r in self.roles for r in PRESSURE_ROLES)
         if settings["mode"] == "block":
             self.roles["time"] = settings["time_node"]
         self.block = settings["mode"] == "block"
@@ -219,7 +225,14 @@ class OpcUaSource:
 
     def _emit(self, lines: list, events: list) -> None:
         if self.need_header and lines:
-            lines = [sample_header("speed" in self.roles, "force" in self.roles), *lines]
+            lines = [
+                sample_header(
+                    "speed" in self.roles,
+                    "force" in self.roles,
+                    *(r in self.roles for r in PRESSURE_ROLES),
+                ),
+                *lines,
+            ]
             self.need_header = False
         if lines or events:
             self.q.put(Chunk(lines=list(lines), events=list(events)))
@@ -288,6 +301,7 @@ class OpcUaSource:
         s = self.s
         block = self.block
         keys = {"angle": "angle_node", "speed": "speed_node", "force": "force_node"}
+        keys.update({r: f"{r}_node" for r in PRESSURE_ROLES})
         keys["time"] = "time_node"
         checks = [(keys[role], nid, role) for role, nid in self.roles.items()]
         if s.get("end_node"):
@@ -564,11 +578,16 @@ class OpcUaSource:
             )
         out_t, out_a, out_w, out_f = out
         self.samples_out += len(out_t)
+        if self.packed:
+            out_f, *pressures = (list(c) for c in zip(*out_f)) if out_f else ([], [], [])
+        else:
+            pressures = [None, None]
         lines = sample_lines(
             out_t,
             out_a,
             out_w if "speed" in self.roles else None,
             out_f if "force" in self.roles else None,
+            *(p if r in self.roles else None for p, r in zip(pressures, PRESSURE_ROLES)),
         )
         self._emit(lines, events)
         events.clear()
@@ -696,6 +715,18 @@ _GLITCH = "a glitch of the PLC clock (one sample stamped ahead)"
 _BACK = "stamped before the last sample handed out (out of order, or a clock step back)"
 
 
+#: A pump's pressure roles (source.discharge_node, source.suction_node; docs/plant.md).
+PRESSURE_ROLES = ("discharge", "suction")
+
+
+def _process(src, values: dict):
+    """A sample's process value from its roles' values: the force alone, or with a pressure node
+    configured the tuple (force, discharge, suction) (None for a role not configured)."""
+    if not src.packed:
+        return values.get("force")
+    return tuple(values.get(r) for r in ("force", *PRESSURE_ROLES))
+
+
 def _dup(vals, prev) -> str:
     """The reason of a sample whose timestamp was handed out already."""
     if prev is None or all(
@@ -733,7 +764,7 @@ class _ScalarJoiner:
 
     def __init__(self, src: OpcUaSource):
         self.src = src
-        self.others = [r for r in ("speed", "force") if r in src.roles]
+        self.others = [r for r in ("speed", "force", *PRESSURE_ROLES) if r in src.roles]
         self.values: dict = {r: [] for r in self.others}  # (ts, value, bad) in time order
         self.angles: collections.deque = collections.deque()
         self.tol = dt.timedelta(seconds=src.s.get("join_tolerance", 0.0005))
@@ -784,7 +815,7 @@ class _ScalarJoiner:
             for r in self.others:
                 got[r], w = self._at(r, ts)
                 why = why or w
-            out.append((ts, ts, a, got.get("speed"), got.get("force"), why))
+            out.append((ts, ts, a, got.get("speed"), _process(self.src, got), why))
         # Bounded memory: of the values before the oldest angle still to come, only the latest
         # is needed (it is the one held); at most MAX_PENDING are kept whatever the server sends.
         upto = min(x[0] for x in self.angles) if self.angles else None
@@ -888,21 +919,22 @@ class _Joiner:
 
     def _samples(self, ts, g, bad, block):
         if not block:
-            return [(ts, ts, g.get("angle"), g.get("speed"), g.get("force"), bad)]
+            return [(ts, ts, g.get("angle"), g.get("speed"), _process(self.src, g), bad)]
         times = g.get("time") or []
         if bad:
             return [(ts, ts, None, None, None, bad)] * max(1, len(times))
         n = len(times)
-        arrays = {r: g[r] for r in ("angle", "speed", "force") if r in g}
+        arrays = {r: g[r] for r in ("angle", "speed", "force", *PRESSURE_ROLES) if r in g}
         if any(len(a) != n for a in arrays.values()):
             return [(ts, ts, None, None, None, "arrays of a block differ in length")] * max(1, n)
         out = []
         for i in range(n):
             a = arrays["angle"][i]
             w = arrays["speed"][i] if "speed" in arrays else None
-            f = arrays["force"][i] if "force" in arrays else None
+            f = _process(self.src, {r: v[i] for r, v in arrays.items()})
+            values = (a, w, *(f if isinstance(f, tuple) else (f,)))
             why = None
-            if not all(math.isfinite(x) for x in (a, w, f) if x is not None):
+            if not all(math.isfinite(x) for x in values if x is not None):
                 why = "a value of a block not finite"
             out.append((times[i], times[i], a, w, f, why))
         return out
