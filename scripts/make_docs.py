@@ -38,7 +38,7 @@ RESULTS_PAGE = ROOT / "docs" / "results.md"
 # Every figure this script writes; docs/*.md refer to them as figures/<name>.png.
 SKETCHES = ("crank_slider", "beam_units", "supports", "elastic_rod")
 # The main job's presets: the FMU's start values and every preset of resources/presets.
-PRESETS = ("default", "unb600a", "sk8-3.5-4000", "kvo630")
+PRESETS = ("default", "unb600a", "unb600a-simplex", "triplex-1600", "sk8-3.5-4000", "kvo630")
 RESULTS = tuple(f"results_{p}" for p in PRESETS)
 # Drawn by the closed loop's command (rdrive closed-loop, docs/closed-loop.md).
 CLOSED_LOOP = "closed_loop"

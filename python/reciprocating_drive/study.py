@@ -2,7 +2,7 @@
 how the FMU is driven, and which metrics are kept. A study is TOML (Python's tomllib):
 
     name = "unb600a_friction"
-    machine = "unb600a"                 # a preset, "default", or a path to an .ssv (relative to the file)
+    machine = "unb600a-simplex"         # a preset, "default", or a path to an .ssv (relative to the file)
     strokes_per_minute = 65             # constant crank speed (or crank_speed = ... rad/s)
     skip_revolutions = 1                # transient, not evaluated
     revolutions = 1                     # evaluated

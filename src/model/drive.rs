@@ -131,6 +131,9 @@ pub struct Outputs {
     pub rod_axial_deflection: f64,
     /// The pump's cylinders (§4.1); entries beyond `pump.cylinders` stay 0.
     pub cylinders: [CylinderOutputs; MAX_CYLINDERS],
+    /// The guide's solution of cylinders 2.. (cylinder 1's is `guide`; the tangent starts from
+    /// them).
+    pub cylinder_guides: [GuideOutputs; MAX_CYLINDERS],
     /// Q = Σ Q_k, (p_d − p_s)·Q, T·ω (§4.1).
     pub flow: f64,
     pub hydraulic_power: f64,
@@ -749,7 +752,8 @@ impl Model {
         if missing & groups::CYLINDERS != 0 {
             // §4.1: cylinders 2.. (none for one cylinder), T = Σ T_k, mechanical power T·ω.
             for k in 1..self.pump.n {
-                out.cylinders[k] = self.cylinder_outputs(k, theta, w, eps, inputs)?;
+                (out.cylinders[k], out.cylinder_guides[k]) =
+                    self.cylinder_outputs(k, theta, w, eps, inputs)?;
                 out.crank_torque += out.cylinders[k].crank_torque;
             }
             out.mechanical_power = out.crank_torque * w;
@@ -771,7 +775,7 @@ impl Model {
         w: f64,
         eps: f64,
         inputs: &Inputs,
-    ) -> Result<crate::model::drive::CylinderOutputs, ModelError> {
+    ) -> Result<(CylinderOutputs, GuideOutputs), ModelError> {
         let Mechanism::CrankSlider(m) = &self.mechanism else {
             // `Model::new` refuses several cylinders on any other mechanism.
             return Err(ModelError::evaluation("internal: several cylinders need a crank-slider"));
@@ -786,7 +790,7 @@ impl Model {
             Some(g) => g.solve_rigid(kin.s, velocity, p_base, side_slope)?,
             None => GuideOutputs { rod_force: p_base, ..GuideOutputs::default() },
         };
-        Ok(CylinderOutputs {
+        let c = CylinderOutputs {
             position: kin.s,
             velocity,
             acceleration,
@@ -796,7 +800,8 @@ impl Model {
             rod_force: guide.rod_force,
             crank_torque: loads::crank_torque_rigid(guide.rod_force, kin.tf),
             flow: 0.0,
-        })
+        };
+        Ok((c, guide))
     }
 
     /// The FLOW group (§4.1) from the velocities already in `out`: Q_k, Q = Σ Q_k,
@@ -853,6 +858,7 @@ impl Model {
             rod_stress_max: elastic.stress_max(bc, loads.delta, rod.cage.theta, rod_force),
             rod_axial_deflection: elastic.axial_deflection(rod_force),
             cylinders: Default::default(),
+            cylinder_guides: Default::default(),
             flow: 0.0,
             hydraulic_power: 0.0,
             mechanical_power: 0.0,

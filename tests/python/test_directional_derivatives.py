@@ -80,7 +80,7 @@ MACHINES = {
         "load.profile": 2,
         "load.mean": 5.0e4,
     },
-    "unb600a (crank-slider, gland, double-acting load)": "unb600a",
+    "unb600a (crank-slider, gland, double-acting load)": "unb600a-simplex",
     "sk8-3.5-4000 (beam unit class I, clamp friction)": "sk8-3.5-4000",
     # The pump of docs/model.md §4.1: the chambers' pressures, several cylinders.
     "duplex double-acting, pressures, guide friction": {

@@ -400,7 +400,7 @@ def test_sweep_warns_of_a_parameter_that_cannot_act(fmu_path, tmp_path):
 
     f = tmp_path / "gland.toml"
     f.write_text(
-        'name = "gland"\nmachine = "unb600a"\nskip_revolutions = 0\nsteps_per_revolution = 60\n'
+        'name = "gland"\nmachine = "unb600a-simplex"\nskip_revolutions = 0\nsteps_per_revolution = 60\n'
         '[parameters]\n"support_C.tilt" = { values = [0.0, 1e-3] }\n'
         '"support_A.offset" = { values = [0.0, 1e-4] }\n'
     )

@@ -21,7 +21,7 @@ use crate::model::error::{num, ModelError};
 use crate::model::integrator::IntegratorStats;
 use crate::model::params::Params;
 
-pub use variables::{input_vr, value_reference, InputSlot, TABLE, UNITS, VARIABLES};
+pub use variables::{input_vr, input_vrs, value_reference, InputSlot, TABLE, UNITS, VARIABLES};
 
 /// The model type the glue is instantiated with (`fmi2::abi::export_fmu!`).
 pub struct ReciprocatingDrive;
@@ -49,10 +49,12 @@ static INFO: ModelInfo = ModelInfo {
 
 #[inline]
 fn inputs(values: &[f64]) -> Inputs {
+    // One look-up of the value references for the three (`input_vrs`).
+    let vr = input_vrs();
     Inputs {
-        external_force: values[input_vr(InputSlot::ExternalForce)],
-        discharge_pressure: values[input_vr(InputSlot::DischargePressure)],
-        suction_pressure: values[input_vr(InputSlot::SuctionPressure)],
+        external_force: values[vr[InputSlot::ExternalForce as usize]],
+        discharge_pressure: values[vr[InputSlot::DischargePressure as usize]],
+        suction_pressure: values[vr[InputSlot::SuctionPressure as usize]],
     }
 }
 

@@ -332,6 +332,12 @@ pub fn value_reference(name: &str) -> Option<usize> {
 /// Value reference of the input bound to `slot` (found once, then an array look-up: the step
 /// reads inputs through it).
 pub fn input_vr(slot: InputSlot) -> usize {
+    input_vrs()[slot as usize]
+}
+
+/// The value references of every input, by [`InputSlot`] (found once).
+#[inline]
+pub fn input_vrs() -> &'static [usize; 6] {
     static VRS: std::sync::OnceLock<[usize; 6]> = std::sync::OnceLock::new();
     VRS.get_or_init(|| {
         [
@@ -348,7 +354,7 @@ pub fn input_vr(slot: InputSlot) -> usize {
                 .position(|v| matches!(v.binding, Binding::Input { slot: s, .. } if s == slot))
                 .unwrap_or(usize::MAX)
         })
-    })[slot as usize]
+    })
 }
 
 #[cfg(test)]

@@ -87,7 +87,8 @@ impl Model {
         let mut torque = crank_torque;
         let mut velocities = [velocity; crate::model::params::MAX_CYLINDERS];
         for c in 1..self.pump.n {
-            let (cyl, v) = self.cylinder_tangent(c, theta, w, eps, inputs, seed)?;
+            let (cyl, v) =
+                self.cylinder_tangent(c, theta, w, eps, inputs, seed, &value.cylinder_guides[c])?;
             torque += cyl.crank_torque;
             cylinders[c] = cyl;
             velocities[c] = v;
@@ -115,6 +116,7 @@ impl Model {
             rod_stress_max: 0.0,
             rod_axial_deflection: 0.0,
             cylinders,
+            cylinder_guides: Default::default(),
             flow,
             hydraulic_power,
             // d(T·ω) = dT·ω + T·dω.
@@ -210,6 +212,7 @@ impl Model {
             // P·l_f/A3, linear in P.
             rod_axial_deflection: elastic.axial_deflection(guide.rod_force),
             cylinders: Default::default(),
+            cylinder_guides: Default::default(),
             flow: 0.0,
             hydraulic_power: 0.0,
             mechanical_power: crank_torque.eps * crank.speed + value.crank_torque * seed.speed,
@@ -272,7 +275,9 @@ impl Model {
     }
 
     /// Cylinder `c` ≥ 1 of a rigid crank-slider (§4.1) in dual numbers, as
-    /// `Model::cylinder_outputs`: its outputs' tangent and its velocity (dual).
+    /// `Model::cylinder_outputs`, from its guide solution `value`: its outputs' tangent and its
+    /// velocity (dual).
+    #[allow(clippy::too_many_arguments)]
     fn cylinder_tangent(
         &self,
         c: usize,
@@ -281,6 +286,7 @@ impl Model {
         eps: Dual64,
         inputs: &Inputs,
         seed: &Seed,
+        value: &GuideOutputs,
     ) -> Result<(CylinderOutputs, Dual64), ModelError> {
         let Mechanism::CrankSlider(m) = &self.mechanism else {
             return Err(ModelError::evaluation("internal: several cylinders need a crank-slider"));
@@ -293,9 +299,7 @@ impl Model {
             self.dual_loads(c, th, k.s, velocity, acceleration, inputs, seed);
         let guide = match &self.guide {
             Some(g) => {
-                let value = g.solve_rigid(k.s.re, velocity.re, p_base.re, side_slope.re)?;
-                let t = g.solve_rigid_tangent(k.s, velocity, p_base, side_slope, &value)?;
-                (value.rod_force, t)
+                (value.rod_force, g.solve_rigid_tangent(k.s, velocity, p_base, side_slope, value)?)
             }
             None => (p_base.re, GuideOutputs { rod_force: p_base.eps, ..GuideOutputs::default() }),
         };
