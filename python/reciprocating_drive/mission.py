@@ -186,7 +186,9 @@ def run_mission(
     stop = n * step
     inputs = ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")
     # A pump's pressures are inputs too, held at the preset's (or the FMU's start) values.
-    pressures = ("pump.discharge_pressure", "pump.suction_pressure") if is_pump(params) else ()
+    pressures = tuple(
+        p for p in ("pump.discharge_pressure", "pump.suction_pressure") if p in params
+    )
     start = {k: v for k, v in values.items() if k not in inputs + pressures}
     outputs = OUTPUTS + pump_outputs(params)
     t = np.arange(n + 1) * step

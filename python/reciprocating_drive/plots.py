@@ -127,6 +127,8 @@ def plot_mission(m: Mission, path: str | pathlib.Path, dpi: int = 100) -> None:
         ax.axhline(0.0, color="k", lw=0.5)
         # The zero line stays in view, as matplotlib's own range kept it.
         span_axis(ax, np.append(shown, 0.0))
+        if m.pump and m.cylinders > 1 and (name, label, unit) in PANELS[:4]:
+            label += ", cyl. 1"  # the link's outputs are cylinder 1's (docs/results.md)
         ax.set_ylabel(f"{label}\n[{unit}]")
         ax.grid(True, alpha=0.4)
         axes.append(ax)

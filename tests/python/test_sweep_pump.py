@@ -63,7 +63,7 @@ def test_phase_error_in_the_textbook_limit(fmu_path, tmp_path):
     write_ssv(tmp_path / "duplex.ssv", machine)
     phases = [math.radians(d) for d in (80.0, 85.0, 90.0, 95.0, 100.0)]
     text = (ROOT / "studies" / "unb600a_phase_error.toml").read_text()
-    head, _, _ = text.partition("[fixed]")
+    head, _, _ = text.partition("[parameters]")
     head = head.replace('machine = "unb600a"', f'machine = "{tmp_path / "duplex.ssv"}"')
     head = head.replace("strokes_per_minute = 65", "strokes_per_minute = 66.66666666666667")
     body = f'[parameters]\n"cylinder_2.phase" = {{ values = {phases!r} }}\n'
