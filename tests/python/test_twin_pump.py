@@ -158,5 +158,20 @@ def test_the_page_shows_a_pumps_values(fmu_path, tmp_path, server, page_of):  # 
     assert not tab.errors, tab.errors
 
 
+def test_distributed_replay_of_the_pressure_columns_is_the_sequential_one(fmu_path, tmp_path):
+    """The distributed replay (Dask LocalCluster, pieces of 2 revolutions) of an input with its
+    pressure columns writes the sequential twin's files byte for byte."""
+    ssv = write_ssv(tmp_path / "duplex.ssv", machine())
+    write_input(tmp_path / "in.csv", True, revolutions=8)
+    base = [str(tmp_path / "in.csv"), "--machine", str(ssv)]
+    assert twin_cmd.main([*base, "--out", str(tmp_path / "seq.csv")]) == 0
+    dist = ["--distributed", "--workers", "2", "--quiet", "--revolutions-per-piece", "2"]
+    assert twin_cmd.main([*base, "--out", str(tmp_path / "dist.csv"), *dist]) == 0
+    for name in ("{}.csv", "{}-revolutions.csv"):
+        seq = (tmp_path / name.format("seq")).read_bytes()
+        assert (tmp_path / name.format("dist")).read_bytes() == seq, name
+    assert seq.count(b"\n") > 3  # the revolutions of the run
+
+
 # The page's fixtures (headless Chromium, a page server) from its own tests.
 from test_page import browser, chromium, page_of, server  # noqa: E402, F401
