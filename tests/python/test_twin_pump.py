@@ -160,16 +160,32 @@ def test_the_page_shows_a_pumps_values(fmu_path, tmp_path, server, page_of):  # 
 
 def test_distributed_replay_of_the_pressure_columns_is_the_sequential_one(fmu_path, tmp_path):
     """The distributed replay (Dask LocalCluster, pieces of 2 revolutions) of an input with its
-    pressure columns writes the sequential twin's files byte for byte."""
+    pressure columns, from the CSV file and from an SQLite table of the same samples, writes the
+    sequential twin's files byte for byte."""
     ssv = write_ssv(tmp_path / "duplex.ssv", machine())
     write_input(tmp_path / "in.csv", True, revolutions=8)
     base = [str(tmp_path / "in.csv"), "--machine", str(ssv)]
     assert twin_cmd.main([*base, "--out", str(tmp_path / "seq.csv")]) == 0
     dist = ["--distributed", "--workers", "2", "--quiet", "--revolutions-per-piece", "2"]
     assert twin_cmd.main([*base, "--out", str(tmp_path / "dist.csv"), *dist]) == 0
+    # The same samples as an SQLite table (REAL columns named as the CSV's).
+    import sqlite3
+
+    rows = [line.split(",") for line in (tmp_path / "in.csv").read_text().splitlines()]
+    db = sqlite3.connect(tmp_path / "in.sqlite")
+    db.execute(f"CREATE TABLE samples ({', '.join(f'{c} REAL' for c in rows[0])})")
+    db.executemany(
+        f"INSERT INTO samples VALUES ({', '.join('?' * len(rows[0]))})",
+        [[float(x) for x in r] for r in rows[1:]],
+    )
+    db.commit()
+    db.close()
+    table = [str(tmp_path / "in.sqlite"), "--machine", str(ssv)]
+    assert twin_cmd.main([*table, "--out", str(tmp_path / "table.csv"), *dist]) == 0
     for name in ("{}.csv", "{}-revolutions.csv"):
         seq = (tmp_path / name.format("seq")).read_bytes()
         assert (tmp_path / name.format("dist")).read_bytes() == seq, name
+        assert (tmp_path / name.format("table")).read_bytes() == seq, name
     assert seq.count(b"\n") > 3  # the revolutions of the run
 
 
