@@ -321,7 +321,6 @@ CLAIMS = [
     ("link.l3", 1.0, 1.1, NO_SUPPORTS, {}),
     ("link.E", 2.1e11, 1.0e11, NO_SUPPORTS, {}),
     ("link.lateral_load", 0.0, 500.0, NO_SUPPORTS, {}),
-    ("guide.velocity_scale", 0.02, 0.05, NO_SUPPORTS, {}),
     ("guide.rod_side_force", True, False, NO_SUPPORTS, {}),
     ("balancer.stiffness", 1e4, 2e4, {}, {"balancer.enabled": True}),
     (
