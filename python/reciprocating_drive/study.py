@@ -732,8 +732,6 @@ _LINK_KEYS = (
     *(f"link.d{i}" for i in range(1, 5)),
     "link.E",
     "link.lateral_load",
-    # not guide.velocity_scale: it also rounds the pump's flow at the dead centres (pump.flow,
-    # docs/model.md §4.1), which every machine computes
     "guide.rod_side_force",
 )
 _ELASTIC_ROD = (
@@ -775,7 +773,8 @@ def inert_in(values: dict) -> dict[str, str]:
 
     * a support of kind 0 is absent: its other parameters do nothing;
     * every support absent: the friction model is off, no beam problem is solved (the link's
-      sections, E, lateral load, the friction's velocity scale and the rod's side force);
+      sections, E, lateral load and the rod's side force; not guide.velocity_scale, which also
+      sets the pump's chamber weights, docs/model.md §4.1);
     * a pin (kind 1) has no length; a frame-fixed pin (attached = 1) touches the link at the
       same frame point Z = Z_ref all the time, so its tilt α·(Z − Z_ref) is 0;
     * a rigid rod (rod.kind 0) has none of the elastic rod's parameters; a thin rod (1) no coils;
