@@ -37,7 +37,7 @@ CASES = [
     ("default machine (friction on)", None, {}, "guide.friction", "crank.angle"),
     ("crank-slider, friction off", None, NO_SUPPORTS, "crank.torque", "crank.acceleration"),
     ("crank-slider, friction off", None, NO_SUPPORTS, "crank.torque", "crank.angle"),
-    ("unb600a (gland)", "unb600a", {}, "crank.torque", "crank.angle"),
+    ("unb600a (gland)", "unb600a-simplex", {}, "crank.torque", "crank.angle"),
     ("beam unit sk8-3.5-4000", "sk8-3.5-4000", {}, "crank.torque", "crank.angle"),
     ("kvo630 (elastic rod, clamp friction)", "kvo630", {}, "crank.torque", "crank.acceleration"),
     ("kvo630 (elastic rod, clamp friction)", "kvo630", {}, "crank.torque", "crank.angle"),

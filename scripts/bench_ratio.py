@@ -57,6 +57,9 @@ KINEMATICS = [
     "crank.model_speed",
 ]
 NO_SUPPORTS = {"support_A.kind": 0, "support_B.kind": 0, "support_C.kind": 0}
+# The pump's loop (docs/model.md §4.1): the eight, of which crank.torque sums every cylinder, and
+# the pump's flow and hydraulic power.
+PUMP = EIGHT + ["pump.flow", "pump.hydraulic_power"]
 
 # (name, preset or None, overrides, outputs read, target: the FMU's instructions per loop step,
 # or None; docs/performance.md "Current figures")
@@ -66,6 +69,23 @@ SCENARIOS = [
     ("default machine, friction on, friction outputs read", None, {}, EIGHT, 1500),
     ("default machine, friction on, kinematics read", None, {}, KINEMATICS, None),
     ("kvo630, elastic rod, tolerance 1e-8", "kvo630", {}, EIGHT, 7500),
+    # One cylinder, two and three, each with its guide friction, loaded by the pressures: the cost
+    # of a cylinder and of the pressure mapping (docs/performance.md "The pump").
+    (
+        "pump, pressures, friction on: one cylinder of unb600a",
+        "unb600a",
+        {"pump.cylinders": 1},
+        PUMP,
+        None,
+    ),
+    ("pump, pressures, friction on: unb600a (duplex double-acting)", "unb600a", {}, PUMP, None),
+    (
+        "pump, pressures, friction on: triplex-1600 (triplex single-acting)",
+        "triplex-1600",
+        {},
+        PUMP,
+        None,
+    ),
 ]
 
 

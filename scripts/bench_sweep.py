@@ -68,10 +68,10 @@ def prepared_calls(fmu: Fmu, study, cases: list[int]) -> list:
     from fmpy.fmi2 import fmi2Boolean, fmi2Integer, fmi2Real, fmi2ValueReference
 
     ctype = {"Real": fmi2Real, "Integer": fmi2Integer, "Boolean": fmi2Boolean}
-    ch = fmu.channel(["crank.angle", "crank.speed"], list(sweep.OUTPUTS))
+    ch = fmu.channel(["crank.angle", "crank.speed"], list(sweep_cases.OUTPUTS))
     lib = batch.library()
     n = (study.skip_revolutions + study.revolutions) * study.steps_per_revolution + 2
-    out = np.empty((n + 1, len(sweep.OUTPUTS)))
+    out = np.empty((n + 1, len(sweep_cases.OUTPUTS)))
     out0 = out.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
     fail = batch.Failure()
     inputs: dict = {}
@@ -100,8 +100,8 @@ def prepared_calls(fmu: Fmu, study, cases: list[int]) -> list:
         x0 = (fmi2Real * 2)(0.0, omega)
         run_args = (
             *ch._addresses, fmu._component, ctypes.addressof(ch._vin), 2,
-            ctypes.addressof(ch._vout), len(sweep.OUTPUTS), 0.0, n, t.ctypes.data,
-            xin.ctypes.data, 2, out[1:].ctypes.data, len(sweep.OUTPUTS),
+            ctypes.addressof(ch._vout), len(sweep_cases.OUTPUTS), 0.0, n, t.ctypes.data,
+            xin.ctypes.data, 2, out[1:].ctypes.data, len(sweep_cases.OUTPUTS),
             batch.ORDER_SET_STEP_GET, 1, ctypes.byref(fail),
         )  # fmt: skip
         prepared.append((sets, x0, out0, run_args))
@@ -116,7 +116,7 @@ def floor_run(fmu: Fmu, study, cases: list[int]):
     reset, setup = raw["fmi2Reset"], raw["fmi2SetupExperiment"]
     enter, leave = raw["fmi2EnterInitializationMode"], raw["fmi2ExitInitializationMode"]
     set_real, get_real, run = ch._set, ch._get, lib.fmi2_batch_run
-    vin, vout, no = ch._vin, ch._vout, len(sweep.OUTPUTS)
+    vin, vout, no = ch._vin, ch._vout, len(sweep_cases.OUTPUTS)
     fmu.start({})  # an instance that has run: every case begins with fmi2Reset, as in a sweep
 
     def once():
@@ -141,7 +141,7 @@ def native_floor_run(fmu: Fmu, study, cases: list[int]):
     """(a'): a function that makes the cases' calls from native code alone once
     (fmi2_batch_cases on value rows prepared beforehand, 256 cases per call into one reused
     output array) and returns its (wall, CPU) seconds."""
-    p = sweep_cases._prepared(fmu, study, sweep.OUTPUTS)
+    p = sweep_cases._prepared(fmu, study, sweep_cases.OUTPUTS)
     params = study.case_array(cases)
     omega = sweep_cases.speeds(study, params)
     h = TWO_PI / omega / study.steps_per_revolution
@@ -150,7 +150,7 @@ def native_floor_run(fmu: Fmu, study, cases: list[int]):
         work = sweep_cases.Workspace()  # each chunk's value rows kept
         groups = p.values(params[a : a + 256], omega[a : a + 256], work)
         chunks.append((groups, work, omega[a : a + 256].copy(), h[a : a + 256].copy()))
-    data = np.empty((256, p.n + 1, len(sweep.OUTPUTS)))
+    data = np.empty((256, p.n + 1, len(sweep_cases.OUTPUTS)))
     seconds = np.empty(256)
 
     def once():

@@ -150,7 +150,7 @@ def report(fmu: str, preset: str, fine_deg=0.01, coarse_deg=0.1) -> dict:
 
 def main(argv):
     fmu = argv[1] if len(argv) > 1 else str(ROOT / "target" / "fmu" / "ReciprocatingDrive.fmu")
-    for preset in ("default", "unb600a"):
+    for preset in ("default", "unb600a-simplex"):
         r = report(fmu, preset)
         print(f"{preset} (ω = {r['omega']:.7f} rad/s):")
         print(f"  guide.friction max {r['max'][1]:+.6f} N at θ = {r['max'][0]:.4f}°")

@@ -38,7 +38,7 @@ RESULTS_PAGE = ROOT / "docs" / "results.md"
 # Every figure this script writes; docs/*.md refer to them as figures/<name>.png.
 SKETCHES = ("crank_slider", "beam_units", "supports", "elastic_rod")
 # The main job's presets: the FMU's start values and every preset of resources/presets.
-PRESETS = ("default", "unb600a", "sk8-3.5-4000", "kvo630")
+PRESETS = ("default", "unb600a", "unb600a-simplex", "triplex-1600", "sk8-3.5-4000", "kvo630")
 RESULTS = tuple(f"results_{p}" for p in PRESETS)
 # Drawn by the closed loop's command (rdrive closed-loop, docs/closed-loop.md).
 CLOSED_LOOP = "closed_loop"
@@ -438,6 +438,12 @@ TABLE_SECTIONS = [
             and v.name.split(".")[0] in ("guide", "link", "support_A", "support_B", "support_C")
         ),
     ),
+    (
+        "Outputs: the pump (flow, powers) and its cylinders",
+        lambda v: (
+            v.causality == "output" and v.name.split(".")[0].startswith(("pump", "cylinder_"))
+        ),
+    ),
     ("Outputs", lambda v: v.causality == "output"),
     (
         "Model Exchange: the continuous states and their derivatives",
@@ -454,6 +460,10 @@ TABLE_SECTIONS = [
         lambda v: v.name.startswith("rod.") or v.name == "solver.tolerance",
     ),
     ("Parameters: balancer", lambda v: v.name.startswith("balancer.")),
+    (
+        "Parameters: the pump's cylinders",
+        lambda v: v.name.split(".")[0].startswith(("pump", "cylinder_")),
+    ),
     (
         "Parameters: link, supports and guide friction",
         lambda v: v.name.split(".")[0] in ("link", "guide", "support_A", "support_B", "support_C"),

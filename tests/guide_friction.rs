@@ -519,7 +519,7 @@ fn default_machine_revolution_satisfies_the_identities() {
 #[test]
 fn unb600a_revolution_satisfies_the_identities() {
     let api = Api::load();
-    let f = configured(&api, "unb600a", &[("load.profile", 1.0), ("load.mean", 150e3)]);
+    let f = configured(&api, "unb600a-simplex", &[("load.profile", 1.0), ("load.mean", 150e3)]);
     assert_eq!(f.exit(), OK);
     let rows = revolution(&f, 720, 0.3);
     let m = Machine {

@@ -7,7 +7,7 @@
 //! Machines: the default pump (guide friction on), the crank-slider without supports, a
 //! crank-slider with the balancer and a process-force profile, the beam unit sk8-3.5-4000 and the
 //! elastic rod kvo630 (its cage is integrated in the step; its outputs are read on demand after
-//! an input is set).
+//! an input is set), and pumps of two and three cylinders loaded by the pressures (load.profile 3).
 
 mod common;
 use common::*;
@@ -95,6 +95,35 @@ const MACHINES: &[Machine] = &[
         force: 3e3,
     },
     Machine { name: "kvo630", preset: Some("kvo630"), overrides: &[], speed: 157.0, force: 1.0 },
+    Machine {
+        name: "duplex double-acting, pressures",
+        preset: None,
+        overrides: &[
+            ("pump.cylinders", "Integer", "2"),
+            ("cylinder_2.phase", "Real", "1.5707963267948966"),
+            ("load.profile", "Integer", "3"),
+        ],
+        speed: 6.8,
+        force: 300.0,
+    },
+    Machine {
+        name: "triplex single-acting, pressures, balancer",
+        preset: None,
+        overrides: &[
+            ("pump.cylinders", "Integer", "3"),
+            ("cylinder_1.acting", "Integer", "1"),
+            ("cylinder_2.acting", "Integer", "1"),
+            ("cylinder_3.acting", "Integer", "1"),
+            ("cylinder_2.phase", "Real", "2.0943951023931953"),
+            ("cylinder_3.phase", "Real", "4.1887902047863905"),
+            ("load.profile", "Integer", "3"),
+            ("balancer.enabled", "Boolean", "true"),
+            ("balancer.tuning", "Integer", "1"),
+            ("balancer.design_speed", "Real", "6.8"),
+        ],
+        speed: 6.8,
+        force: 300.0,
+    },
 ];
 
 fn instance<'a>(api: &'a Api, m: &Machine, name: &str) -> Inst<'a> {
@@ -193,9 +222,17 @@ fn outputs_read_in_any_order_and_subset_equal_the_eager_evaluation_bit_for_bit()
                     m.speed * (1.0 + 0.05 * (0.3 * x).cos()),
                     0.5 * (0.2 * x).sin(),
                     m.force * (0.1 * x).cos(),
+                    1e6 * (1.0 + 0.2 * (0.13 * x).cos()),
+                    1e5 * (1.0 + 0.3 * (0.07 * x).sin()),
                 ];
-                let names =
-                    ["crank.angle", "crank.speed", "crank.acceleration", "link.external_force"];
+                let names = [
+                    "crank.angle",
+                    "crank.speed",
+                    "crank.acceleration",
+                    "link.external_force",
+                    "pump.discharge_pressure",
+                    "pump.suction_pressure",
+                ];
                 for f in [&lazy, &eager] {
                     for (n, v) in names.iter().zip(inputs) {
                         assert_eq!(f.set(n, v), OK);
@@ -217,7 +254,11 @@ fn outputs_read_in_any_order_and_subset_equal_the_eager_evaluation_bit_for_bit()
             let reference = model
                 .evaluate(
                     &crank,
-                    &Inputs { external_force: eager.get("link.external_force") },
+                    &Inputs {
+                        external_force: eager.get("link.external_force"),
+                        discharge_pressure: eager.get("pump.discharge_pressure"),
+                        suction_pressure: eager.get("pump.suction_pressure"),
+                    },
                     &rod,
                 )
                 .expect("evaluate");

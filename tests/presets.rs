@@ -32,7 +32,7 @@ fn presets() -> Vec<Preset> {
 fn the_three_presets_of_physics_md_exist_and_are_complete() {
     let ps = presets();
     let names: Vec<&str> = ps.iter().map(|p| p.0.as_str()).collect();
-    assert_eq!(names, ["kvo630", "sk8-3.5-4000", "unb600a"]);
+    assert_eq!(names, ["kvo630", "sk8-3.5-4000", "triplex-1600", "unb600a", "unb600a-simplex"]);
     for (preset, entries) in &ps {
         for (name, ty, value) in entries {
             let var = VARIABLES

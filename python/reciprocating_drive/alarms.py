@@ -55,6 +55,10 @@ UNITS = {
     "inertia_force_min": "N",
     "guide_friction_max": "N",
     "guide_friction_min": "N",
+    "flow_mean": "m³/s",
+    "flow_pulsation": "1",
+    "hydraulic_power_mean": "W",
+    "mechanical_power_mean": "W",
 }
 SEVERITIES = ("info", "warning", "critical")
 

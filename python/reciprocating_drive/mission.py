@@ -52,6 +52,25 @@ EXTREMES = {
     "crank.torque": "N.m",
 }
 
+#: A pump's outputs, recorded besides OUTPUTS for a pump preset (`is_pump`): the flow, the powers
+#: and the torque of every cylinder (the plots and the summary's pump section, docs/results.md).
+PUMP_OUTPUTS = (
+    "pump.flow",
+    "pump.hydraulic_power",
+    "pump.mechanical_power",
+    "cylinder_1.crank_torque",
+    "cylinder_2.crank_torque",
+    "cylinder_3.crank_torque",
+)
+PUMP_UNITS = {
+    "pump.flow": "m3/s",
+    "pump.hydraulic_power": "W",
+    "pump.mechanical_power": "W",
+    "cylinder_1.crank_torque": "N.m",
+    "cylinder_2.crank_torque": "N.m",
+    "cylinder_3.crank_torque": "N.m",
+}
+
 MECHANISMS = {
     1: "crank-slider",
     2: "beam pumping unit, API class I",
@@ -61,6 +80,19 @@ ROD_KINDS = {0: "rigid rod", 1: "elastic thin rod", 2: "helical-spring rod"}
 
 #: Relative change of the per-revolution ϑ amplitude below which the cage oscillation counts as settled.
 SETTLED = 1e-3
+
+
+def is_pump(params: dict) -> bool:
+    """A pump preset: pressures in (load.profile 3) or more than one cylinder on the crankshaft."""
+    return int(params.get("load.profile", 0)) == 3 or int(params.get("pump.cylinders", 1)) > 1
+
+
+def pump_outputs(params: dict) -> tuple:
+    """The pump outputs of a pump preset (only the active cylinders' torques), else none."""
+    if not is_pump(params):
+        return ()
+    n = int(params.get("pump.cylinders", 1))
+    return tuple(o for o in PUMP_OUTPUTS if not o.startswith("cylinder_") or int(o[9]) <= n)
 
 
 @dataclass
@@ -77,6 +109,14 @@ class Mission:
     @property
     def mechanism(self) -> int:
         return int(self.parameters["mechanism"])
+
+    @property
+    def pump(self) -> bool:
+        return is_pump(self.parameters)
+
+    @property
+    def cylinders(self) -> int:
+        return int(self.parameters.get("pump.cylinders", 1))
 
     @property
     def elastic(self) -> bool:
@@ -146,11 +186,13 @@ def run_mission(
     wait = (TWO_PI * math.ceil(theta0 / TWO_PI) - theta0) / omega
     n = int(math.ceil((wait + revolutions * period) / step)) + 2
     stop = n * step
-    start = {
-        k: v
-        for k, v in values.items()
-        if k not in ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")
-    }
+    inputs = ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")
+    # A pump's pressures are inputs too, held at the preset's (or the FMU's start) values.
+    pressures = tuple(
+        p for p in ("pump.discharge_pressure", "pump.suction_pressure") if p in params
+    )
+    start = {k: v for k, v in values.items() if k not in inputs + pressures}
+    outputs = OUTPUTS + pump_outputs(params)
     t = np.arange(n + 1) * step
     sig = np.zeros(
         n + 1,
@@ -160,10 +202,13 @@ def run_mission(
             ("crank.speed", float),
             ("crank.acceleration", float),
             ("link.external_force", float),
+            *[(p, float) for p in pressures],
         ],
     )
     sig["time"], sig["crank.angle"], sig["crank.speed"] = t, omega * t, omega
     sig["link.external_force"] = float(params.get("link.external_force", 0.0))
+    for p in pressures:
+        sig[p] = float(params.get(p, 0.0))
     res = simulate_fmu(
         fmu,
         start_time=0.0,
@@ -171,10 +216,10 @@ def run_mission(
         output_interval=step,
         start_values=start,
         input=sig,
-        output=list(OUTPUTS),
+        output=list(outputs),
     )
     data = {"time": np.asarray(res["time"], dtype=float)}
-    for name in OUTPUTS:
+    for name in outputs:
         data[name] = np.asarray(res[name], dtype=float)
     # Revolutions of the model angle counted from the first outer dead centre at or after t = 0.
     revs = summarize_revolutions(
@@ -182,7 +227,7 @@ def run_mission(
         data["crank.model_angle"],
         data,
         speed=data["crank.model_speed"],
-        quantities=tuple(EXTREMES) + ("suspension.position",),
+        quantities=tuple(EXTREMES) + ("suspension.position",) + pump_outputs(params)[1:],
     )
     if not revs:
         raise RuntimeError("the run holds no complete revolution")
@@ -244,6 +289,22 @@ def summarize(m: Mission) -> dict:
     if m.elastic:
         out["rod_angle_amplitude"] = last.rod_angle_amplitude
         out["stress_max"] = last.stress_max
+    if m.pump:
+        p = m.parameters
+        out["pump"] = {
+            "cylinders": m.cylinders,
+            "discharge_pressure": float(p.get("pump.discharge_pressure", 0.0)),
+            "suction_pressure": float(p.get("pump.suction_pressure", 0.0)),
+            "flow_mean": last.flow_mean,
+            "flow_pulsation": last.flow_pulsation,
+            "hydraulic_power_mean": last.hydraulic_power_mean,
+            "mechanical_power_mean": last.mechanical_power_mean,
+            "extremes": {
+                q: _extreme(e, PUMP_UNITS[q])
+                for q in pump_outputs(p)[1:]  # the flow: its mean and pulsation
+                if (e := last.extremes.get(q)) is not None
+            },
+        }
     return out
 
 
@@ -284,4 +345,25 @@ def format_summary(s: dict) -> str:
             f"(steady after {plural(s['transient_revolutions'], 'revolution')})"
         )
         lines.append(f"  largest rod stress          {s['stress_max'] / 1e6:.6g} MPa")
+    if "pump" in s:
+        p = s["pump"]
+        lines.append(
+            f"  pump                        {plural(p['cylinders'], 'cylinder')}, discharge "
+            f"{p['discharge_pressure'] / 1e6:.6g} MPa, suction {p['suction_pressure'] / 1e6:.6g} MPa"
+        )
+        lines.append(
+            f"  mean flow                   {p['flow_mean']:.6g} m3/s "
+            f"({p['flow_mean'] * 60e3:.6g} L/min)"
+        )
+        lines.append(
+            f"  flow pulsation              {p['flow_pulsation']:.6g} (Q_max - Q_min)/Q_mean"
+        )
+        lines.append(f"  mean hydraulic power        {p['hydraulic_power_mean'] / 1e3:.6g} kW")
+        lines.append(f"  mean mechanical power       {p['mechanical_power_mean'] / 1e3:.6g} kW")
+        for q, e in p["extremes"].items():
+            if q.startswith("cylinder_"):
+                lines.append(
+                    f"  {q:<26}  max {e['max']:.6g} {e['unit']} at {_angle(e['max_angle_deg'])}, "
+                    f"min {e['min']:.6g} {e['unit']} at {_angle(e['min_angle_deg'])}"
+                )
     return "\n".join(lines)

@@ -30,6 +30,12 @@ ROD_PANELS = [
     ("rod.angle", "rod angle ϑ", "rad"),
     ("rod.stress_max", "largest stress", "MPa"),
 ]
+#: A pump preset's panels (mission.is_pump): the crank torque panel also draws every cylinder's.
+PUMP_PANELS = [
+    ("pump.flow", "flow Q", "L/s"),
+    ("pump.hydraulic_power", "hydraulic power", "kW"),
+    ("pump.mechanical_power", "mechanical power", "kW"),
+]
 #: Steady revolutions drawn against the crank angle.
 PLOT_REVOLUTIONS = 2
 #: The y-range rule of every plot and of the live page's trends (docs/twin.md "Output",
@@ -73,6 +79,10 @@ def span_axis(ax, values, limits=()) -> None:
 def _scale(y: np.ndarray, unit: str) -> tuple[float, str]:
     if unit == "MPa":
         return 1e-6, unit
+    if unit == "L/s":
+        return 1e3, unit
+    if unit == "kW":
+        return 1e-3, unit
     if unit in ("N", "N·m") and np.max(np.abs(y)) >= 1e3:
         return 1e-3, "k" + unit
     return 1.0, unit
@@ -85,7 +95,7 @@ def plot_mission(m: Mission, path: str | pathlib.Path, dpi: int = 100) -> None:
     first = revs[0].index
     # Crank angle from the start of the first steady revolution, in degrees.
     deg = np.degrees(d["crank.model_angle"][sl]) - 360.0 * first
-    panels = PANELS + (ROD_PANELS if m.elastic else [])
+    panels = PANELS + (ROD_PANELS if m.elastic else []) + (PUMP_PANELS if m.pump else [])
     card = m.mechanism in (2, 3)
     rows = len(panels) + (1 if m.elastic else 0)
     fig = plt.figure(figsize=(13 if card else 10, 1.9 * rows + 1.2))
@@ -108,10 +118,20 @@ def plot_mission(m: Mission, path: str | pathlib.Path, dpi: int = 100) -> None:
     for i, (name, label, unit) in enumerate(panels):
         ax = fig.add_subplot(gs[r0 + i, 0], sharex=axes[0] if axes else None)
         k, unit = _scale(d[name][sl], unit)
-        ax.plot(deg, d[name][sl] * k, lw=1.2)
+        ax.plot(deg, d[name][sl] * k, lw=1.2, label="sum" if m.pump else None)
+        shown = d[name][sl] * k
+        if m.pump and name == "crank.torque" and m.cylinders > 1:
+            # The pump's crankshaft torque is the sum of its cylinders' (docs/results.md).
+            for c in range(1, m.cylinders + 1):
+                y = d[f"cylinder_{c}.crank_torque"][sl] * k
+                ax.plot(deg, y, lw=0.8, ls="--", label=f"cylinder {c}")
+                shown = np.append(shown, y)
+            ax.legend(loc="upper right", fontsize=7, ncol=m.cylinders + 1)
         ax.axhline(0.0, color="k", lw=0.5)
         # The zero line stays in view, as matplotlib's own range kept it.
-        span_axis(ax, np.append(d[name][sl] * k, 0.0))
+        span_axis(ax, np.append(shown, 0.0))
+        if m.pump and m.cylinders > 1 and (name, label, unit) in PANELS[:4]:
+            label += ", cyl. 1"  # the link's outputs are cylinder 1's (docs/results.md)
         ax.set_ylabel(f"{label}\n[{unit}]")
         ax.grid(True, alpha=0.4)
         axes.append(ax)

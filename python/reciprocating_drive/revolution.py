@@ -32,6 +32,10 @@ DEFAULT_QUANTITIES = (
     "crank.torque",
 )
 
+#: The per-revolution numbers of a pump (from pump.flow, pump.hydraulic_power and
+#: pump.mechanical_power; docs/results.md "Pump presets").
+PUMP_COLUMNS = ("flow_mean", "flow_pulsation", "hydraulic_power_mean", "mechanical_power_mean")
+
 
 @dataclass
 class Extreme:
@@ -57,6 +61,11 @@ class RevolutionSummary:
     rod_angle_amplitude: float | None = None
     #: largest rod stress [Pa]
     stress_max: float | None = None
+    #: a pump's mean flow [m³/s], (Q_max − Q_min)/Q_mean, mean hydraulic and mechanical power [W]
+    flow_mean: float | None = None
+    flow_pulsation: float | None = None
+    hydraulic_power_mean: float | None = None
+    mechanical_power_mean: float | None = None
 
     def as_row(self) -> dict:
         """A flat dict (CSV/Parquet row): extremes as '<name>.max', '<name>.max_angle_deg', …"""
@@ -75,6 +84,9 @@ class RevolutionSummary:
         row["friction_work"] = self.friction_work
         row["rod_angle_amplitude"] = self.rod_angle_amplitude
         row["stress_max"] = self.stress_max
+        if self.flow_mean is not None:  # a pump's run (pump.flow recorded)
+            for name in PUMP_COLUMNS:
+                row[name] = getattr(self, name)
         return row
 
 
@@ -150,7 +162,7 @@ def summarize_revolutions(
                     tab[f"{q}.min"][i],
                     tab[f"{q}.min_angle_deg"][i],
                 )
-        for name in ("friction_work", "rod_angle_amplitude", "stress_max"):
+        for name in ("friction_work", "rod_angle_amplitude", "stress_max", *PUMP_COLUMNS):
             if name in tab:
                 setattr(s, name, tab[name][i])
         out.append(s)
@@ -252,10 +264,11 @@ def revolution_table(
         vmin, amin = _refined_peaks(th, y, first_where(y, seg_min(y)))
         tab[f"{q}.max"], tab[f"{q}.max_angle_deg"] = vmax, _degrees(amax)
         tab[f"{q}.min"], tab[f"{q}.min_angle_deg"] = vmin, _degrees(amin)
-    if "link.friction_total" in cols and "suspension.position" in cols:
-        # Over exactly [t_a, t_b]: the samples inside plus the values interpolated at both ends;
-        # the trapezoids of revolution r are terms[toff[r]:toff[r] + n[r] + 1].
-        f, x = cols["link.friction_total"], cols["suspension.position"]
+
+    def integral(f, x):
+        """∫ f dx over exactly [t_a, t_b] of each revolution (trapezoidal rule): the samples
+        inside plus the values interpolated at both ends; the trapezoids of revolution r are
+        terms[toff[r]:toff[r] + n[r] + 1]."""
         fa, fb, xa, xb = (
             np.interp(ta, t, f),
             np.interp(tb, t, f),
@@ -270,9 +283,24 @@ def revolution_table(
         )
         terms[toff] = 0.5 * (f[ja] + fa) * (x[ja] - xa)
         terms[toff + n] = 0.5 * (fb + f[jb - 1]) * (xb - x[jb - 1])
-        tab["friction_work"] = np.array(
+        return np.array(
             [np.add.reduce(terms[a:b]) for a, b in zip(toff.tolist(), (toff + n + 1).tolist())]
         )
+
+    if "link.friction_total" in cols and "suspension.position" in cols:
+        tab["friction_work"] = integral(cols["link.friction_total"], cols["suspension.position"])
+    if "pump.flow" in cols:
+        # The pump (docs/results.md "Pump presets"): the time means over the revolution, and
+        # the flow pulsation (Q_max − Q_min)/Q_mean from the sampled extremes: the flow's
+        # extremes often sit at kinks (a chamber's delivery starts at its dead centre), where
+        # the parabola of `_refined_peaks` would overshoot by up to an eighth of a step's rise.
+        q = cols["pump.flow"]
+        tab["flow_mean"] = integral(q, t) / dur
+        with np.errstate(all="ignore"):
+            tab["flow_pulsation"] = (seg_max(q) - seg_min(q)) / tab["flow_mean"]
+        for name in ("hydraulic_power", "mechanical_power"):
+            if f"pump.{name}" in cols:
+                tab[f"{name}_mean"] = integral(cols[f"pump.{name}"], t) / dur
     if "suspension.position" in cols:
         # The stroke: the travel between the extreme positions of the revolution, each refined
         # like the other extremes (docs/twin.md "Output").

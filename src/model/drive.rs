@@ -19,6 +19,7 @@ use crate::model::guide::{Guide, GuideOutputs};
 use crate::model::integrator::IntegratorState;
 use crate::model::kinematics::{max_abs_torque_factor, Kinematics};
 use crate::model::loads;
+use crate::model::pump::Pump;
 use cage_step::solve_on_table;
 
 mod cage_rate;
@@ -27,14 +28,18 @@ mod tangent;
 pub use tangent::Seed;
 
 use crate::model::params::{
-    Params, MECHANISM_BEAM_CLASS_I, MECHANISM_BEAM_CLASS_III, MECHANISM_CRANK_SLIDER,
+    Params, LOAD_PROFILE_PRESSURES, MAX_CYLINDERS, MECHANISM_BEAM_CLASS_I,
+    MECHANISM_BEAM_CLASS_III, MECHANISM_CRANK_SLIDER,
 };
 
 /// Inputs of one evaluation besides the crank motion.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Inputs {
-    /// `link.external_force` [N], positive along +s.
+    /// `link.external_force` [N], positive along +s (cylinder 1's link).
     pub external_force: f64,
+    /// `pump.discharge_pressure`, `pump.suction_pressure` [Pa] (§4.1).
+    pub discharge_pressure: f64,
+    pub suction_pressure: f64,
 }
 
 /// The FMU's continuous state and what its integrator carries between steps (part of the FMU
@@ -59,7 +64,34 @@ pub mod groups {
     /// The rod force P (implicit through the guide friction, §4, §5), crank torque, support
     /// reactions and friction, an elastic rod's stress and deflection (§6). Needs LOADS.
     pub const FORCES: u8 = 4;
-    pub const ALL: u8 = KINEMATICS | LOADS | FORCES;
+    /// Cylinders 2.. of the pump (everything of theirs, §4.1), the crank torque summed over the
+    /// cylinders and the mechanical power. Needs FORCES (cylinder 1's torque).
+    pub const CYLINDERS: u8 = 8;
+    /// Flow of each cylinder and of the pump, hydraulic power (§4.1). Needs the velocities:
+    /// KINEMATICS, and CYLINDERS when there is more than one cylinder.
+    pub const FLOW: u8 = 16;
+    /// `crank.torque`, `pump.mechanical_power`: every cylinder's torque.
+    pub const TORQUE: u8 = FORCES | CYLINDERS;
+    pub const ALL: u8 = KINEMATICS | LOADS | FORCES | CYLINDERS | FLOW;
+}
+
+/// The outputs of one cylinder of the pump (§4.1). Cylinder 1's kinematics, inertia force,
+/// friction and rod force are the link's outputs of [`Outputs`] (`position`, …); its entry here
+/// holds its fluid force, torque and flow.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CylinderOutputs {
+    pub position: f64,
+    pub velocity: f64,
+    pub acceleration: f64,
+    pub inertia_force: f64,
+    /// The process force of `load.profile` on its piston (without `link.external_force`).
+    pub fluid_force: f64,
+    /// F_fr of its supports (`link.friction_total` of its link).
+    pub friction: f64,
+    pub rod_force: f64,
+    /// T_k = −P_k·TF_k.
+    pub crank_torque: f64,
+    pub flow: f64,
 }
 
 /// Every output of docs/model.md §10.
@@ -97,6 +129,15 @@ pub struct Outputs {
     /// Elastic rod (§6): largest stress and static axial shortening; 0 for a rigid rod.
     pub rod_stress_max: f64,
     pub rod_axial_deflection: f64,
+    /// The pump's cylinders (§4.1); entries beyond `pump.cylinders` stay 0.
+    pub cylinders: [CylinderOutputs; MAX_CYLINDERS],
+    /// The guide's solution of cylinders 2.. (cylinder 1's is `guide`; the tangent starts from
+    /// them).
+    pub cylinder_guides: [GuideOutputs; MAX_CYLINDERS],
+    /// Q = Σ Q_k, (p_d − p_s)·Q, T·ω (§4.1).
+    pub flow: f64,
+    pub hydraulic_power: f64,
+    pub mechanical_power: f64,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -119,6 +160,8 @@ pub struct Model {
     /// (table.rs), for the integrator's stages. Shared, immutable (cloning a Model for an FMU
     /// state snapshot copies a pointer).
     rod_table: Option<Arc<StiffnessTable>>,
+    /// The cylinders on the crankshaft (§4.1).
+    pump: Pump,
 }
 
 /// Kinematics and the loads on the link that do not depend on P, at one instant.
@@ -131,6 +174,8 @@ struct LinkLoads {
     balancer_force: f64,
     /// F_ext + Φ + F_bal: P without friction (§4).
     p_base: f64,
+    /// The process force of `load.profile` (§4, §4.1).
+    process: f64,
     /// Elastic rod: the piston law's Δ, dΔ/dθ, Δ̈ (§6).
     piston: Option<PistonPoint>,
 }
@@ -143,6 +188,7 @@ struct Instant {
     inertia_force: f64,
     balancer_force: f64,
     p_base: f64,
+    process: f64,
     guide: GuideOutputs,
     /// The beam column at the final P, the cage loads, dΔ/dθ, and the clamp's transverse force.
     rod: (BeamColumn, CageLoads, f64, f64),
@@ -170,12 +216,24 @@ impl Model {
                 "(0, inf) m/s",
             ));
         }
-        if !(0..=2).contains(&p.load_profile) {
+        if !(0..=LOAD_PROFILE_PRESSURES).contains(&p.load_profile) {
             return Err(ModelError::out_of_range(
                 "load.profile",
                 p.load_profile as f64,
-                "0, 1 or 2",
+                "0, 1, 2 or 3",
             ));
+        }
+        let pump = Pump::new(p.cylinders, &p.cylinder)?;
+        // §4.1: several cylinders share the rigid crank-slider's kinematics with their phases;
+        // the elastic rod's cage (§6) is modelled for one rod clamped in one piston, and a beam
+        // unit has one horsehead.
+        if pump.n > 1 && (p.mechanism != MECHANISM_CRANK_SLIDER || p.rod_kind != 0) {
+            return Err(ModelError::invalid(format!(
+                "pump.cylinders = {} needs the rigid crank-slider (mechanism = 1, rod.kind = 0), \
+                 not mechanism = {}, rod.kind = {}: the elastic rod and the beam units are \
+                 modelled for one cylinder",
+                pump.n, p.mechanism, p.rod_kind
+            )));
         }
         if p.rotation != 1 && p.rotation != -1 {
             return Err(ModelError::out_of_range("rotation", p.rotation as f64, "-1 or +1"));
@@ -227,8 +285,14 @@ impl Model {
             }
             _ => None,
         };
-        let mut model =
-            Model { params: params.clone(), mechanism, balancer: None, guide: None, rod_table };
+        let mut model = Model {
+            params: params.clone(),
+            mechanism,
+            balancer: None,
+            guide: None,
+            rod_table,
+            pump,
+        };
         model.guide = Guide::new(&p.guide_spec()?, model.stroke())?;
         if p.balancer_enabled {
             for (name, v) in [
@@ -386,26 +450,45 @@ impl Model {
         };
         let velocity = k.velocity(w);
         let acceleration = k.acceleration(w, eps);
-        let (inertia_force, balancer_force, p_base) =
-            self.loads_at(theta, k.s, velocity, acceleration, inputs);
-        LinkLoads { k, velocity, acceleration, inertia_force, balancer_force, p_base, piston }
+        let (inertia_force, balancer_force, p_base, process) =
+            self.loads_at(0, theta, k.s, velocity, acceleration, inputs);
+        LinkLoads {
+            k,
+            velocity,
+            acceleration,
+            inertia_force,
+            balancer_force,
+            p_base,
+            process,
+            piston,
+        }
     }
 
-    /// The loads on the link that do not depend on P at model angle θ, position s, velocity v and
-    /// acceleration a (§4, §7): (Φ, F_bal, p_base = F_ext + Φ + F_bal).
+    /// The loads on cylinder `cyl`'s link that do not depend on P at its angle θ (θ + φ_k),
+    /// position s, velocity v and acceleration a (§4, §4.1, §7): (Φ, F_bal,
+    /// p_base = F_ext + Φ + F_bal, the process force of `load.profile`). `link.external_force`
+    /// acts on cylinder 1 (`cyl` 0) only.
     #[inline]
     fn loads_at(
         &self,
+        cyl: usize,
         theta: f64,
         s: f64,
         velocity: f64,
         acceleration: f64,
         inputs: &Inputs,
-    ) -> (f64, f64, f64) {
+    ) -> (f64, f64, f64, f64) {
         let p = &self.params;
         let inertia_force = loads::inertia_force(p.mass, acceleration);
-        let f_ext = inputs.external_force
-            + loads::process_force_profile(
+        let process = if p.load_profile == LOAD_PROFILE_PRESSURES {
+            self.pump.cylinders[cyl].fluid_force(
+                inputs.discharge_pressure,
+                inputs.suction_pressure,
+                velocity,
+                p.velocity_scale,
+            )
+        } else {
+            loads::process_force_profile(
                 p.load_profile,
                 p.load_mean,
                 p.load_amplitude,
@@ -413,10 +496,13 @@ impl Model {
                 theta,
                 velocity,
                 p.velocity_scale,
-            );
+            )
+        };
+        let external = if cyl == 0 { inputs.external_force } else { 0.0 };
+        let f_ext = external + process;
         let balancer_force = self.balancer.as_ref().map_or(0.0, |b| b.force(s));
         // §4: P = F_ext + Φ + F_fr + F_bal.
-        (inertia_force, balancer_force, f_ext + inertia_force + balancer_force)
+        (inertia_force, balancer_force, f_ext + inertia_force + balancer_force, process)
     }
 
     /// Kinematics, loads and the rod force of an elastic rod at one instant (§2–§6). P is
@@ -511,6 +597,7 @@ impl Model {
             inertia_force: ll.inertia_force,
             balancer_force: ll.balancer_force,
             p_base: ll.p_base,
+            process: ll.process,
             guide,
             rod,
         })
@@ -519,7 +606,14 @@ impl Model {
     /// Inputs (and the crank state carried forward from them) must be finite.
     #[inline]
     pub fn check_inputs(crank: &CrankState, inputs: &Inputs) -> Result<(), ModelError> {
-        if (crank.angle + crank.speed + crank.acceleration + inputs.external_force).is_finite() {
+        if (crank.angle
+            + crank.speed
+            + crank.acceleration
+            + inputs.external_force
+            + inputs.discharge_pressure
+            + inputs.suction_pressure)
+            .is_finite()
+        {
             // The sum of finite numbers can overflow; then the checks below tell which is not.
             return Ok(());
         }
@@ -532,6 +626,8 @@ impl Model {
         require_finite("crank.speed", crank.speed)?;
         require_finite("crank.acceleration", crank.acceleration)?;
         require_finite("link.external_force", inputs.external_force)?;
+        require_finite("pump.discharge_pressure", inputs.discharge_pressure)?;
+        require_finite("pump.suction_pressure", inputs.suction_pressure)?;
         Ok(())
     }
 
@@ -593,6 +689,14 @@ impl Model {
         out: &mut Outputs,
         want: u8,
     ) -> Result<(), ModelError> {
+        // The groups a group needs (`groups`).
+        let mut want = want;
+        if want & groups::FLOW != 0 && self.pump.n > 1 {
+            want |= groups::CYLINDERS;
+        }
+        if want & groups::CYLINDERS != 0 {
+            want |= groups::FORCES;
+        }
         let missing = want & !out.ready;
         if out.ready == 0 {
             Self::check_inputs(crank, inputs)?;
@@ -620,8 +724,9 @@ impl Model {
             out.ready |= groups::KINEMATICS;
         }
         if missing & (groups::LOADS | groups::FORCES) != 0 && out.ready & groups::LOADS == 0 {
-            let (inertia_force, balancer_force, p_base) =
-                self.loads_at(theta, out.position, out.velocity, out.acceleration, inputs);
+            let (inertia_force, balancer_force, p_base, process) =
+                self.loads_at(0, theta, out.position, out.velocity, out.acceleration, inputs);
+            out.cylinders[0].fluid_force = process;
             out.inertia_force = inertia_force;
             out.balancer_force = balancer_force;
             out.balancer_residual = inertia_force + balancer_force;
@@ -639,11 +744,81 @@ impl Model {
             out.guide = guide;
             out.rod_force = guide.rod_force;
             out.crank_torque = loads::crank_torque_rigid(guide.rod_force, out.torque_factor);
+            out.cylinders[0].crank_torque = out.crank_torque;
             out.rod_stress_max = 0.0;
             out.rod_axial_deflection = 0.0;
             out.ready |= groups::FORCES;
         }
+        if missing & groups::CYLINDERS != 0 {
+            // §4.1: cylinders 2.. (none for one cylinder), T = Σ T_k, mechanical power T·ω.
+            for k in 1..self.pump.n {
+                (out.cylinders[k], out.cylinder_guides[k]) =
+                    self.cylinder_outputs(k, theta, w, eps, inputs)?;
+                out.crank_torque += out.cylinders[k].crank_torque;
+            }
+            out.mechanical_power = out.crank_torque * w;
+            out.ready |= groups::CYLINDERS;
+        }
+        if missing & groups::FLOW != 0 {
+            self.flow_into(out, inputs);
+        }
         Ok(())
+    }
+
+    /// Everything of cylinder k ≥ 2 (index `k` ≥ 1) of a rigid crank-slider at model angle θ
+    /// (§4.1): its link at θ + φ_k, loaded by its own process force, guided by its own supports.
+    #[inline(never)]
+    fn cylinder_outputs(
+        &self,
+        k: usize,
+        theta: f64,
+        w: f64,
+        eps: f64,
+        inputs: &Inputs,
+    ) -> Result<(CylinderOutputs, GuideOutputs), ModelError> {
+        let Mechanism::CrankSlider(m) = &self.mechanism else {
+            // `Model::new` refuses several cylinders on any other mechanism.
+            return Err(ModelError::evaluation("internal: several cylinders need a crank-slider"));
+        };
+        let th = theta + self.pump.cylinders[k].phase;
+        let (kin, side_slope) = m.kinematics_and_tan_beta(th);
+        let velocity = kin.velocity(w);
+        let acceleration = kin.acceleration(w, eps);
+        let (inertia_force, _, p_base, process) =
+            self.loads_at(k, th, kin.s, velocity, acceleration, inputs);
+        let guide = match &self.guide {
+            Some(g) => g.solve_rigid(kin.s, velocity, p_base, side_slope)?,
+            None => GuideOutputs { rod_force: p_base, ..GuideOutputs::default() },
+        };
+        let c = CylinderOutputs {
+            position: kin.s,
+            velocity,
+            acceleration,
+            inertia_force,
+            fluid_force: process,
+            friction: guide.friction_total,
+            rod_force: guide.rod_force,
+            crank_torque: loads::crank_torque_rigid(guide.rod_force, kin.tf),
+            flow: 0.0,
+        };
+        Ok((c, guide))
+    }
+
+    /// The FLOW group (§4.1) from the velocities already in `out`: Q_k, Q = Σ Q_k,
+    /// hydraulic power (p_d − p_s)·Q.
+    #[inline]
+    fn flow_into(&self, out: &mut Outputs, inputs: &Inputs) {
+        let v_eps = self.params.velocity_scale;
+        let mut q = self.pump.cylinders[0].flow(out.velocity, v_eps);
+        out.cylinders[0].flow = q;
+        for k in 1..self.pump.n {
+            let qk = self.pump.cylinders[k].flow(out.cylinders[k].velocity, v_eps);
+            out.cylinders[k].flow = qk;
+            q += qk;
+        }
+        out.flow = q;
+        out.hydraulic_power = (inputs.discharge_pressure - inputs.suction_pressure) * q;
+        out.ready |= groups::FLOW;
     }
 
     /// Every output of an elastic-rod machine at once: its kinematics, loads, rod force and
@@ -682,7 +857,17 @@ impl Model {
             guide: i.guide,
             rod_stress_max: elastic.stress_max(bc, loads.delta, rod.cage.theta, rod_force),
             rod_axial_deflection: elastic.axial_deflection(rod_force),
+            cylinders: Default::default(),
+            cylinder_guides: Default::default(),
+            flow: 0.0,
+            hydraulic_power: 0.0,
+            mechanical_power: 0.0,
         };
+        // One cylinder (`Model::new`): its process force, torque, flow and the powers (§4.1).
+        out.cylinders[0].fluid_force = i.process;
+        out.cylinders[0].crank_torque = out.crank_torque;
+        out.mechanical_power = out.crank_torque * crank.speed;
+        self.flow_into(out, inputs);
         Ok(())
     }
 
@@ -1064,7 +1249,9 @@ pub(crate) mod tests {
             (Params { mass: -1.0, ..Params::default() }, "mass.reciprocating"),
             (Params { mass: f64::NAN, ..Params::default() }, "mass.reciprocating"),
             (Params { rod_length: 0.1, ..Params::default() }, "geometry.rod_length"),
-            (Params { load_profile: 3, ..Params::default() }, "load.profile"),
+            (Params { load_profile: 4, ..Params::default() }, "load.profile"),
+            (Params { cylinders: 2, rod_kind: 2, ..Params::default() }, "pump.cylinders"),
+            (Params { cylinders: 2, mechanism: 2, ..Params::default() }, "pump.cylinders"),
             (Params { mechanism: 7, ..Params::default() }, "mechanism"),
         ] {
             let e = Model::new(&p).unwrap_err().to_string();

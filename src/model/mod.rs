@@ -15,3 +15,4 @@ pub mod integrator;
 pub mod kinematics;
 pub mod loads;
 pub mod params;
+pub mod pump;

@@ -11,6 +11,13 @@ use crate::model::guide::{GuideSpec, SupportKind, SupportSpec};
 pub const LOAD_PROFILE_COSINE: i32 = 0;
 pub const LOAD_PROFILE_DOUBLE_ACTING: i32 = 1;
 pub const LOAD_PROFILE_SINGLE_ACTING: i32 = 2;
+/// Chambers at `pump.discharge_pressure` while their volume shrinks, at `pump.suction_pressure`
+/// while it grows (docs/model.md §4.1).
+pub const LOAD_PROFILE_PRESSURES: i32 = 3;
+
+/// Cylinders on one crankshaft the variable table has room for (`cylinder_1` … `cylinder_3`;
+/// docs/model.md §4.1).
+pub const MAX_CYLINDERS: usize = 3;
 
 /// `mechanism` (docs/model.md §1).
 pub const MECHANISM_CRANK_SLIDER: i32 = 1;
@@ -30,6 +37,19 @@ pub struct SupportParams {
     pub length: f64,
     pub stiffness: f64,
     pub friction: f64,
+}
+
+/// One cylinder of the pump (docs/model.md §4.1): `cylinder_k.*`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CylinderParams {
+    /// Crank phase φ_k [rad], added to the model angle: cylinder k's link sees θ + φ_k.
+    pub phase: f64,
+    /// 1 single-acting (the head-end chamber only), 2 double-acting (both chambers).
+    pub acting: i32,
+    /// Piston (liner) diameter D [m].
+    pub piston_diameter: f64,
+    /// Piston-rod diameter d [m] through the crank-end chamber (double-acting).
+    pub rod_diameter: f64,
 }
 
 /// All parameters, in SI units and radians. Field names follow the variable names of
@@ -88,6 +108,9 @@ pub struct Params {
     pub balancer_stiffness: f64,
     pub balancer_design_speed: f64,
     pub balancer_neutral_position: f64,
+    /// Active cylinders on the crankshaft, 1..=[`MAX_CYLINDERS`] (§4.1).
+    pub cylinders: i32,
+    pub cylinder: [CylinderParams; MAX_CYLINDERS],
 }
 
 /// Default crank speed: 65 strokes per minute (§8).
@@ -178,6 +201,15 @@ impl Default for Params {
             balancer_stiffness: 0.0,
             balancer_design_speed: DEFAULT_CRANK_SPEED,
             balancer_neutral_position: -1.0,
+            // One cylinder (today's machine). Its liner: 130 mm piston on the 70 mm piston rod
+            // of link.d1 (§8).
+            cylinders: 1,
+            cylinder: [CylinderParams {
+                phase: 0.0,
+                acting: 2,
+                piston_diameter: 0.13,
+                rod_diameter: 0.07,
+            }; MAX_CYLINDERS],
         }
     }
 }

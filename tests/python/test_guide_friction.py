@@ -503,7 +503,7 @@ def params(model_description):
 
 
 def unb600a_values():
-    v = preset_values("unb600a")
+    v = preset_values("unb600a-simplex")
     assert v["load.profile"] == 1 and v["load.mean"] == 150e3
     return v
 
@@ -690,7 +690,7 @@ def test_friction_work_per_revolution(fmu_path, params, case):
         assert abs(drive + work_fmu) <= 1e-9 * np.trapezoid(inertia_power, t), (drive, work_fmu)
 
 
-@pytest.mark.parametrize("case", ["default", "unb600a"])
+@pytest.mark.parametrize("case", ["default", "unb600a-simplex"])
 def test_friction_report_figures_agree_with_the_independent_model(fmu_path, params, case):
     """scripts/friction_report.py (the closing-note figures, computed from the FMU alone): its
     extremes of guide.friction are extremes of the independent model too (same value to RTOL at
@@ -699,7 +699,7 @@ def test_friction_report_figures_agree_with_the_independent_model(fmu_path, para
     import friction_report
 
     rep = friction_report.report(fmu_path, case)
-    values = params | (unb600a_values() if case == "unb600a" else {})
+    values = params | (unb600a_values() if case == "unb600a-simplex" else {})
     ref = Reference(values)
     w = rep["omega"]
     print(f"{case}: max {rep['max']}, min {rep['min']}, work {rep['work']:.9g} J")

@@ -31,7 +31,14 @@ def angle_close(a_deg, b_deg, tol=0.01):
 def summaries(fmu_path, tmp_path_factory):
     out = tmp_path_factory.mktemp("results")
     got = {}
-    for preset in ("default", "unb600a", "sk8-3.5-4000", "kvo630"):
+    for preset in (
+        "default",
+        "unb600a",
+        "unb600a-simplex",
+        "triplex-1600",
+        "sk8-3.5-4000",
+        "kvo630",
+    ):
         assert simulate.main([preset, "--fmu", fmu_path, "--out-dir", str(out)]) == 0
         got[preset] = json.loads((out / f"{preset}.json").read_text())
         png = (out / f"{preset}.png").read_bytes()

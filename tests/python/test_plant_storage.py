@@ -354,6 +354,8 @@ def test_an_older_schema_is_migrated(tmp_path):
     """A database of schema version 2 (no stored input) is migrated when the twin opens it: its
     runs keep their rows, new runs store their input; a range of an old run says why it cannot
     be recomputed."""
+    from reciprocating_drive.revolution import PUMP_COLUMNS
+
     cfg, db = _config(tmp_path, pu.SAMPLE, pace=0.0, name="old")
     assert pu.run(cfg).returncode == 0
     c = sqlite3.connect(db)
@@ -364,6 +366,7 @@ def test_an_older_schema_is_migrated(tmp_path):
         ("checkpoints", "samples_from"),
         ("checkpoints", "revolutions_from"),
         ("checkpoints", "events_from"),
+        *(("revolutions", c) for c in PUMP_COLUMNS),
     ]:
         c.execute(f"ALTER TABLE {table} DROP COLUMN {col}")
     c.execute("DROP TABLE input_blocks")
@@ -376,6 +379,8 @@ def test_an_older_schema_is_migrated(tmp_path):
     done = pu.run(cfg2)
     assert done.returncode == 0, done.stderr
     assert pu.query(str(db), "SELECT version FROM schema_info") == [(3,)]
+    cols = {r[1] for r in pu.query(str(db), "PRAGMA table_info(revolutions)")}
+    assert set(PUMP_COLUMNS) <= cols  # a pump's summary columns added
     assert len(pu.samples(str(db), "old")) == n_old
     ref = pu.clean_run(FMU)[0]
     assert np.array_equal(pu.bits(_recompute(db, "new", 0, 1)), pu.bits(_slice(ref, 0, 1)))

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from reciprocating_drive.presets import preset_values_from_fmu  # noqa: E402
 
-PRESETS = ["unb600a", "sk8-3.5-4000", "kvo630"]
+PRESETS = ["unb600a", "unb600a-simplex", "triplex-1600", "sk8-3.5-4000", "kvo630"]
 OUTS = [
     "suspension.position",
     "suspension.acceleration",

@@ -321,7 +321,6 @@ CLAIMS = [
     ("link.l3", 1.0, 1.1, NO_SUPPORTS, {}),
     ("link.E", 2.1e11, 1.0e11, NO_SUPPORTS, {}),
     ("link.lateral_load", 0.0, 500.0, NO_SUPPORTS, {}),
-    ("guide.velocity_scale", 0.02, 0.05, NO_SUPPORTS, {}),
     ("guide.rod_side_force", True, False, NO_SUPPORTS, {}),
     ("balancer.stiffness", 1e4, 2e4, {}, {"balancer.enabled": True}),
     (
@@ -401,7 +400,7 @@ def test_sweep_warns_of_a_parameter_that_cannot_act(fmu_path, tmp_path):
 
     f = tmp_path / "gland.toml"
     f.write_text(
-        'name = "gland"\nmachine = "unb600a"\nskip_revolutions = 0\nsteps_per_revolution = 60\n'
+        'name = "gland"\nmachine = "unb600a-simplex"\nskip_revolutions = 0\nsteps_per_revolution = 60\n'
         '[parameters]\n"support_C.tilt" = { values = [0.0, 1e-3] }\n'
         '"support_A.offset" = { values = [0.0, 1e-4] }\n'
     )

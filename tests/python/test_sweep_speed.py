@@ -82,7 +82,7 @@ def test_the_example_studies_need_no_per_step_path(fmu_path, no_reference):
 
 @pytest.mark.parametrize(
     "machine,skip,revs,steps,spm,mass",
-    [("default", 0, 2, 90, 700, 600), ("unb600a", 0, 1, 120, 700, 600),
+    [("default", 0, 2, 90, 700, 600), ("unb600a-simplex", 0, 1, 120, 700, 600),
      ("sk8-3.5-4000", 1, 2, 72, 700, 6000), ("kvo630", 3, 2, 180, 3000, 0.04)],
 )  # fmt: skip
 def test_every_metric_on_every_machine_equals_the_reference(

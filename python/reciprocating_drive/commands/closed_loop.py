@@ -10,6 +10,7 @@ torque and power, δ per revolution).
 
     rdrive closed-loop [--importer libcosim|fmpy|model-exchange] [--step 1e-3] [--time 10]
     rdrive closed-loop --set drivetrain.crank.inertia=80 --set pump.load.mean=2e4
+    rdrive closed-loop --pump unb600a --set pump.pump.discharge_pressure=1e6
 
 Exit codes: 0 done, 1 the loop failed or diverged (the message names docs/closed-loop.md's
 stability condition ρ_eff < 1), 2 a user error, 70 an internal error, 130 stopped.
@@ -78,9 +79,22 @@ def parser(prog: str = PROG) -> ArgumentParser:
         action="append",
         default=[],
         metavar="COMPONENT.PARAMETER=VALUE",
-        help="a parameter of the pump or the drivetrain over the shipped sets (ssp/ClosedLoop/*.ssv)",
+        help="a parameter of the pump or the drivetrain over the shipped sets (ssp/ClosedLoop/*.ssv); "
+        "for the pump also its input pump.discharge_pressure or pump.suction_pressure [Pa]",
+    )
+    ap.add_argument(
+        "--pump",
+        default=None,
+        metavar="PRESET",
+        help="the pump's parameter set: a preset (resources/presets/PRESET.ssv, or a path to an "
+        ".ssv) instead of ssp/ClosedLoop/pump.ssv, e.g. the duplex pump unb600a; --set applies "
+        "over it",
     )
     return ap
+
+
+#: The inputs the drive train drives: a preset's values of them are not applied.
+CONNECTED = ("crank.angle", "crank.speed", "crank.acceleration")
 
 
 def overrides(items: list[str], fmu_dir: pathlib.Path) -> dict:
@@ -181,7 +195,23 @@ def _main(argv, prog: str = PROG) -> int:
     from ..presets import read_ssv
 
     extra = overrides(a.set, a.fmu_dir)
-    pump = {**read_ssv(SSD.parent / "pump.ssv"), **extra["pump"]}
+    if a.pump is None:
+        base = read_ssv(SSD.parent / "pump.ssv")
+    else:
+        from ..presets import PRESET_DIR, available_presets, preset_values
+
+        try:
+            base = preset_values(a.pump)
+        except KeyError:
+            raise UserError(
+                f"--pump {show(a.pump)}: no such preset; allowed: "
+                f"{', '.join(available_presets(PRESET_DIR))} or a path to an .ssv file"
+            ) from None
+        except Exception as e:  # an .ssv that is no valid SSP parameter set
+            raise UserError(f"--pump {show(a.pump)}: {one_line(e)}") from None
+        base = {k: v for k, v in base.items() if k not in CONNECTED}
+    pump = {**base, **extra["pump"]}
+    custom = bool(a.set) or a.pump is not None
     drive = {**read_ssv(SSD.parent / "drivetrain.ssv"), **extra["drivetrain"]}
     d = {**start_values(a.fmu_dir / "DriveTrain.fmu"), **drive}
     omega = max(d["crank.speed_start"], d["motor.synchronous_speed"] / d["drive.gear_ratio"])
@@ -206,16 +236,16 @@ def _main(argv, prog: str = PROG) -> int:
     ssp_path = a.out_dir / "ClosedLoop.ssp"
     ssp = build_ssp(
         ssp_path,
-        pump=pump if a.set else None,
-        drive=drive if a.set else None,
+        pump=pump if custom else None,
+        drive=drive if custom else None,
         fmu_dir=a.fmu_dir,
     )
     # The Model Exchange variant of the same system beside it (docs/closed-loop.md "Model
     # Exchange system"), for importers that integrate both FMUs in one ODE.
     ssp_me = build_ssp(
         ssp_path.with_name("ClosedLoopME.ssp"),
-        pump=pump if a.set else None,
-        drive=drive if a.set else None,
+        pump=pump if custom else None,
+        drive=drive if custom else None,
         fmu_dir=a.fmu_dir,
         model_exchange=True,
     )
@@ -294,7 +324,7 @@ def _main(argv, prog: str = PROG) -> int:
         "mean_over_revolutions": None if mean is None else mean[1],
         "speed_at_end": float(w[-1]),
         "speed_fluctuation": dfl,
-        "parameters": {"pump": pump, "drivetrain": drive} if a.set else None,
+        "parameters": {"pump": pump, "drivetrain": drive} if custom else None,
     }
     json_path.write_text(json.dumps(summary, indent=1) + "\n")
     png = a.out_dir / "closed_loop.png"

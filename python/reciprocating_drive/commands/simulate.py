@@ -24,7 +24,7 @@ import pathlib
 import sys
 
 from .. import artifacts
-from ..mission import OUTPUTS, format_summary, run_mission, write_summary
+from ..mission import OUTPUTS, PUMP_OUTPUTS, PUMP_UNITS, format_summary, run_mission, write_summary
 from ..plots import plot_mission
 from ..presets import PRESET_DIR, available_presets, preset_values
 from . import prefix
@@ -48,17 +48,19 @@ CSV_OUTPUTS = [(n, UNITS[n]) for n in OUTPUTS if n != "crank.model_angle"]
 
 
 def write_csv(path: pathlib.Path, data: dict) -> None:
+    # A pump preset's run adds its flow, powers and per-cylinder torques.
+    columns = CSV_OUTPUTS + [(n, PUMP_UNITS[n]) for n in PUMP_OUTPUTS if n in data]
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(
             ["time [s]", "crank angle [rad]", "crank angle [deg]"]
-            + [f"{n} [{u}]" for n, u in CSV_OUTPUTS]
+            + [f"{n} [{u}]" for n, u in columns]
         )
         for i in range(len(data["time"])):
             th = float(data["crank.model_angle"][i])
             w.writerow(
                 [repr(float(data["time"][i])), repr(th), repr(math.degrees(th))]
-                + [repr(float(data[n][i])) for n, _ in CSV_OUTPUTS]
+                + [repr(float(data[n][i])) for n, _ in columns]
             )
 
 

@@ -41,6 +41,18 @@ def elastic_of(machine: str) -> bool | None:
         return None
 
 
+def pump_of(machine: str) -> bool | None:
+    """Whether the run's machine is a pump (mission.is_pump of its preset); None when it cannot
+    be told (the page then leaves the pump's values out)."""
+    from ..mission import is_pump
+    from ..presets import preset_values
+
+    try:
+        return is_pump(preset_values(machine))
+    except Exception:  # noqa: BLE001 - an unknown machine: not known
+        return None
+
+
 #: The samples-table columns of the card (the plant schema's column names of the FMU outputs).
 CARD_COLUMNS = ("crank_model_angle", "suspension_position", "rod_force")
 
@@ -63,6 +75,7 @@ class Follower:
         self.origin = None
         self.status = None
         self.elastic = None
+        self.pump = None
 
     def _find_run(self) -> bool:
         q = self.db.execute
@@ -78,12 +91,16 @@ class Follower:
         try:
             (machine,) = q("SELECT machine FROM runs WHERE run = ?", (self.run,)).fetchone()
             self.elastic = elastic_of(machine)
+            self.pump = pump_of(machine)
         except sqlite3.Error:  # a database of an older schema without the column
-            self.elastic = None
+            self.elastic = self.pump = None
         cols = {r[1] for r in q("PRAGMA table_info(samples)")}
         self.cards = all(c in cols for c in CARD_COLUMNS)
         self.page.open(
-            ["crank.model_angle", "suspension.position", "rod.force"], self.origin, self.elastic
+            ["crank.model_angle", "suspension.position", "rod.force"],
+            self.origin,
+            self.elastic,
+            self.pump,
         )
         last = q("SELECT MAX(start_time) FROM revolutions WHERE run = ?", (self.run,)).fetchone()[0]
         if last is None:
@@ -120,7 +137,10 @@ class Follower:
             if origin is not None:
                 self.origin = origin
                 self.page.open(
-                    ["crank.model_angle", "suspension.position", "rod.force"], origin, self.elastic
+                    ["crank.model_angle", "suspension.position", "rod.force"],
+                    origin,
+                    self.elastic,
+                    self.pump,
                 )
         rows = None
         if self.cards:

@@ -25,6 +25,10 @@ TREND_SQL = {
     "friction_work": ("friction_work", "AVG"),
     "rod_angle_amplitude": ("rod_angle_amplitude", "MAX"),
     "stress_max": ("stress_max", "MAX"),
+    "flow_mean": ("flow_mean", "AVG"),
+    "flow_pulsation": ("flow_pulsation", "MAX"),
+    "hydraulic_power_mean": ("hydraulic_power_mean", "AVG"),
+    "mechanical_power_mean": ("mechanical_power_mean", "AVG"),
 }
 
 

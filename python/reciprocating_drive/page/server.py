@@ -77,6 +77,10 @@ LABELS = {
     "friction_work": "friction work",
     "rod_angle_amplitude": "rod angle amplitude ϑ (elastic rod)",
     "stress_max": "largest rod stress",
+    "flow_mean": "mean flow (pump)",
+    "flow_pulsation": "flow pulsation (pump)",
+    "hydraulic_power_mean": "mean hydraulic power (pump)",
+    "mechanical_power_mean": "mean mechanical power",
 }
 #: The plant's machine-state events (docs/plant.md "Machine states") and the state each enters.
 MACHINE_EVENTS = {
@@ -90,6 +94,10 @@ MACHINE_EVENTS = {
 #: shows").
 RIGID_LABELS = {**LABELS, "rod_angle_amplitude": "rod swing amplitude (rigid rod)"}
 RIGID_HIDDEN = ("stress_max",)
+#: A pump's values (docs/page.md): shown only for a machine known to be a pump (its process force
+#: from the pressures, load.profile 3, or more than one cylinder): every machine computes a
+#: flow, which means nothing without one.
+PUMP_VALUES = ("flow_mean", "flow_pulsation", "hydraulic_power_mean", "mechanical_power_mean")
 #: Units as an operator reads them: the speed fluctuation, a ratio, in percent (the page scales
 #: it; `data-value` and the trend data stay the summary's SI number).
 SHOWN_UNITS = {**UNITS, "speed_fluctuation": "%"}
@@ -138,9 +146,15 @@ class _State:
         self.time_origin = None
         self.revolutions = 0
         self.elastic = None  # None: the rod is not known (a followed database), both are shown
+        self.pump = None  # True: a pump, whose values are shown
 
     def shown(self) -> tuple:
-        return tuple(k for k in SHOWN if not (self.elastic is False and k in RIGID_HIDDEN))
+        return tuple(
+            k
+            for k in SHOWN
+            if not (self.elastic is False and k in RIGID_HIDDEN)
+            and (self.pump is True or k not in PUMP_VALUES)
+        )
 
     def snapshot(self) -> dict:
         lim = {
@@ -290,12 +304,18 @@ class PageServer:
         self._reader.shutdown(wait=False, cancel_futures=True)
 
     # ---- the sink side (any thread) -------------------------------------------------------------
-    def open(self, outputs, time_origin: float | None = None, elastic: bool | None = None) -> None:
+    def open(
+        self,
+        outputs,
+        time_origin: float | None = None,
+        elastic: bool | None = None,
+        pump: bool | None = None,
+    ) -> None:
         """The FMU's outputs (the columns after time of the rows handed to `add`), the Unix
         time of the twin's time 0 (None when the source has no clock: file replay; a live source
         whose clock is known only from its first sample hands it later to `clock`), and whether
         the rod is elastic (rod.kind != 0; False hides what a rigid rod does not have, None: not
-        known)."""
+        known), and whether it is a pump (True shows its flow and powers)."""
         self._outputs = list(outputs)
         self._cols = tuple(
             1 + self._outputs.index(n)
@@ -304,6 +324,7 @@ class PageServer:
         with self._lock:
             self._pending.append(("origin", time_origin))
             self._pending.append(("elastic", elastic))
+            self._pending.append(("pump", pump))
             self._pending.append(("health", {"run_status": "running"}))
 
     def clock(self, time_origin: float | None) -> None:
@@ -464,6 +485,10 @@ class PageServer:
                         st.health["lag"] = time.time() - (it[1] + st.health["last_sample_time"])
                     push["origin"] = it[1]
                     push["health"] = st.health
+            elif kind == "pump":
+                if it[1] != st.pump:
+                    st.pump = it[1]
+                    push["values"] = st.snapshot()["values"]
             elif kind == "elastic":
                 if it[1] != st.elastic:
                     # The rod known (the twin made): the values it has, under their names.

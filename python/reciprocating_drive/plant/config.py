@@ -407,7 +407,16 @@ def _distinct_nodes(path: str, s: dict, allowed: str) -> None:
     from asyncua import ua
 
     seen: dict = {}
-    for key in ("angle_node", "speed_node", "force_node", "time_node", "seq_node", "end_node"):
+    for key in (
+        "angle_node",
+        "speed_node",
+        "force_node",
+        "discharge_node",
+        "suction_node",
+        "time_node",
+        "seq_node",
+        "end_node",
+    ):
         v = s.get(key)
         if v is None:
             continue
@@ -434,6 +443,10 @@ def _opcua_settings(src: _Table, path: str) -> dict:
         "angle_node": src.get("angle_node", str, allowed=node),
         "speed_node": src.get("speed_node", str, None),
         "force_node": src.get("force_node", str, None),
+        # A pump's pressures [Pa] (docs/plant.md "OPC UA source"): the twin's discharge_pressure
+        # and suction_pressure columns.
+        "discharge_node": src.get("discharge_node", str, None),
+        "suction_node": src.get("suction_node", str, None),
         "time_node": src.get("time_node", str, None),  # block mode: the timestamps' array
         # block mode: the PLC's block counter, written after the arrays ("Sample assembly")
         "seq_node": src.get("seq_node", str, None),

@@ -25,6 +25,7 @@ import traceback
 
 from ..cli_errors import one_line
 from ..fmu.instance import FmuError
+from ..mission import is_pump
 from ..twin.core import DataError, Options, Twin
 from .config import Config, ConfigError, load
 from .samples import Event, input_lines
@@ -407,7 +408,12 @@ class Pipeline:
                 self.page.engine.restore(state["alarms"])
             self.page_origin = self.source_origin()
             kind = twin.values.get("rod.kind", twin.fmu.variables["rod.kind"].start)
-            self.page.open(twin.outputs, self.page_origin, elastic=int(float(kind)) != 0)
+            self.page.open(
+                twin.outputs,
+                self.page_origin,
+                elastic=int(float(kind)) != 0,
+                pump=is_pump(twin.values),
+            )
         damaged = self._check_input() if resumed else []
         self._event(
             Event(

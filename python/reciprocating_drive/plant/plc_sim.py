@@ -138,6 +138,15 @@ class PlcSim:
         self.angle = rows[:, cols["crank_angle"]]
         self.speed_col = rows[:, cols["crank_speed"]] if "crank_speed" in cols else None
         self.force_col = rows[:, cols["process_force"]] if "process_force" in cols else None
+        # A pump's pressures (docs/plant.md "Simulated PLC"): node -> column, when the data has it.
+        self.pressure_cols = {
+            node: rows[:, cols[c]]
+            for node, c in (
+                ("DischargePressure", "discharge_pressure"),
+                ("SuctionPressure", "suction_pressure"),
+            )
+            if c in cols
+        }
 
     @staticmethod
     def _read(path):
@@ -196,8 +205,14 @@ class PlcSim:
             await var("Pump.CrankSpeed", 0.0, d)
         if self.force_col is not None:
             await var("Pump.ProcessForce", 0.0, d)
-        for name in ("Time", "CrankAngle", "CrankSpeed", "ProcessForce"):
-            col = {"CrankSpeed": self.speed_col, "ProcessForce": self.force_col}.get(name, 0)
+        for name in self.pressure_cols:
+            await var(f"Pump.{name}", 0.0, d)
+        for name in ("Time", "CrankAngle", "CrankSpeed", "ProcessForce", *self.pressure_cols):
+            col = {
+                "CrankSpeed": self.speed_col,
+                "ProcessForce": self.force_col,
+                **self.pressure_cols,
+            }.get(name, 0)
             if col is not None:
                 await var(
                     f"Pump.Block.{name}", [], ua.VariantType.DateTime if name == "Time" else da
@@ -323,6 +338,8 @@ class PlcSim:
                     await self._write("Pump.CrankSpeed", float(self.speed_col[i]), D, other_ts)
                 if self.force_col is not None:
                     await self._write("Pump.ProcessForce", float(self.force_col[i]), D, other_ts)
+                for name, col in self.pressure_cols.items():
+                    await self._write(f"Pump.{name}", float(col[i]), D, other_ts)
                 fault = self.faults.get(i)
                 if fault == "bad_status":
                     await self._write(
@@ -417,6 +434,8 @@ class PlcSim:
             await self._write(
                 "Pump.Block.ProcessForce", [float(v) for v in self.force_col[lo:hi]], D, stamp()
             )
+        for name, col in self.pressure_cols.items():
+            await self._write(f"Pump.Block.{name}", [float(v) for v in col[lo:hi]], D, stamp())
         self.seq = (self.seq + 1) % 2**32
         await self._write("Pump.Block.Seq", self.seq, ua.VariantType.UInt32, stamp())
 

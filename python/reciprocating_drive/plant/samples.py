@@ -18,11 +18,16 @@ from dataclasses import dataclass, field
 from ..twin.samples import Samples
 
 
-def sample_header(speed: bool, force: bool) -> str:
-    """The header of `sample_lines` for a source that measures speed and/or force. A column the
-    source does not have is left out, not written empty: the twin refuses an empty field."""
+def sample_header(speed: bool, force: bool, discharge: bool = False, suction: bool = False) -> str:
+    """The header of `sample_lines` for a source that measures speed, force and/or a pump's
+    pressures. A column the source does not have is left out, not written empty: the twin
+    refuses an empty field."""
     return ",".join(
-        ["time", "crank_angle"] + ["crank_speed"] * bool(speed) + ["process_force"] * bool(force)
+        ["time", "crank_angle"]
+        + ["crank_speed"] * bool(speed)
+        + ["process_force"] * bool(force)
+        + ["discharge_pressure"] * bool(discharge)
+        + ["suction_pressure"] * bool(suction)
     )
 
 
@@ -50,11 +55,11 @@ def _num(v) -> str:
     return "" if v is None or (isinstance(v, float) and math.isnan(v)) else repr(float(v))
 
 
-def sample_lines(t, angle, speed=None, force=None) -> list[str]:
-    """CSV lines (the columns of `sample_header(speed is not None, force is not None)`) of samples
-    given as sequences; speed and force are None when not measured. A None or NaN inside a
+def sample_lines(t, angle, speed=None, force=None, discharge=None, suction=None) -> list[str]:
+    """CSV lines (the columns of `sample_header(speed is not None, force is not None, ...)`) of
+    samples given as sequences; a column is None when not measured. A None or NaN inside a
     measured column is written empty, which the twin refuses as bad data."""
-    cols = [t, angle] + [c for c in (speed, force) if c is not None]
+    cols = [t, angle] + [c for c in (speed, force, discharge, suction) if c is not None]
     return [
         ",".join([repr(float(t[i])), repr(float(angle[i]))] + [_num(c[i]) for c in cols[2:]])
         for i in range(len(t))

@@ -1,20 +1,22 @@
 """The database schema of the twin's sinks (docs/plant.md, "Schema"), for SQLite and PostgreSQL.
 
-Version 3 (version 2 had no input blocks, snapshots, `runs.fmu_guid` and the checkpoint's checksum
-and first rows; version 1 no `interrupted` column in `revolutions`). A version 2 database is
-migrated when a twin opens it (`migrate`: columns and tables added, nothing removed). Every table
-is keyed by the run (an integer, `runs.run`); a run has a name (the configuration's `run.id`,
-unique) and a machine identifier. Per-sample and per-revolution rows have primary keys (run, seq)
-and (run, revolution), so a row can never be stored twice: a bug that tried would fail its
-transaction instead of duplicating data. The time index (run, t) serves the queries plants make
-("this machine, this hour"). Times `t` are seconds from the run's `time_origin` (Unix seconds), the
-twin's own time; wall-clock times are Unix seconds.
+Version 3 (version 2 had no input blocks, snapshots, `runs.fmu_guid`, the checkpoint's checksum
+and first rows, and no pump columns `flow_mean`, `flow_pulsation`, `hydraulic_power_mean`,
+`mechanical_power_mean` in `revolutions`; version 1 no `interrupted` column in `revolutions`). A
+version 2 database is migrated when a twin opens it (`migrate`: columns and tables added, nothing
+removed). Every table is keyed by the run (an integer, `runs.run`); a run has a name (the
+configuration's `run.id`, unique) and a machine identifier. Per-sample and per-revolution rows
+have primary keys (run, seq) and (run, revolution), so a row can never be stored twice: a bug that
+tried would fail its transaction instead of duplicating data. The time index (run, t) serves the
+queries plants make ("this machine, this hour"). Times `t` are seconds from the run's
+`time_origin` (Unix seconds), the twin's own time; wall-clock times are Unix seconds.
 
 Layer: workflows, the plant (docs/architecture.md).
 """
 
 from __future__ import annotations
 
+from ..revolution import PUMP_COLUMNS
 from ..twin.core import SUMMARY_FIELDS
 
 SCHEMA_VERSION = 3
@@ -137,6 +139,7 @@ def migrate(dialect: str, version: int) -> list[str] | None:
     if version != 2:
         return None
     big = "BIGINT" if dialect == "postgres" else "INTEGER"
+    real = "DOUBLE PRECISION" if dialect == "postgres" else "REAL"
     return [
         "ALTER TABLE runs ADD COLUMN fmu_guid TEXT",
         "ALTER TABLE checkpoints ADD COLUMN checksum TEXT",
@@ -144,6 +147,8 @@ def migrate(dialect: str, version: int) -> list[str] | None:
         f"ALTER TABLE checkpoints ADD COLUMN revolutions_from {big}",
         f"ALTER TABLE checkpoints ADD COLUMN events_from {big}",
         *storage_ddl(dialect),
+        # A pump's revolution summary (docs/twin.md "Output"): empty in version 2's rows.
+        *(f"ALTER TABLE revolutions ADD COLUMN {c} {real}" for c in PUMP_COLUMNS),
         f"UPDATE schema_info SET version = {SCHEMA_VERSION}",
     ]
 

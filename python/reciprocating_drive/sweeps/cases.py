@@ -37,7 +37,7 @@ import numpy as np
 from ..fmu import batch
 from ..fmu.instance import FmuError
 from ..revolution import TWO_PI, _degrees, _refined_peaks, summarize_revolutions
-from .study import SPEED_PARAMETERS, Study
+from .study import PUMP_METRICS, SPEED_PARAMETERS, Study
 
 #: Outputs read at every step of a case.
 OUTPUTS = (
@@ -52,6 +52,13 @@ OUTPUTS = (
     "rod.angle",
     "rod.stress_max",
 )
+#: Read besides OUTPUTS when a study asks for a pump's metric (study.PUMP_METRICS).
+PUMP_OUTPUTS = ("pump.flow",)
+
+
+def outputs_of(study: Study) -> tuple:
+    """The outputs a case of `study` reads: OUTPUTS, and pump.flow for a pump's metrics."""
+    return OUTPUTS + (PUMP_OUTPUTS if set(study.metrics) & set(PUMP_METRICS) else ())
 
 
 def _speed(study: Study, params: dict) -> float:
@@ -91,10 +98,11 @@ def run_case(fmu, study: Study, params: dict) -> tuple[dict, float]:
     n_rev = study.skip_revolutions + study.revolutions
     n = n_rev * study.steps_per_revolution + 2
     h = TWO_PI / omega / study.steps_per_revolution
-    rows = np.empty((n + 1, len(OUTPUTS)))
+    outputs = outputs_of(study)
+    rows = np.empty((n + 1, len(outputs)))
     t0 = time.perf_counter()
     fmu.start(values)
-    ch = fmu.channel(["crank.angle", "crank.speed"], list(OUTPUTS))
+    ch = fmu.channel(["crank.angle", "crank.speed"], list(outputs))
     ch.set_inputs([0.0, omega])
     ch.read(rows[0])
     for k in range(1, n + 1):
@@ -110,14 +118,15 @@ def _summary_metrics(study: Study, time_: np.ndarray, rows: np.ndarray) -> dict:
     """The metrics of one run's samples through summarize_revolutions (the reference). Raises
     ValueError (the case's row is an error) for a sample the FMU returned as NaN or infinite:
     summarize_revolutions would fail on it with an IndexError, which would end the batch."""
+    outputs = outputs_of(study)
     bad = ~np.isfinite(rows)
     if bad.any():
         k, q = (int(x) for x in np.argwhere(bad)[0])
         raise ValueError(
-            f"the FMU returned {OUTPUTS[q]} = {rows[k, q]} at t = {time_[k]:.6g} s (communication "
+            f"the FMU returned {outputs[q]} = {rows[k, q]} at t = {time_[k]:.6g} s (communication "
             f"point {k}); allowed: finite values (the case's metrics cannot be computed)"
         )
-    data = {name: rows[:, i] for i, name in enumerate(OUTPUTS)}
+    data = {name: rows[:, i] for i, name in enumerate(outputs)}
     revs = [
         r
         for r in summarize_revolutions(time_, data["crank.model_angle"], data)
@@ -154,6 +163,8 @@ def metrics_of(revs, wanted) -> dict:
         "rod_force_min": lambda: ext("rod.force", "min"),
         "rod_angle_amplitude": lambda: max(r.rod_angle_amplitude for r in revs),
         "stress_max": lambda: max(r.stress_max for r in revs),
+        "flow_mean": lambda: float(np.mean([r.flow_mean for r in revs])),
+        "flow_pulsation": lambda: float(np.mean([r.flow_pulsation for r in revs])),
     }
     return {m: float(all_metrics[m]()) for m in wanted}
 
@@ -455,6 +466,9 @@ def batch_metrics(
     meaningless. Every other value equals the reference's bit for bit: the operations of
     revolution.revolution_table and metrics_of on the same operands, for all runs and
     revolutions at once instead of one run at a time."""
+    if set(study.metrics) & set(PUMP_METRICS):
+        # A pump's flow metrics have no batched form: every run goes through the reference.
+        return np.full((data.shape[0], len(study.metrics)), np.nan), np.zeros(data.shape[0], bool)
     with np.errstate(all="ignore"):
         return _batch_metrics(h, data, study, outputs, work or Workspace())
 

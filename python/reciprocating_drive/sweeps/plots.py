@@ -53,6 +53,8 @@ METRIC_AXES = {
     "rod_force_min": ("minimum rod force", "kN", 1e-3),
     "rod_angle_amplitude": ("largest cage angle |ϑ|", "mrad", 1e3),
     "stress_max": ("largest rod stress", "MPa", 1e-6),
+    "flow_mean": ("mean flow", "L/s", 1e3),
+    "flow_pulsation": ("flow pulsation (Q_max − Q_min)/Q_mean", "", 1.0),
 }
 
 

@@ -2,7 +2,7 @@
 how the FMU is driven, and which metrics are kept. A study is TOML (Python's tomllib):
 
     name = "unb600a_friction"
-    machine = "unb600a"                 # a preset, "default", or a path to an .ssv (relative to the file)
+    machine = "unb600a-simplex"         # a preset, "default", or a path to an .ssv (relative to the file)
     strokes_per_minute = 65             # constant crank speed (or crank_speed = ... rad/s)
     skip_revolutions = 1                # transient, not evaluated
     revolutions = 1                     # evaluated
@@ -82,7 +82,15 @@ METRICS = {
     "rod_force_min": "minimum rod.force (signed) [N]",
     "rod_angle_amplitude": "largest |rod.angle| (ϑ) [rad]",
     "stress_max": "largest rod.stress_max [Pa]",
+    "flow_mean": "mean pump.flow [m3/s] (mean over the evaluated revolutions)",
+    "flow_pulsation": "flow pulsation (Q_max - Q_min)/Q_mean of pump.flow (mean over the evaluated revolutions)",
 }
+#: The metrics of a pump's flow (docs/sweeps.md "Metrics"): computed by the reference summary of
+#: each case (revolution.revolution_table), not by the batched arithmetic of sweep_cases.
+PUMP_METRICS = ("flow_mean", "flow_pulsation")
+
+#: The FMU's inputs a study (and the closed loop's --set) may set like parameters: held constant.
+PRESSURE_INPUTS = ("pump.discharge_pressure", "pump.suction_pressure")
 
 #: Study parameters that set the crank speed instead of an FMU parameter.
 SPEED_PARAMETERS = ("strokes_per_minute", "crank.speed")
@@ -254,7 +262,10 @@ def model_parameters(
     units = {}
     out = {}
     for v in md.modelVariables:
-        if v.causality != "parameter" or v.variability not in ("fixed", "tunable"):
+        # A pump's pressures are inputs, but a study or a closed loop holds them constant like a
+        # parameter (their start values): docs/sweeps.md "The study file".
+        held = v.causality == "input" and v.name in PRESSURE_INPUTS
+        if not held and (v.causality != "parameter" or v.variability not in ("fixed", "tunable")):
             continue
         dt = v.declaredType
         lo = v.min if v.min is not None else (dt.min if dt is not None else None)
@@ -723,7 +734,6 @@ _LINK_KEYS = (
     *(f"link.d{i}" for i in range(1, 5)),
     "link.E",
     "link.lateral_load",
-    "guide.velocity_scale",
     "guide.rod_side_force",
 )
 _ELASTIC_ROD = (
@@ -765,7 +775,8 @@ def inert_in(values: dict) -> dict[str, str]:
 
     * a support of kind 0 is absent: its other parameters do nothing;
     * every support absent: the friction model is off, no beam problem is solved (the link's
-      sections, E, lateral load, the friction's velocity scale and the rod's side force);
+      sections, E, lateral load and the rod's side force; not guide.velocity_scale, which also
+      sets the pump's chamber weights, docs/model.md §4.1);
     * a pin (kind 1) has no length; a frame-fixed pin (attached = 1) touches the link at the
       same frame point Z = Z_ref all the time, so its tilt α·(Z − Z_ref) is 0;
     * a rigid rod (rod.kind 0) has none of the elastic rod's parameters; a thin rod (1) no coils;

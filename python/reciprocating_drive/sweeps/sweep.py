@@ -43,7 +43,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..cli_errors import RunFailed, UserError, show
-from .cases import OUTPUTS, run_case, run_cases
+from .cases import outputs_of, run_case, run_cases
 from .study import Study, check_fmu
 
 _FMUS: dict = {}
@@ -100,7 +100,7 @@ def run_batch(
     fmu = _worker_fmu(fmu_path)
     worker = _worker_name()
     if not reference:
-        res = run_cases(fmu, study, list(cases), OUTPUTS)
+        res = run_cases(fmu, study, list(cases), outputs_of(study))
         return [
             {"case": i, **res.params_of(c), **dict(zip(study.metrics, res.metrics[c].tolist())),
              "status": res.status[c], "message": res.message[c],
@@ -139,7 +139,7 @@ def run_batch_csv(
     fmu = _worker_fmu(fmu_path)
     t0 = time.perf_counter()
     worker = _worker_name()
-    res = run_cases(fmu, study, list(cases), OUTPUTS)
+    res = run_cases(fmu, study, list(cases), outputs_of(study))
     text = _csv_lines(res, worker, fp)
     return text, len(res.cases), float(res.seconds_fmu.sum()), time.perf_counter() - t0
 

@@ -47,7 +47,7 @@ import numpy as np
 from ..fmu.batch import local_cubic
 from ..fmu.instance import Fmu, FmuError
 from ..presets import available_presets, preset_values
-from ..revolution import TWO_PI, revolution_table
+from ..revolution import PUMP_COLUMNS, TWO_PI, revolution_table
 from ..timestamps import LOOKS_ISO, Clock, TimestampError
 from ..timestamps import zone as time_zone
 from . import conditioning as cond
@@ -61,7 +61,18 @@ from .line_input import (
 )
 from .samples import OPTIONAL, DataError, Samples
 
-INPUTS = ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")
+INPUTS = (
+    "crank.angle",
+    "crank.speed",
+    "crank.acceleration",
+    "link.external_force",
+    "pump.discharge_pressure",
+    "pump.suction_pressure",
+)
+#: The optional CSV columns of the process (docs/twin.md "Input") and the FMU inputs they drive:
+#: a sample's `force` holds them in this order. A pressure column that is absent (NaN) leaves the
+#: machine's value (the preset's, else the FMU's start value).
+PROCESS_COLUMNS = ("process_force", "discharge_pressure", "suction_pressure")
 
 #: Absolute part of the measured speed's tolerance [rad/s] (docs/twin.md "Measured speed"): a
 #: crank at rest, whose estimated speed is rounding noise around 0.
@@ -198,6 +209,12 @@ SUMMARY_FIELDS = (
     "rod_angle_amplitude",
     "stress_max",
     "interrupted",
+    # A pump's (docs/twin.md "Output"): the time means of pump.flow, pump.hydraulic_power and
+    # pump.mechanical_power over the revolution and the flow pulsation (Q_max − Q_min)/Q_mean.
+    "flow_mean",
+    "flow_pulsation",
+    "hydraulic_power_mean",
+    "mechanical_power_mean",
 )
 
 #: The unit of each of SUMMARY_FIELDS ("-": a count or a ratio), written in the CSV header as
@@ -212,6 +229,10 @@ SUMMARY_UNITS = {
     "rod_angle_amplitude": "rad",
     "stress_max": "Pa",
     "interrupted": "-",
+    "flow_mean": "m3/s",
+    "flow_pulsation": "-",
+    "hydraulic_power_mean": "W",
+    "mechanical_power_mean": "W",
     **{
         f"{k}_{m}": u
         for k, u in (
@@ -264,6 +285,15 @@ _SUMMARY_KEYS = tuple(_EXTREME_KEYS.get(f, f) for f in SUMMARY_FIELDS)
 #: A number as the twin reads it (docs/twin.md "Input"): ASCII decimal digits, an optional sign,
 #: point and exponent, and the words inf/nan (refused as not finite). Python's float() alone also
 #: takes `1_0` (as 10) and non-ASCII digits; Rust's parser (the native reader) takes neither.
+def _process_rows(saved) -> np.ndarray:
+    """A checkpoint's buffered process values as rows of PROCESS_COLUMNS: a checkpoint written
+    before the pressure columns holds the process force alone (its pressures: the machine's)."""
+    a = np.array(saved, dtype=float)
+    if a.ndim == 1:
+        return np.column_stack([a, np.full((len(a), len(PROCESS_COLUMNS) - 1), math.nan)])
+    return a.reshape(-1, len(PROCESS_COLUMNS))
+
+
 def remainder_2pi(x: np.ndarray) -> np.ndarray:
     """math.remainder(x, 2π) elementwise (IEEE remainder: exact, ties to an even quotient)."""
     r = np.fmod(x, TWO_PI)
@@ -281,7 +311,8 @@ class _Segment:
     t: np.ndarray = field(default_factory=lambda: np.empty(0))
     theta: np.ndarray = field(default_factory=lambda: np.empty(0))
     speed: np.ndarray = field(default_factory=lambda: np.empty(0))  # NaN: not measured
-    force: np.ndarray = field(default_factory=lambda: np.empty(0))
+    # process_force and the pressures (PROCESS_COLUMNS), one row per sample
+    force: np.ndarray = field(default_factory=lambda: np.empty((0, len(PROCESS_COLUMNS))))
     line: np.ndarray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
     done: int = 0  # samples of the buffer already sent to the FMU
     segment_start: bool = True
@@ -331,6 +362,11 @@ class Twin:
             raise ValueError(f"--machine {machine!r}: not a readable .ssv file ({e})") from None
         self.values = {k: v for k, v in preset.items() if k not in INPUTS}
         self.values.update(extra_values or {})
+        # The pressures where the input has no column: the machine's (docs/twin.md "Input").
+        self.pressures = np.array(
+            [float({**preset, **(extra_values or {})}.get(n, 0.0)) for n in INPUTS[4:]],
+            dtype=float,
+        )
         try:
             # An Fmu already loaded is taken as it is: the distributed replay (replay.py) runs
             # many pieces in one worker process, and loading costs more than a small piece.
@@ -449,7 +485,7 @@ class Twin:
             s.columns["time"],
             s.columns["crank_angle"],
             s.value("crank_speed"),
-            s.value("process_force"),
+            np.column_stack([s.value(c) for c in PROCESS_COLUMNS]),
             rows,
         )
 
@@ -883,7 +919,11 @@ class Twin:
                 if k == 0:
                     raise err
             w = np.where(np.isnan(w_meas), w_est, w_meas)
-            inputs = np.column_stack([b.theta[centres], w, e_est, b.force[centres]])
+            fp = b.force[centres]
+            fp = np.column_stack(
+                [fp[:, 0], np.where(np.isnan(fp[:, 1:]), self.pressures, fp[:, 1:])]
+            )
+            inputs = np.column_stack([b.theta[centres], w, e_est, fp])
             block = np.empty((len(centres), 1 + len(self.outputs)))
             block[:, 0] = b.t[centres]
             try:
@@ -1037,6 +1077,8 @@ class Twin:
             if k > REV_SAMPLES_MAX:
                 # Not every sample was kept: these two need them all (docs/twin.md).
                 sm["friction_work"] = sm["speed_fluctuation"] = None
+                for key in PUMP_COLUMNS:
+                    sm[key] = None
         # Keep the samples from just before the next revolution's start (the first sample at
         # which the angle reaches it: the crank may have turned back before).
         reached = np.maximum.accumulate(arr[:, self.i_angle])
@@ -1199,7 +1241,7 @@ class Twin:
             t=np.array(bb["t"], dtype=float),
             theta=np.array(bb["theta"], dtype=float),
             speed=np.array([math.nan if v is None else v for v in bb["speed"]], dtype=float),
-            force=np.array(bb["force"], dtype=float),
+            force=_process_rows(bb["force"]),
             line=np.array(bb["line"], dtype=np.int64),
             done=int(bb["done"]),
             segment_start=bool(bb["segment_start"]),

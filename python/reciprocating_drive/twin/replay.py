@@ -174,7 +174,14 @@ class Scanned:
 
 
 #: The columns the twin reads (docs/twin.md "Input"), the names of a table's columns too.
-COLUMNS = ("time", "crank_angle", "crank_speed", "process_force")
+COLUMNS = (
+    "time",
+    "crank_angle",
+    "crank_speed",
+    "process_force",
+    "discharge_pressure",
+    "suction_pressure",
+)
 
 
 def is_sqlite(path) -> bool:

@@ -31,8 +31,14 @@ class DataError(ValueError):
 #: The columns every input has, in the order of a CSV header.
 REQUIRED = ("time", "crank_angle")
 #: The optional columns and the value a sample takes when its input has no such column: the
-#: crank speed is then estimated from the angle (NaN), the process force is 0.
-OPTIONAL = {"crank_speed": math.nan, "process_force": 0.0}
+#: crank speed is then estimated from the angle (NaN), the process force is 0, a pump's pressure
+#: is the machine's (NaN: the preset's, else the FMU's start value; docs/twin.md "Input").
+OPTIONAL = {
+    "crank_speed": math.nan,
+    "process_force": 0.0,
+    "discharge_pressure": math.nan,
+    "suction_pressure": math.nan,
+}
 
 
 @dataclass

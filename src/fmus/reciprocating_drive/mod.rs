@@ -21,7 +21,7 @@ use crate::model::error::{num, ModelError};
 use crate::model::integrator::IntegratorStats;
 use crate::model::params::Params;
 
-pub use variables::{input_vr, value_reference, InputSlot, TABLE, UNITS, VARIABLES};
+pub use variables::{input_vr, input_vrs, value_reference, InputSlot, TABLE, UNITS, VARIABLES};
 
 /// The model type the glue is instantiated with (`fmi2::abi::export_fmu!`).
 pub struct ReciprocatingDrive;
@@ -49,7 +49,13 @@ static INFO: ModelInfo = ModelInfo {
 
 #[inline]
 fn inputs(values: &[f64]) -> Inputs {
-    Inputs { external_force: values[input_vr(InputSlot::ExternalForce)] }
+    // One look-up of the value references for the three (`input_vrs`).
+    let vr = input_vrs();
+    Inputs {
+        external_force: values[vr[InputSlot::ExternalForce as usize]],
+        discharge_pressure: values[vr[InputSlot::DischargePressure as usize]],
+        suction_pressure: values[vr[InputSlot::SuctionPressure as usize]],
+    }
 }
 
 impl FmuModel for ReciprocatingDrive {
@@ -87,7 +93,9 @@ impl FmuModel for ReciprocatingDrive {
             InputSlot::CrankAngle => state.crank.angle = v,
             InputSlot::CrankSpeed => state.crank.speed = v,
             InputSlot::CrankAcceleration => state.crank.acceleration = v,
-            InputSlot::ExternalForce => {}
+            InputSlot::ExternalForce
+            | InputSlot::DischargePressure
+            | InputSlot::SuctionPressure => {}
         }
     }
 
@@ -240,6 +248,10 @@ impl FmuModel for ReciprocatingDrive {
         ("link.friction_total", &[0]),
         ("rod.stress_max", &[0]),
         ("rod.axial_deflection", &[0]),
+        ("cylinder_1.friction", &[0]),
+        ("cylinder_1.rod_force", &[0]),
+        ("cylinder_1.crank_torque", &[0]),
+        ("pump.mechanical_power", &[0]),
     ];
 
     /// dϑ/dt = ϑ̇; dϑ̇/dt = ϑ̈ from the cage equation (docs/model.md §6), whose clamp loads
@@ -253,6 +265,8 @@ impl FmuModel for ReciprocatingDrive {
                 InputSlot::CrankSpeed,
                 InputSlot::CrankAcceleration,
                 InputSlot::ExternalForce,
+                InputSlot::DischargePressure,
+                InputSlot::SuctionPressure,
             ],
             &[0, 1],
         ),
@@ -307,6 +321,8 @@ impl FmuModel for ReciprocatingDrive {
             speed: d_values[input_vr(InputSlot::CrankSpeed)],
             acceleration: d_values[input_vr(InputSlot::CrankAcceleration)],
             external_force: d_values[input_vr(InputSlot::ExternalForce)],
+            discharge_pressure: d_values[input_vr(InputSlot::DischargePressure)],
+            suction_pressure: d_values[input_vr(InputSlot::SuctionPressure)],
             cage_angle: d_states.first().copied().unwrap_or(0.0),
             cage_rate: d_states.get(1).copied().unwrap_or(0.0),
         };

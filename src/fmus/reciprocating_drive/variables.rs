@@ -9,7 +9,7 @@ use crate::fmi::variables::{
     input, output, param, param_at, param_bool, Binding, Range, Table, Var,
 };
 use crate::fmus::reciprocating_drive::ReciprocatingDrive;
-use crate::model::drive::groups::{FORCES, KINEMATICS, LOADS};
+use crate::model::drive::groups::{CYLINDERS, FLOW, FORCES, KINEMATICS, LOADS, TORQUE};
 use crate::model::params::DEFAULT_CRANK_SPEED;
 
 /// Where an input's value goes in the model.
@@ -19,9 +19,19 @@ pub enum InputSlot {
     CrankSpeed,
     CrankAcceleration,
     ExternalForce,
+    DischargePressure,
+    SuctionPressure,
 }
 
 use InputSlot::*;
+
+/// An output read through a closure (an element of an array field, `cylinders[k]`).
+macro_rules! cyl_output {
+    ($group:path => $name:literal, $get:expr, $unit:literal, [$($dep:ident),*], $desc:literal) => {
+        output!(@var Output, Continuous, $name,
+            crate::fmi::model::GroupedOutput { group: $group, get: $get }, $unit, [$($dep),*], $desc)
+    };
+}
 
 /// Every variable, in value-reference order. Names are the contract of docs/model.md §10.
 pub static VARIABLES: &[Var<ReciprocatingDrive>] = &[
@@ -33,7 +43,7 @@ pub static VARIABLES: &[Var<ReciprocatingDrive>] = &[
     input!("crank.acceleration", CrankAcceleration, 0.0, "rad/s2",
         "Crank angular acceleration epsilon; used for a = TF*epsilon + TF'*omega^2 and to carry the crank angle and speed forward inside and between steps (held until set again). Supply it when the speed varies."),
     input!("link.external_force", ExternalForce, 0.0, "N",
-        "Process force on the link, positive along +s (toward the crank for the crank-slider); added to the load.profile force"),
+        "Process force on the link (cylinder 1's), positive along +s (toward the crank for the crank-slider); added to the load.profile force"),
     // ---- outputs (docs/model.md §2, §3, §4)
     output!(KINEMATICS => "suspension.position", position, "m", [CrankAngle],
         "Stroke coordinate s of the link: 0 at the outer end of the stroke, increasing toward the crank"),
@@ -45,10 +55,10 @@ pub static VARIABLES: &[Var<ReciprocatingDrive>] = &[
         "Torque factor TF = ds/d(theta), per radian"),
     output!(LOADS => "inertia.force", inertia_force, "N", [CrankAngle, CrankSpeed, CrankAcceleration],
         "d'Alembert inertia force of the reciprocating mass, Phi = -m*a, positive along +s"),
-    output!(FORCES => "rod.force", rod_force, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+    output!(FORCES => "rod.force", rod_force, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce, DischargePressure, SuctionPressure],
         "Along-stroke force transmitted by the connecting rod, compression positive: P = F_ext + Phi + F_fr + F_bal (solved exactly although the friction depends on P)"),
-    output!(FORCES => "crank.torque", crank_torque, "N.m", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
-        "Torque the drive supplies to the crank, T = -P*TF (+ V*dDelta/dtheta for an elastic rod); positive when the drive does work"),
+    output!(TORQUE => "crank.torque", crank_torque, "N.m", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce, DischargePressure, SuctionPressure],
+        "Torque the drive supplies to the crankshaft, the sum over the active cylinders (pump.cylinders) of T_k = -P_k*TF_k (+ V*dDelta/dtheta for an elastic rod); positive when the drive does work"),
     output!(KINEMATICS => "rod.angle", rod_angle, "rad", [CrankAngle],
         "Connecting-rod swing: crank-slider rod angle beta from the stroke axis (l*sin(beta) = r*sin(theta) - e); beam units: pitman inclination from the vertical, positive when its crank-pin end is nearer the well; elastic rod: rotation theta of its lower cage, integrated in time"),
     output!(KINEMATICS => "rod.angular_velocity", rod_angular_velocity, "rad/s", [CrankAngle, CrankSpeed],
@@ -57,25 +67,25 @@ pub static VARIABLES: &[Var<ReciprocatingDrive>] = &[
         "Torsion-bar balancer force on the link, F_bal = -k_b*(s - s_0); 0 when balancer.enabled is false"),
     output!(LOADS => "balancer.residual", balancer_residual, "N", [CrankAngle, CrankSpeed, CrankAcceleration],
         "Inertia force left after balancing, Phi + F_bal"),
-    output!(FORCES => "guide.friction", guide.friction_b, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+    output!(FORCES => "guide.friction", guide.friction_b, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce, DischargePressure, SuctionPressure],
         "Signed friction force of support B (the guide) on the link along +s, -|F|*tanh(v/v_eps), |F| = f*(|N1| + |N2|)"),
-    output!(FORCES => "guide.reaction", guide.reaction_b, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+    output!(FORCES => "guide.reaction", guide.reaction_b, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce, DischargePressure, SuctionPressure],
         "Net lateral reaction R_B of support B on the link, along +y"),
-    output!(FORCES => "guide.moment", guide.moment_b, "N.m", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+    output!(FORCES => "guide.moment", guide.moment_b, "N.m", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce, DischargePressure, SuctionPressure],
         "Net moment M_B of support B on the link about B's centre (positive turning +z toward +y)"),
-    output!(FORCES => "guide.edge_force_1", guide.edge_force_1, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+    output!(FORCES => "guide.edge_force_1", guide.edge_force_1, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce, DischargePressure, SuctionPressure],
         "Force of B's crank-side edge on the link, N1 = R_B/2 + M_B/l_n"),
-    output!(FORCES => "guide.edge_force_2", guide.edge_force_2, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+    output!(FORCES => "guide.edge_force_2", guide.edge_force_2, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce, DischargePressure, SuctionPressure],
         "Force of B's piston-side edge on the link, N2 = R_B/2 - M_B/l_n"),
-    output!(FORCES => "support_A.reaction", guide.reaction_a, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+    output!(FORCES => "support_A.reaction", guide.reaction_a, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce, DischargePressure, SuctionPressure],
         "Net lateral reaction of support A on the link, along +y"),
-    output!(FORCES => "support_C.reaction", guide.reaction_c, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+    output!(FORCES => "support_C.reaction", guide.reaction_c, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce, DischargePressure, SuctionPressure],
         "Net lateral reaction of support C on the link, along +y"),
-    output!(FORCES => "link.friction_total", guide.friction_total, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+    output!(FORCES => "link.friction_total", guide.friction_total, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce, DischargePressure, SuctionPressure],
         "Friction F_fr of supports A, B and C on the link along +s; part of rod.force and crank.torque"),
-    output!(FORCES => "rod.stress_max", rod_stress_max, "Pa", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+    output!(FORCES => "rod.stress_max", rod_stress_max, "Pa", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce, DischargePressure, SuctionPressure],
         "Elastic rod: largest wire shear stress of the spring (Wahl factor) or largest fibre stress of a thin rod; 0 for a rigid rod"),
-    output!(FORCES => "rod.axial_deflection", rod_axial_deflection, "m", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce],
+    output!(FORCES => "rod.axial_deflection", rod_axial_deflection, "m", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce, DischargePressure, SuctionPressure],
         "Elastic rod: static axial shortening P*l_f/A3; 0 for a rigid rod"),
     // ---- parameters (docs/model.md §3, §4, §7, §8)
     param!("mechanism", Integer, mechanism, Fixed, "", Range::closed(1.0, 3.0),
@@ -100,8 +110,8 @@ pub static VARIABLES: &[Var<ReciprocatingDrive>] = &[
         "Beam units: H-G, vertical distance crankshaft to centre bearing"),
     param!("mass.reciprocating", Real, mass, Fixed, "kg", Range::closed(0.0, 1e9),
         "Reciprocating mass m reduced to the link"),
-    param!("load.profile", Integer, load_profile, Tunable, "", Range::closed(0.0, 2.0),
-        "Process-force profile: 0 = load.mean + load.amplitude*cos(theta + load.phase); 1 = double-acting pump -load.mean*tanh(v/v_eps); 2 = single-acting pump load.mean*(1 - tanh(v/v_eps))/2"),
+    param!("load.profile", Integer, load_profile, Tunable, "", Range::closed(0.0, 3.0),
+        "Process-force profile: 0 = load.mean + load.amplitude*cos(theta + load.phase); 1 = double-acting pump -load.mean*tanh(v/v_eps); 2 = single-acting pump load.mean*(1 - tanh(v/v_eps))/2; 3 = pressures: each chamber at pump.discharge_pressure while its volume shrinks and at pump.suction_pressure while it grows, weights (1 -+ tanh(v/v_eps))/2 (docs/model.md 4.1). Profiles 0-2 act on every cylinder at its own angle and velocity"),
     param!("load.mean", Real, load_mean, Tunable, "N", Range::within(1e10),
         "Mean process force (profile 0) or pump force level (profiles 1, 2)"),
     param!("load.amplitude", Real, load_amplitude, Tunable, "N", Range::within(1e10),
@@ -199,6 +209,96 @@ pub static VARIABLES: &[Var<ReciprocatingDrive>] = &[
         "Model angle theta the outputs belong to: crank.angle as last set plus crank.angle_offset, carried forward by every step since (theta += omega*h + epsilon*h^2/2); restored with the FMU state"),
     output!(KINEMATICS => "crank.model_speed", model_speed, "rad/s", [CrankSpeed],
         "Crank speed omega the outputs belong to: crank.speed as last set, carried forward by every step since (omega += epsilon*h); restored with the FMU state"),
+    // ---- the whole pump: pressures in, cylinders on one crankshaft (docs/model.md §4.1);
+    // appended, so that earlier value references stay what they were.
+    input!("pump.discharge_pressure", DischargePressure, 0.0, "Pa",
+        "Discharge (standpipe) pressure p_d, gauge: the pressure of every chamber whose volume shrinks (load.profile 3)"),
+    input!("pump.suction_pressure", SuctionPressure, 0.0, "Pa",
+        "Suction pressure p_s, gauge: the pressure of every chamber whose volume grows (load.profile 3)"),
+    param!("pump.cylinders", Integer, cylinders, Fixed, "", Range::closed(1.0, 3.0),
+        "Number of active cylinders on the crankshaft (1 to 3), each with its own crosshead, guide and link (the parameters of the mechanism, mass, link and supports are shared); 2 or 3 need the rigid crank-slider (mechanism 1, rod.kind 0)"),
+    param!("cylinder_1.acting", Integer, cylinder[0].acting, Fixed, "", Range::closed(1.0, 2.0),
+        "Cylinder 1: 1 single-acting (head-end chamber only, area pi*D^2/4), 2 double-acting (also the crank-end chamber, area pi*(D^2 - d^2)/4)"),
+    param!("cylinder_1.piston_diameter", Real, cylinder[0].piston_diameter, Fixed, "m", Range::positive_to(10.0),
+        "Piston (liner) diameter D of cylinder 1"),
+    param!("cylinder_1.rod_diameter", Real, cylinder[0].rod_diameter, Fixed, "m", Range::closed(0.0, 10.0),
+        "Piston-rod diameter d of cylinder 1 through its crank-end chamber (double-acting; < D)"),
+    param!("cylinder_2.phase", Real, cylinder[1].phase, Fixed, "rad", Range::within(1e6),
+        "Crank phase phi_2 of cylinder 2: its link sees the model angle theta + phi_2 (cylinder 1 is the reference, phi_1 = 0; duplex phi_2 = pi/2, triplex phi_2 = 2*pi/3, phi_3 = 4*pi/3)"),
+    param!("cylinder_2.acting", Integer, cylinder[1].acting, Fixed, "", Range::closed(1.0, 2.0),
+        "Cylinder 2: 1 single-acting (head-end chamber only, area pi*D^2/4), 2 double-acting (also the crank-end chamber, area pi*(D^2 - d^2)/4)"),
+    param!("cylinder_2.piston_diameter", Real, cylinder[1].piston_diameter, Fixed, "m", Range::positive_to(10.0),
+        "Piston (liner) diameter D of cylinder 2"),
+    param!("cylinder_2.rod_diameter", Real, cylinder[1].rod_diameter, Fixed, "m", Range::closed(0.0, 10.0),
+        "Piston-rod diameter d of cylinder 2 through its crank-end chamber (double-acting; < D)"),
+    param!("cylinder_3.phase", Real, cylinder[2].phase, Fixed, "rad", Range::within(1e6),
+        "Crank phase phi_3 of cylinder 3: its link sees the model angle theta + phi_3 (duplex 0, pi/2; triplex 0, 2*pi/3, 4*pi/3)"),
+    param!("cylinder_3.acting", Integer, cylinder[2].acting, Fixed, "", Range::closed(1.0, 2.0),
+        "Cylinder 3: 1 single-acting (head-end chamber only, area pi*D^2/4), 2 double-acting (also the crank-end chamber, area pi*(D^2 - d^2)/4)"),
+    param!("cylinder_3.piston_diameter", Real, cylinder[2].piston_diameter, Fixed, "m", Range::positive_to(10.0),
+        "Piston (liner) diameter D of cylinder 3"),
+    param!("cylinder_3.rod_diameter", Real, cylinder[2].rod_diameter, Fixed, "m", Range::closed(0.0, 10.0),
+        "Piston-rod diameter d of cylinder 3 through its crank-end chamber (double-acting; < D)"),
+    output!(KINEMATICS => "cylinder_1.position", position, "m", [CrankAngle],
+        "Stroke coordinate s_1 of cylinder 1's link (0 at the outer end, increasing toward the crank)"),
+    output!(KINEMATICS => "cylinder_1.velocity", velocity, "m/s", [CrankAngle, CrankSpeed],
+        "Velocity v_1 = TF(theta + phi_1)*omega of cylinder 1's link"),
+    output!(KINEMATICS => "cylinder_1.acceleration", acceleration, "m/s2", [CrankAngle, CrankSpeed, CrankAcceleration],
+        "Acceleration a_1 of cylinder 1's link"),
+    cyl_output!(LOADS => "cylinder_1.fluid_force", |o| o.cylinders[0].fluid_force, "N", [CrankAngle, CrankSpeed, DischargePressure, SuctionPressure],
+        "Process force of load.profile on cylinder 1's piston along +s (load.profile 3: the chambers' pressures times their areas), without link.external_force"),
+    output!(LOADS => "cylinder_1.inertia_force", inertia_force, "N", [CrankAngle, CrankSpeed, CrankAcceleration],
+        "Inertia force -m*a_1 of cylinder 1's reciprocating mass"),
+    output!(FORCES => "cylinder_1.friction", guide.friction_total, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce, DischargePressure, SuctionPressure],
+        "Friction F_fr of the supports of cylinder 1's link (A, B, C) along +s"),
+    output!(FORCES => "cylinder_1.rod_force", rod_force, "N", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce, DischargePressure, SuctionPressure],
+        "Along-stroke force P_1 of cylinder 1's connecting rod, compression positive"),
+    cyl_output!(FORCES => "cylinder_1.crank_torque", |o| o.cylinders[0].crank_torque, "N.m", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce, DischargePressure, SuctionPressure],
+        "Torque T_1 = -P_1*TF_1 cylinder 1 asks of the crankshaft (part of crank.torque)"),
+    cyl_output!(FLOW => "cylinder_1.flow", |o| o.cylinders[0].flow, "m3/s", [CrankAngle, CrankSpeed],
+        "Flow rate Q_1 cylinder 1 discharges: the shrinking rates of its chambers weighted (1 -+ tanh(v/v_eps))/2"),
+    cyl_output!(CYLINDERS => "cylinder_2.position", |o| o.cylinders[1].position, "m", [CrankAngle],
+        "Stroke coordinate s_2 of cylinder 2's link (0 at the outer end, increasing toward the crank)"),
+    cyl_output!(CYLINDERS => "cylinder_2.velocity", |o| o.cylinders[1].velocity, "m/s", [CrankAngle, CrankSpeed],
+        "Velocity v_2 = TF(theta + phi_2)*omega of cylinder 2's link"),
+    cyl_output!(CYLINDERS => "cylinder_2.acceleration", |o| o.cylinders[1].acceleration, "m/s2", [CrankAngle, CrankSpeed, CrankAcceleration],
+        "Acceleration a_2 of cylinder 2's link"),
+    cyl_output!(CYLINDERS => "cylinder_2.fluid_force", |o| o.cylinders[1].fluid_force, "N", [CrankAngle, CrankSpeed, DischargePressure, SuctionPressure],
+        "Process force of load.profile on cylinder 2's piston along +s (load.profile 3: the chambers' pressures times their areas)"),
+    cyl_output!(CYLINDERS => "cylinder_2.inertia_force", |o| o.cylinders[1].inertia_force, "N", [CrankAngle, CrankSpeed, CrankAcceleration],
+        "Inertia force -m*a_2 of cylinder 2's reciprocating mass"),
+    cyl_output!(CYLINDERS => "cylinder_2.friction", |o| o.cylinders[1].friction, "N", [CrankAngle, CrankSpeed, CrankAcceleration, DischargePressure, SuctionPressure],
+        "Friction F_fr of the supports of cylinder 2's link (A, B, C) along +s"),
+    cyl_output!(CYLINDERS => "cylinder_2.rod_force", |o| o.cylinders[1].rod_force, "N", [CrankAngle, CrankSpeed, CrankAcceleration, DischargePressure, SuctionPressure],
+        "Along-stroke force P_2 of cylinder 2's connecting rod, compression positive"),
+    cyl_output!(CYLINDERS => "cylinder_2.crank_torque", |o| o.cylinders[1].crank_torque, "N.m", [CrankAngle, CrankSpeed, CrankAcceleration, DischargePressure, SuctionPressure],
+        "Torque T_2 = -P_2*TF_2 cylinder 2 asks of the crankshaft (part of crank.torque)"),
+    cyl_output!(FLOW => "cylinder_2.flow", |o| o.cylinders[1].flow, "m3/s", [CrankAngle, CrankSpeed],
+        "Flow rate Q_2 cylinder 2 discharges: the shrinking rates of its chambers weighted (1 -+ tanh(v/v_eps))/2"),
+    cyl_output!(CYLINDERS => "cylinder_3.position", |o| o.cylinders[2].position, "m", [CrankAngle],
+        "Stroke coordinate s_3 of cylinder 3's link (0 at the outer end, increasing toward the crank)"),
+    cyl_output!(CYLINDERS => "cylinder_3.velocity", |o| o.cylinders[2].velocity, "m/s", [CrankAngle, CrankSpeed],
+        "Velocity v_3 = TF(theta + phi_3)*omega of cylinder 3's link"),
+    cyl_output!(CYLINDERS => "cylinder_3.acceleration", |o| o.cylinders[2].acceleration, "m/s2", [CrankAngle, CrankSpeed, CrankAcceleration],
+        "Acceleration a_3 of cylinder 3's link"),
+    cyl_output!(CYLINDERS => "cylinder_3.fluid_force", |o| o.cylinders[2].fluid_force, "N", [CrankAngle, CrankSpeed, DischargePressure, SuctionPressure],
+        "Process force of load.profile on cylinder 3's piston along +s (load.profile 3: the chambers' pressures times their areas)"),
+    cyl_output!(CYLINDERS => "cylinder_3.inertia_force", |o| o.cylinders[2].inertia_force, "N", [CrankAngle, CrankSpeed, CrankAcceleration],
+        "Inertia force -m*a_3 of cylinder 3's reciprocating mass"),
+    cyl_output!(CYLINDERS => "cylinder_3.friction", |o| o.cylinders[2].friction, "N", [CrankAngle, CrankSpeed, CrankAcceleration, DischargePressure, SuctionPressure],
+        "Friction F_fr of the supports of cylinder 3's link (A, B, C) along +s"),
+    cyl_output!(CYLINDERS => "cylinder_3.rod_force", |o| o.cylinders[2].rod_force, "N", [CrankAngle, CrankSpeed, CrankAcceleration, DischargePressure, SuctionPressure],
+        "Along-stroke force P_3 of cylinder 3's connecting rod, compression positive"),
+    cyl_output!(CYLINDERS => "cylinder_3.crank_torque", |o| o.cylinders[2].crank_torque, "N.m", [CrankAngle, CrankSpeed, CrankAcceleration, DischargePressure, SuctionPressure],
+        "Torque T_3 = -P_3*TF_3 cylinder 3 asks of the crankshaft (part of crank.torque)"),
+    cyl_output!(FLOW => "cylinder_3.flow", |o| o.cylinders[2].flow, "m3/s", [CrankAngle, CrankSpeed],
+        "Flow rate Q_3 cylinder 3 discharges: the shrinking rates of its chambers weighted (1 -+ tanh(v/v_eps))/2"),
+    output!(FLOW => "pump.flow", flow, "m3/s", [CrankAngle, CrankSpeed],
+        "Instantaneous flow rate Q of the pump, the sum of cylinder_k.flow over the active cylinders"),
+    output!(FLOW => "pump.hydraulic_power", hydraulic_power, "W", [CrankAngle, CrankSpeed, DischargePressure, SuctionPressure],
+        "Hydraulic power (p_d - p_s)*Q"),
+    output!(TORQUE => "pump.mechanical_power", mechanical_power, "W", [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce, DischargePressure, SuctionPressure],
+        "Mechanical power crank.torque*omega the drive delivers to the crankshaft"),
 ];
 
 /// Units used by the table, with their SI base-unit exponents (kg, m, s, rad) for
@@ -217,6 +317,8 @@ pub static UNITS: &[(&str, [i32; 4])] = &[
     ("Pa", [1, -1, -2, 0]),
     ("kg.m2", [1, 2, 0, 0]),
     ("N.m.s/rad", [1, 2, -1, -1]),
+    ("m3/s", [0, 3, -1, 0]),
+    ("W", [1, 2, -3, 0]),
 ];
 
 /// The table as the glue reads it.
@@ -230,15 +332,29 @@ pub fn value_reference(name: &str) -> Option<usize> {
 /// Value reference of the input bound to `slot` (found once, then an array look-up: the step
 /// reads inputs through it).
 pub fn input_vr(slot: InputSlot) -> usize {
-    static VRS: std::sync::OnceLock<[usize; 4]> = std::sync::OnceLock::new();
+    input_vrs()[slot as usize]
+}
+
+/// The value references of every input, by [`InputSlot`] (found once).
+#[inline]
+pub fn input_vrs() -> &'static [usize; 6] {
+    static VRS: std::sync::OnceLock<[usize; 6]> = std::sync::OnceLock::new();
     VRS.get_or_init(|| {
-        [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce].map(|slot| {
+        [
+            CrankAngle,
+            CrankSpeed,
+            CrankAcceleration,
+            ExternalForce,
+            DischargePressure,
+            SuctionPressure,
+        ]
+        .map(|slot| {
             VARIABLES
                 .iter()
                 .position(|v| matches!(v.binding, Binding::Input { slot: s, .. } if s == slot))
                 .unwrap_or(usize::MAX)
         })
-    })[slot as usize]
+    })
 }
 
 #[cfg(test)]
@@ -261,7 +377,14 @@ mod tests {
                 assert!(v.range.contains(s), "start of {} outside its range", v.name);
             }
         }
-        for slot in [CrankAngle, CrankSpeed, CrankAcceleration, ExternalForce] {
+        for slot in [
+            CrankAngle,
+            CrankSpeed,
+            CrankAcceleration,
+            ExternalForce,
+            DischargePressure,
+            SuctionPressure,
+        ] {
             assert!(input_vr(slot) < VARIABLES.len());
         }
     }

@@ -7,7 +7,7 @@
 
 use num_dual::{Dual64, DualNum};
 
-use super::{groups, Inputs, Mechanism, Model, Outputs, RodState};
+use super::{groups, CylinderOutputs, Inputs, Mechanism, Model, Outputs, RodState};
 use crate::model::crank::CrankState;
 use crate::model::elastic_rod::cage::{ElasticRod, PistonLaw};
 use crate::model::elastic_rod::tangent as rod_tangent;
@@ -15,9 +15,11 @@ use crate::model::error::ModelError;
 use crate::model::guide::GuideOutputs;
 use crate::model::kinematics::Kinematics;
 use crate::model::loads;
+use crate::model::params::LOAD_PROFILE_PRESSURES;
 
 /// A direction in the space of the inputs and the cage state: the changes of crank.angle,
-/// crank.speed, crank.acceleration, link.external_force and (Model Exchange, an elastic rod)
+/// crank.speed, crank.acceleration, link.external_force, pump.discharge_pressure,
+/// pump.suction_pressure and (Model Exchange, an elastic rod)
 /// of the cage states rod.cage_angle ϑ and rod.cage_rate ϑ̇ (ignored by a rigid mechanism).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Seed {
@@ -25,6 +27,8 @@ pub struct Seed {
     pub speed: f64,
     pub acceleration: f64,
     pub external_force: f64,
+    pub discharge_pressure: f64,
+    pub suction_pressure: f64,
     pub cage_angle: f64,
     pub cage_rate: f64,
 }
@@ -69,14 +73,27 @@ impl Model {
         };
         let velocity = k.velocity(w);
         let acceleration = k.acceleration(w, eps);
-        let (inertia_force, balancer_force, p_base) =
-            self.dual_loads(theta, k.s, velocity, acceleration, inputs, seed);
+        let (inertia_force, balancer_force, p_base, process) =
+            self.dual_loads(0, theta, k.s, velocity, acceleration, inputs, seed);
         let guide = match &self.guide {
             Some(g) => g.solve_rigid_tangent(k.s, velocity, p_base, side_slope, &value.guide)?,
             None => GuideOutputs { rod_force: p_base.eps, ..GuideOutputs::default() },
         };
         // T = −P·TF (§4).
         let crank_torque = -(guide.rod_force * k.tf.re + value.rod_force * k.tf.eps);
+        let mut cylinders = [CylinderOutputs::default(); crate::model::params::MAX_CYLINDERS];
+        cylinders[0].fluid_force = process.eps;
+        cylinders[0].crank_torque = crank_torque;
+        let mut torque = crank_torque;
+        let mut velocities = [velocity; crate::model::params::MAX_CYLINDERS];
+        for c in 1..self.pump.n {
+            let (cyl, v) =
+                self.cylinder_tangent(c, theta, w, eps, inputs, seed, &value.cylinder_guides[c])?;
+            torque += cyl.crank_torque;
+            cylinders[c] = cyl;
+            velocities[c] = v;
+        }
+        let (flow, hydraulic_power) = self.dual_flow(&velocities, &mut cylinders, inputs, seed);
         let tangent = Outputs {
             ready: groups::ALL,
             p_base: p_base.eps,
@@ -89,7 +106,7 @@ impl Model {
             torque_factor: k.tf.eps,
             inertia_force: inertia_force.eps,
             rod_force: guide.rod_force,
-            crank_torque,
+            crank_torque: torque,
             rod_angle: k.rod_angle.eps,
             rod_angular_velocity: (k.rod_angle_rate * w).eps,
             balancer_force: balancer_force.eps,
@@ -98,6 +115,12 @@ impl Model {
             guide,
             rod_stress_max: 0.0,
             rod_axial_deflection: 0.0,
+            cylinders,
+            cylinder_guides: Default::default(),
+            flow,
+            hydraulic_power,
+            // d(T·ω) = dT·ω + T·dω.
+            mechanical_power: torque * crank.speed + value.crank_torque * seed.speed,
         };
         Ok((value, tangent, 0.0))
     }
@@ -135,8 +158,8 @@ impl Model {
         let delta_rate = cos * law.r;
         let velocity = k.velocity(w);
         let acceleration = k.acceleration(w, eps);
-        let (inertia_force, balancer_force, p_base) =
-            self.dual_loads(theta, k.s, velocity, acceleration, inputs, seed);
+        let (inertia_force, balancer_force, p_base, process) =
+            self.dual_loads(0, theta, k.s, velocity, acceleration, inputs, seed);
         let cage_theta = Dual64::new(rod.cage.theta, seed.cage_angle);
         let cage_rate = Dual64::new(rod.cage.rate, seed.cage_rate);
         let bc = elastic.beam_column(value.rod_force)?;
@@ -188,26 +211,47 @@ impl Model {
             rod_stress_max: stress.eps,
             // P·l_f/A3, linear in P.
             rod_axial_deflection: elastic.axial_deflection(guide.rod_force),
+            cylinders: Default::default(),
+            cylinder_guides: Default::default(),
+            flow: 0.0,
+            hydraulic_power: 0.0,
+            mechanical_power: crank_torque.eps * crank.speed + value.crank_torque * seed.speed,
         };
+        let mut tangent = tangent;
+        tangent.cylinders[0].fluid_force = process.eps;
+        tangent.cylinders[0].crank_torque = crank_torque.eps;
+        let velocities = [velocity; crate::model::params::MAX_CYLINDERS];
+        (tangent.flow, tangent.hydraulic_power) =
+            self.dual_flow(&velocities, &mut tangent.cylinders, inputs, seed);
         Ok((value, tangent, cage_acceleration.eps))
     }
 
-    /// The loads of `Model::loads_at` (§4, §7) in dual numbers: (Φ, F_bal, p_base). Inlined in
-    /// both callers (out of line it cost the rigid mechanisms' derivative 14 instructions).
+    /// The loads of `Model::loads_at` (§4, §4.1, §7) of cylinder `cyl` in dual numbers: (Φ,
+    /// F_bal, p_base, process force). Inlined in both callers (out of line it cost the rigid
+    /// mechanisms' derivative 14 instructions).
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn dual_loads(
         &self,
+        cyl: usize,
         theta: Dual64,
         s: Dual64,
         velocity: Dual64,
         acceleration: Dual64,
         inputs: &Inputs,
         seed: &Seed,
-    ) -> (Dual64, Dual64, Dual64) {
+    ) -> (Dual64, Dual64, Dual64, Dual64) {
         let p = &self.params;
         let inertia_force = acceleration * -p.mass;
-        let f_ext = Dual64::new(inputs.external_force, seed.external_force)
-            + loads::process_force_profile_of(
+        let process = if p.load_profile == LOAD_PROFILE_PRESSURES {
+            self.pump.cylinders[cyl].fluid_force(
+                Dual64::new(inputs.discharge_pressure, seed.discharge_pressure),
+                Dual64::new(inputs.suction_pressure, seed.suction_pressure),
+                velocity,
+                p.velocity_scale,
+            )
+        } else {
+            loads::process_force_profile_of(
                 p.load_profile,
                 p.load_mean,
                 p.load_amplitude,
@@ -215,12 +259,86 @@ impl Model {
                 theta,
                 velocity,
                 p.velocity_scale,
-            );
+            )
+        };
+        let external = if cyl == 0 {
+            Dual64::new(inputs.external_force, seed.external_force)
+        } else {
+            Dual64::from(0.0)
+        };
+        let f_ext = external + process;
         let balancer_force = match &self.balancer {
             Some(b) => (s - b.neutral_position) * -b.stiffness,
             None => Dual64::from(0.0),
         };
-        (inertia_force, balancer_force, f_ext + inertia_force + balancer_force)
+        (inertia_force, balancer_force, f_ext + inertia_force + balancer_force, process)
+    }
+
+    /// Cylinder `c` ≥ 1 of a rigid crank-slider (§4.1) in dual numbers, as
+    /// `Model::cylinder_outputs`, from its guide solution `value`: its outputs' tangent and its
+    /// velocity (dual).
+    #[allow(clippy::too_many_arguments)]
+    fn cylinder_tangent(
+        &self,
+        c: usize,
+        theta: Dual64,
+        w: Dual64,
+        eps: Dual64,
+        inputs: &Inputs,
+        seed: &Seed,
+        value: &GuideOutputs,
+    ) -> Result<(CylinderOutputs, Dual64), ModelError> {
+        let Mechanism::CrankSlider(m) = &self.mechanism else {
+            return Err(ModelError::evaluation("internal: several cylinders need a crank-slider"));
+        };
+        let th = theta + self.pump.cylinders[c].phase;
+        let (k, side_slope) = m.kinematics_and_tan_beta_of(th);
+        let velocity = k.velocity(w);
+        let acceleration = k.acceleration(w, eps);
+        let (inertia_force, _, p_base, process) =
+            self.dual_loads(c, th, k.s, velocity, acceleration, inputs, seed);
+        let guide = match &self.guide {
+            Some(g) => {
+                (value.rod_force, g.solve_rigid_tangent(k.s, velocity, p_base, side_slope, value)?)
+            }
+            None => (p_base.re, GuideOutputs { rod_force: p_base.eps, ..GuideOutputs::default() }),
+        };
+        let (rod_force, t) = guide;
+        Ok((
+            CylinderOutputs {
+                position: k.s.eps,
+                velocity: velocity.eps,
+                acceleration: acceleration.eps,
+                inertia_force: inertia_force.eps,
+                fluid_force: process.eps,
+                friction: t.friction_total,
+                rod_force: t.rod_force,
+                crank_torque: -(t.rod_force * k.tf.re + rod_force * k.tf.eps),
+                flow: 0.0,
+            },
+            velocity,
+        ))
+    }
+
+    /// The FLOW group's tangent (§4.1): Q_k into `cylinders`, and (Q, (p_d − p_s)·Q).
+    fn dual_flow(
+        &self,
+        velocities: &[Dual64],
+        cylinders: &mut [CylinderOutputs],
+        inputs: &Inputs,
+        seed: &Seed,
+    ) -> (f64, f64) {
+        let mut q = Dual64::from(0.0);
+        for c in 0..self.pump.n {
+            let qc = self.pump.cylinders[c].flow(velocities[c], self.params.velocity_scale);
+            cylinders[c].flow = qc.eps;
+            q += qc;
+        }
+        let dp = Dual64::new(
+            inputs.discharge_pressure - inputs.suction_pressure,
+            seed.discharge_pressure - seed.suction_pressure,
+        );
+        (q.eps, (dp * q).eps)
     }
 }
 

@@ -139,6 +139,12 @@ class OpcUaSource:
             self.roles["speed"] = settings["speed_node"]
         if settings.get("force_node"):
             self.roles["force"] = settings["force_node"]
+        for role in PRESSURE_ROLES:
+            if settings.get(f"{role}_node"):
+                self.roles[role] = settings[f"{role}_node"]
+        # With a pressure node a sample's process value (the force's place in the clock's tuples)
+        # is the tuple (force, discharge, suction), None for a node not configured.
+        self.packed = any(r in self.roles for r in PRESSURE_ROLES)
         if settings["mode"] == "block":
             self.roles["time"] = settings["time_node"]
             if settings.get("seq_node"):
@@ -330,6 +336,7 @@ class OpcUaSource:
         s = self.s
         block = self.block
         keys = {"angle": "angle_node", "speed": "speed_node", "force": "force_node"}
+        keys.update({r: f"{r}_node" for r in PRESSURE_ROLES})
         keys["time"] = "time_node"
         keys["seq"] = "seq_node"
         checks = [(keys[role], nid, role) for role, nid in self.roles.items()]
@@ -661,11 +668,17 @@ class OpcUaSource:
             )
         out_t, out_a, out_w, out_f = out
         self.samples_out += len(out_t)
+        if self.packed:
+            out_f, *pressures = (list(c) for c in zip(*out_f)) if out_f else ([], [], [])
+        else:
+            pressures = [None, None]
         samples = Samples.of(
             time=out_t,
             crank_angle=out_a,
             crank_speed=out_w if "speed" in self.roles else None,
             process_force=out_f if "force" in self.roles else None,
+            discharge_pressure=pressures[0] if "discharge" in self.roles else None,
+            suction_pressure=pressures[1] if "suction" in self.roles else None,
         )
         self._emit(samples, events)
         events.clear()
@@ -793,6 +806,18 @@ _GLITCH = "a glitch of the PLC clock (one sample stamped ahead)"
 _BACK = "stamped before the last sample handed out (out of order, or a clock step back)"
 
 
+#: A pump's pressure roles (source.discharge_node, source.suction_node; docs/plant.md).
+PRESSURE_ROLES = ("discharge", "suction")
+
+
+def _process(src, values: dict):
+    """A sample's process value from its roles' values: the force alone, or with a pressure node
+    configured the tuple (force, discharge, suction) (None for a role not configured)."""
+    if not src.packed:
+        return values.get("force")
+    return tuple(values.get(r) for r in ("force", *PRESSURE_ROLES))
+
+
 def _dup(vals, prev) -> str:
     """The reason of a sample whose timestamp was handed out already."""
     if prev is None or all(
@@ -834,7 +859,7 @@ class _ScalarJoiner:
 
     def __init__(self, src: OpcUaSource):
         self.src = src
-        self.others = [r for r in ("speed", "force") if r in src.roles]
+        self.others = [r for r in ("speed", "force", *PRESSURE_ROLES) if r in src.roles]
         self.values: dict = {r: [] for r in self.others}  # (ts, value, bad) in time order
         self.angles: collections.deque = collections.deque()
         self.tol = dt.timedelta(seconds=src.s.get("join_tolerance", 0.0005))
@@ -885,7 +910,7 @@ class _ScalarJoiner:
             for r in self.others:
                 got[r], w = self._at(r, ts)
                 why = why or w
-            out.append((ts, ts, a, got.get("speed"), got.get("force"), why))
+            out.append((ts, ts, a, got.get("speed"), _process(self.src, got), why))
         # Bounded memory: of the values before the oldest angle still to come, only the latest
         # is needed (it is the one held); at most MAX_PENDING are kept whatever the server sends.
         upto = min(x[0] for x in self.angles) if self.angles else None
@@ -1016,27 +1041,28 @@ class _Joiner:
         return out
 
     def _samples(self, ts, g, bad, block):
-        return _block_samples(ts, g, bad, block)
+        return _block_samples(self.src, ts, g, bad, block)
 
 
-def _block_samples(ts, g, bad, block):
+def _block_samples(src, ts, g, bad, block):
     """The samples of a group: one (scalar mode), or one per element of the block's arrays."""
     if not block:
-        return [(ts, ts, g.get("angle"), g.get("speed"), g.get("force"), bad)]
+        return [(ts, ts, g.get("angle"), g.get("speed"), _process(src, g), bad)]
     times = g.get("time") or []
     if bad:
         return [(ts, ts, None, None, None, bad)] * max(1, len(times))
     n = len(times)
-    arrays = {r: g[r] for r in ("angle", "speed", "force") if r in g}
+    arrays = {r: g[r] for r in ("angle", "speed", "force", *PRESSURE_ROLES) if r in g}
     if any(len(a) != n for a in arrays.values()):
         return [(ts, ts, None, None, None, "arrays of a block differ in length")] * max(1, n)
     out = []
     for i in range(n):
         a = arrays["angle"][i]
         w = arrays["speed"][i] if "speed" in arrays else None
-        f = arrays["force"][i] if "force" in arrays else None
+        f = _process(src, {r: v[i] for r, v in arrays.items()})
+        values = (a, w, *(f if isinstance(f, tuple) else (f,)))
         why = None
-        if not all(math.isfinite(x) for x in (a, w, f) if x is not None):
+        if not all(math.isfinite(x) for x in values if x is not None):
             why = "a value of a block not finite"
         out.append((times[i], times[i], a, w, f, why))
     return out
@@ -1134,7 +1160,7 @@ class _SeqJoiner:
                     f"OPC UA source {self.src.s['endpoint']}: block counter went from {prev} to "
                     f"{cv}: the blocks between were not received"
                 )
-            out += _block_samples(cts, g, bad, True)
+            out += _block_samples(self.src, cts, g, bad, True)
         # Arrays that no counter value claims within GROUP_WAIT s: dropped and reported now.
         for r in self.arrays:
             q = self.pending[r]
