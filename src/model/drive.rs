@@ -689,14 +689,11 @@ impl Model {
         out: &mut Outputs,
         want: u8,
     ) -> Result<(), ModelError> {
-        // The groups a group needs (`groups`).
-        let mut want = want;
-        if want & groups::FLOW != 0 && self.pump.n > 1 {
-            want |= groups::CYLINDERS;
-        }
-        if want & groups::CYLINDERS != 0 {
-            want |= groups::FORCES;
-        }
+        // The groups a group needs (`groups`), without branches (the single cylinder's loop
+        // step counts them): FLOW (16) needs CYLINDERS (8) when there is more than one
+        // cylinder, CYLINDERS needs FORCES (4).
+        let want = want | ((want >> 1) & self.pump.flow_needs);
+        let want = want | ((want >> 1) & groups::FORCES);
         let missing = want & !out.ready;
         if out.ready == 0 {
             Self::check_inputs(crank, inputs)?;
@@ -737,13 +734,20 @@ impl Model {
         if missing & groups::FORCES != 0 {
             // The rigid slider rod pushes the crosshead sideways with −P·tanβ (§5.4); P is
             // solved exactly (piecewise linear in P).
-            let guide = match &self.guide {
-                Some(g) => g.solve_rigid(out.position, out.velocity, out.p_base, out.side_slope)?,
-                None => GuideOutputs { rod_force: out.p_base, ..GuideOutputs::default() },
+            match &self.guide {
+                Some(g) => g.solve_rigid_into(
+                    out.position,
+                    out.velocity,
+                    out.p_base,
+                    out.side_slope,
+                    &mut out.guide,
+                )?,
+                None => {
+                    out.guide = GuideOutputs { rod_force: out.p_base, ..GuideOutputs::default() }
+                }
             };
-            out.guide = guide;
-            out.rod_force = guide.rod_force;
-            out.crank_torque = loads::crank_torque_rigid(guide.rod_force, out.torque_factor);
+            out.rod_force = out.guide.rod_force;
+            out.crank_torque = loads::crank_torque_rigid(out.rod_force, out.torque_factor);
             out.cylinders[0].crank_torque = out.crank_torque;
             out.rod_stress_max = 0.0;
             out.rod_axial_deflection = 0.0;

@@ -26,6 +26,9 @@ pub struct Cylinder {
 pub struct Pump {
     pub n: usize,
     pub cylinders: [Cylinder; MAX_CYLINDERS],
+    /// `drive::groups::CYLINDERS` when the FLOW group needs the velocities of cylinders 2..
+    /// (n > 1), else 0.
+    pub flow_needs: u8,
 }
 
 const NAMES: [[&str; 4]; MAX_CYLINDERS] = [
@@ -88,7 +91,8 @@ impl Pump {
                 },
             };
         }
-        Ok(Pump { n, cylinders })
+        let flow_needs = if n > 1 { crate::model::drive::groups::CYLINDERS } else { 0 };
+        Ok(Pump { n, cylinders, flow_needs })
     }
 
     /// Volume all active cylinders displace per revolution, Σ (A_h + A_c)·S [m³] (§4.1).

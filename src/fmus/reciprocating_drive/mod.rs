@@ -22,6 +22,7 @@ use crate::model::integrator::IntegratorStats;
 use crate::model::params::Params;
 
 pub use variables::{input_vr, input_vrs, value_reference, InputSlot, TABLE, UNITS, VARIABLES};
+use variables::{DISCHARGE_PRESSURE_VR, EXTERNAL_FORCE_VR, SUCTION_PRESSURE_VR};
 
 /// The model type the glue is instantiated with (`fmi2::abi::export_fmu!`).
 pub struct ReciprocatingDrive;
@@ -49,12 +50,12 @@ static INFO: ModelInfo = ModelInfo {
 
 #[inline]
 fn inputs(values: &[f64]) -> Inputs {
-    // One look-up of the value references for the three (`input_vrs`).
-    let vr = input_vrs();
+    // Constant value references (`variables.rs`), one bounds check for the three.
+    let v = &values[..=SUCTION_PRESSURE_VR];
     Inputs {
-        external_force: values[vr[InputSlot::ExternalForce as usize]],
-        discharge_pressure: values[vr[InputSlot::DischargePressure as usize]],
-        suction_pressure: values[vr[InputSlot::SuctionPressure as usize]],
+        external_force: v[EXTERNAL_FORCE_VR],
+        discharge_pressure: v[DISCHARGE_PRESSURE_VR],
+        suction_pressure: v[SUCTION_PRESSURE_VR],
     }
 }
 

@@ -335,6 +335,14 @@ pub fn input_vr(slot: InputSlot) -> usize {
     input_vrs()[slot as usize]
 }
 
+/// The value references of the inputs every evaluation reads besides the crank's (`inputs` in
+/// mod.rs), as constants: looked up in [`input_vrs`] they cost the single cylinder's loop step
+/// 8 instructions (docs/performance.md). The table appends new variables, so these stay; a test
+/// checks them against the table.
+pub const EXTERNAL_FORCE_VR: usize = 3;
+pub const DISCHARGE_PRESSURE_VR: usize = 100;
+pub const SUCTION_PRESSURE_VR: usize = 101;
+
 /// The value references of every input, by [`InputSlot`] (found once).
 #[inline]
 pub fn input_vrs() -> &'static [usize; 6] {
@@ -387,6 +395,9 @@ mod tests {
         ] {
             assert!(input_vr(slot) < VARIABLES.len());
         }
+        assert_eq!(input_vr(ExternalForce), EXTERNAL_FORCE_VR);
+        assert_eq!(input_vr(DischargePressure), DISCHARGE_PRESSURE_VR);
+        assert_eq!(input_vr(SuctionPressure), SUCTION_PRESSURE_VR);
     }
 
     #[test]

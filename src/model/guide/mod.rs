@@ -319,6 +319,23 @@ impl Guide {
         p_base: f64,
         tan_beta: f64,
     ) -> Result<GuideOutputs, ModelError> {
+        let mut out = GuideOutputs::default();
+        self.solve_rigid_into(s, v, p_base, tan_beta, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`Guide::solve_rigid`] writing its outputs into `out` (left alone on an error): the
+    /// pump's cylinders call it from two places (docs/model.md §4.1), so it is not inlined, and
+    /// a solution returned by value cost the single cylinder's loop step its copy
+    /// (docs/performance.md).
+    pub fn solve_rigid_into(
+        &self,
+        s: f64,
+        v: f64,
+        p_base: f64,
+        tan_beta: f64,
+        out: &mut GuideOutputs,
+    ) -> Result<(), ModelError> {
         self.check_inputs(s, v, p_base)?;
         if !tan_beta.is_finite() {
             return Err(ModelError::evaluation(format!(
@@ -356,7 +373,8 @@ impl Guide {
             at_p[x] = affine[x].base.plus_scaled(p, affine[x].slope);
         }
         let fr = friction::signed_friction(&self.laws, &affine, sign, p);
-        Ok(self.outputs(p, &at_p, &fr))
+        *out = self.outputs(p, &at_p, &fr);
+        Ok(())
     }
 
     /// The friction of the elastic-rod machine at one (s, v) as a function of the clamp loads
