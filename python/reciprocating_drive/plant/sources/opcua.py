@@ -643,7 +643,9 @@ class OpcUaSource:
                 continue
             if bad:
                 drop(bad, ts)
-                if ts is not None:
+                if ts is not None and not self.block:
+                    # Scalar mode: one sample a stamp. (A bad block gives each of its samples
+                    # the block's stamp: they are not the same sample again.)
                     self._remember(self._gone, ts, (a, w, f, bad))
                 continue
             self._admit(ts, (a, w, f), out, drop, events)
