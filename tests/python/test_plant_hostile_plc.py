@@ -5,8 +5,9 @@ docs/plant.md "Final status": the run ends `finished` with exit 0, and every sam
 is stored or counted in a `dropped` event; the summary line gives the same counts. Bounded in time:
 4 s of data (a crank at constant speed, speed and force nodes that stay constant for seconds)
 played 4x, RD_HOSTILE_EXAMPLES examples (default 6, and a clock step with an outage), about 10 s
-each. A second property generates the mode (scalar, block, block joined by the counter node), odd values and an outage whose history
-fails or caps its responses: RD_HOSTILE_PLANTS examples (default 6), about 12 s each."""
+each. A second property generates the mode (scalar, block, block joined by the counter node), odd
+values and an outage whose history fails or caps its responses: RD_HOSTILE_PLANTS examples
+(default 6), about 12 s each."""
 
 from __future__ import annotations
 

@@ -505,12 +505,14 @@ class OpcUaSource:
             if self.s["history"] and self.last_dt is not None:
                 got = 0
                 since = getattr(self.join, "taken_dt", None) or self.last_dt
-                if lost_at is not None and "seq" not in self.roles:
-                    # From clock_tolerance before the last sample handed out: a clock step
-                    # back during the outage (samples stamped before it) is then in the history
-                    # as it would have come live, and none of the samples after the step is
-                    # left out. What was handed out or dropped before comes again and is
-                    # counted as a duplicate with the same values (docs/plant.md "History").
+                if lost_at is not None and not self.block:
+                    # Scalar mode, from clock_tolerance before the last sample handed out: a
+                    # clock step back during the outage (samples stamped before it) is then in
+                    # the history as it would have come live, and none of the samples after
+                    # the step is left out. What was handed out or dropped before comes again
+                    # and is counted as a duplicate with the same values (docs/plant.md
+                    # "History"). Not in block mode: a bad block's samples share one stamp and
+                    # cannot be told from the same block again.
                     since -= dt.timedelta(seconds=self.s.get("clock_tolerance", 1.0))
                 try:
                     hist = await self._history(nodes, since + dt.timedelta(microseconds=1))
