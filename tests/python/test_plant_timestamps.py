@@ -132,6 +132,43 @@ def test_clock_step_back_drops_counted_and_goes_on_after_a_gap(fmu_path, tmp_pat
     assert any("re-initialized" in e[3] for e in gaps), gaps
 
 
+def _step_rule(reference, at, step):
+    """The sample times the rule keeps (docs/plant.md "Timestamps"): samples stamped before the
+    last one handed out are dropped, and after it until the clock passes it by more than
+    gap_limit (0.05 s)."""
+    us = np.array([round(x * 1e6) for x in reference[0][:, 1]])
+    stamped = us.copy()
+    stamped[at:] -= round(step * 1e6)
+    keep = np.ones(N, bool)
+    keep[at:] = stamped[at:] > stamped[at - 1] + 50_000
+    return stamped[keep] / 1e6
+
+
+@pytest.mark.parametrize("outage_at", [3.3, 2.99])
+def test_clock_step_back_across_an_outage_is_one_jump_each_sample_counted_once(
+    fmu_path, tmp_path, reference, outage_at
+):
+    # The endpoint closes 0.3 s (1.2 s of data at 4x) after the step (3.3 s) or just before it
+    # (2.99 s): the samples around the step come back from the server's history, which must
+    # show the step as the live samples would (not sorted by time, which hides it), and from
+    # before the last sample handed out (or a step during the outage is not in it at all).
+    # Each sample is stored or counted once (one dropped live and read back again is a
+    # same-values duplicate, not a second drop for its reason).
+    step, at = 0.5, 3000
+    name = f"outage{round(outage_at * 100)}"
+    p, db = _run(
+        tmp_path, fmu_path, name, ["--clock-step", f"{at}:{step}", "--outage", f"{outage_at}:0.3"]
+    )
+    stored, drops = _accounted(p, db, name)
+    ev = pu.events(db, name)
+    assert any(e[1] == "reconnect" and "history" in e[3] for e in ev), ev
+    assert sum(e[1] == "clock_jump" and "stepped back" in e[3] for e in ev) == 1, ev
+    got = pu.samples(db, name)[:, 1]
+    want = _step_rule(reference, at, step)
+    assert np.array_equal(got, want), (len(got), len(want))
+    assert any(e[1] == "gap" and "re-initialized" in e[3] for e in ev), ev
+
+
 @pytest.mark.parametrize(
     "kind, reason",
     [

@@ -28,6 +28,7 @@ import asyncio
 import bisect
 import collections
 import datetime as dt
+import heapq
 import logging
 import math
 import queue
@@ -520,19 +521,31 @@ class OpcUaSource:
             if self.s["history"] and self.last_dt is not None:
                 got = 0
                 since = getattr(self.join, "taken_dt", None) or self.last_dt
+                if lost_at is not None and not self.block:
+                    # Scalar mode, from clock_tolerance before the last sample handed out: a
+                    # clock step back during the outage (samples stamped before it) is then in
+                    # the history as it would have come live, and none of the samples after
+                    # the step is left out. What was handed out or dropped before comes again
+                    # and is counted as a duplicate with the same values (docs/plant.md
+                    # "History"). Not in block mode: a bad block's samples share one stamp and
+                    # cannot be told from the same block again.
+                    since -= dt.timedelta(seconds=self.s.get("clock_tolerance", 1.0))
                 try:
                     hist = await self._history(nodes, since + dt.timedelta(microseconds=1))
-                    # Interleave the roles by timestamp, as the subscription would have.
-                    merged = sorted(
-                        (
-                            (dv.SourceTimestamp, i, role, dv)
-                            for role, dvs in hist.items()
-                            for i, dv in enumerate(dvs)
+                    # Interleave the roles by timestamp, as the subscription would have, but
+                    # keep each node's values in the order the server gives them (the order
+                    # they were written): sorting them by time would interleave the samples
+                    # before a clock step back with those after it, and hide the step from
+                    # the clock's rules (docs/plant.md "Timestamps").
+                    merged = heapq.merge(
+                        *(
+                            [(dv.SourceTimestamp, k, i, role, dv) for i, dv in enumerate(dvs)]
+                            for k, (role, dvs) in enumerate(hist.items())
                         ),
                         key=lambda x: (x[0], x[1]),
                     )
                     before = self.samples_out
-                    self._process([(role, dv) for _ts, _i, role, dv in merged], events)
+                    self._process([(role, dv) for _ts, _k, _i, role, dv in merged], events)
                     got = self.samples_out - before
                     msg += f"; {got} missed samples read back from the server's history"
                 except _NoHistory as e:
@@ -641,8 +654,17 @@ class OpcUaSource:
 
         for ts, _t_dt, a, w, f, bad in self.join.feed(batch, flush):
             self.received += 1
+            gone = self._gone.get(ts) if ts is not None else None
+            if gone is not None and _dup((a, w, f, bad), gone) == _SAME:
+                # A sample dropped before, delivered again (the history after a reconnection).
+                drop(_SAME, ts)
+                continue
             if bad:
                 drop(bad, ts)
+                if ts is not None and not self.block:
+                    # Scalar mode: one sample a stamp. (A bad block gives each of its samples
+                    # the block's stamp: they are not the same sample again.)
+                    self._remember(self._gone, ts, (a, w, f, bad))
                 continue
             self._admit(ts, (a, w, f), out, drop, events)
         if flush and self._held is not None:
@@ -698,12 +720,8 @@ class OpcUaSource:
             # (subscription and history) is then counted as such, not twice under its reason.
             drop_(why, when)
             if why != _SAME:
-                self._remember(self._gone, when, v)
+                self._remember(self._gone, when, (*v, None))
 
-        gone = self._gone.get(ts)
-        if gone is not None and ts not in self._recent and _dup(vals, gone) == _SAME:
-            drop_(_SAME, ts)
-            return
         if self._held is not None:
             hts, hvals, _kind = self._held
             if ts > hts:
