@@ -78,3 +78,17 @@ def wheel_venv():
         yield make_wheel_venv(where / "venv", wheel), wheel, where
     finally:
         shutil.rmtree(where, ignore_errors=True)
+
+
+@pytest.fixture(scope="module")
+def pg():
+    """A temporary PostgreSQL server of Debian's binaries on 127.0.0.1 (tests/python/pg_server.py),
+    one per test module."""
+    from pg_server import PgServer, pg_bindir
+
+    if pg_bindir() is None:
+        pytest.fail(
+            "PostgreSQL is not installed: scripts/test.sh installs it (scripts/lib/postgres.sh)"
+        )
+    with PgServer() as server:
+        yield server

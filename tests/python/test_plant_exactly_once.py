@@ -17,18 +17,6 @@ SEED = 2025
 
 
 @pytest.fixture(scope="module")
-def pg():
-    from pg_server import PgServer, pg_bindir
-
-    if pg_bindir() is None:
-        pytest.fail(
-            "PostgreSQL is not installed: scripts/test.sh installs it (scripts/lib/postgres.sh)"
-        )
-    with PgServer() as server:
-        yield server
-
-
-@pytest.fixture(scope="module")
 def reference(fmu_path):
     return pu.clean_run(fmu_path)
 

@@ -11,19 +11,6 @@ import threading
 import time
 
 import plant_util as pu
-import pytest
-
-
-@pytest.fixture(scope="module")
-def pg():
-    from pg_server import PgServer, pg_bindir
-
-    if pg_bindir() is None:
-        pytest.fail(
-            "PostgreSQL is not installed: scripts/test.sh installs it (scripts/lib/postgres.sh)"
-        )
-    with PgServer() as server:
-        yield server
 
 
 def test_sslmode_require_against_a_server_without_ssl_is_one_line_at_once(pg, tmp_path):

@@ -470,18 +470,6 @@ def test_the_page_opens_a_range_at_full_resolution(tmp_path):
         page.close()
 
 
-@pytest.fixture(scope="module")
-def pg():
-    from pg_server import PgServer, pg_bindir
-
-    if pg_bindir() is None:
-        pytest.fail(
-            "PostgreSQL is not installed: scripts/test.sh installs it (scripts/lib/postgres.sh)"
-        )
-    with PgServer() as server:
-        yield server
-
-
 def test_postgres_stores_the_input_and_recomputes_bit_for_bit(pg, tmp_path, long_sample, reference):
     """PostgreSQL: the same storage; killed once and finished, a recomputed range equals the rows
     the live run committed (float8, -0.0 included) bit for bit; keep_samples deletes there too."""

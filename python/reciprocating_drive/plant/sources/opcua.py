@@ -828,7 +828,7 @@ _BACK = "stamped before the last sample handed out (out of order, or a clock ste
 PRESSURE_ROLES = ("discharge", "suction")
 
 
-def _process(src, values: dict):
+def _process_value(src, values: dict):
     """A sample's process value from its roles' values: the force alone, or with a pressure node
     configured the tuple (force, discharge, suction) (None for a role not configured)."""
     if not src.packed:
@@ -928,7 +928,7 @@ class _ScalarJoiner:
             for r in self.others:
                 got[r], w = self._at(r, ts)
                 why = why or w
-            out.append((ts, ts, a, got.get("speed"), _process(self.src, got), why))
+            out.append((ts, ts, a, got.get("speed"), _process_value(self.src, got), why))
         # Bounded memory: of the values before the oldest angle still to come, only the latest
         # is needed (it is the one held); at most MAX_PENDING are kept whatever the server sends.
         upto = min(x[0] for x in self.angles) if self.angles else None
@@ -1065,7 +1065,7 @@ class _Joiner:
 def _block_samples(src, ts, g, bad, block):
     """The samples of a group: one (scalar mode), or one per element of the block's arrays."""
     if not block:
-        return [(ts, ts, g.get("angle"), g.get("speed"), _process(src, g), bad)]
+        return [(ts, ts, g.get("angle"), g.get("speed"), _process_value(src, g), bad)]
     times = g.get("time") or []
     if bad:
         return [(ts, ts, None, None, None, bad)] * max(1, len(times))
@@ -1077,7 +1077,7 @@ def _block_samples(src, ts, g, bad, block):
     for i in range(n):
         a = arrays["angle"][i]
         w = arrays["speed"][i] if "speed" in arrays else None
-        f = _process(src, {r: v[i] for r, v in arrays.items()})
+        f = _process_value(src, {r: v[i] for r, v in arrays.items()})
         values = (a, w, *(f if isinstance(f, tuple) else (f,)))
         why = None
         if not all(math.isfinite(x) for x in values if x is not None):
