@@ -13,6 +13,11 @@ the last output line. Replay reads the file itself. Live gets the data through a
 input (`twin.py - --live`), written by a producer as fast as the twin takes it.
 
     .venv/bin/python scripts/bench_twin.py [--repeat N]      # the best of N runs (default 3)
+    .venv/bin/python scripts/bench_twin.py --pump            # the whole pump instead
+
+`--pump`: 600 s of the duplex `unb600a` at 65 strokes/min and 1 kHz with `discharge_pressure` and
+`suction_pressure` columns (the preset's pressures), beside the single cylinder `unb600a-simplex`
+on the same angles without them.
 """
 
 from __future__ import annotations
@@ -45,6 +50,24 @@ def kvo_data(path: pathlib.Path, seconds=10.0) -> None:
     path.write_text(
         "time,crank_angle\n"
         + "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(t, np.mod(w * t, 2 * math.pi)))
+    )
+
+
+def pump_data(path: pathlib.Path, pressures: bool, seconds=600.0) -> None:
+    """Exact angles of 65 strokes/min at 1 kHz; with the preset's pressures as columns."""
+    w = 2 * math.pi * 65 / 60
+    t = np.arange(int(seconds * 1000) + 1) / 1000.0
+    a = [math.remainder(w * float(x), 2 * math.pi) for x in t]
+    if not pressures:
+        path.write_text(
+            "time,crank_angle\n" + "".join(f"{float(x)!r},{y!r}\n" for x, y in zip(t, a))
+        )
+        return
+    v = preset_values("unb600a")
+    pd, ps = v["pump.discharge_pressure"], v.get("pump.suction_pressure", 0.0)
+    path.write_text(
+        "time,crank_angle,discharge_pressure,suction_pressure\n"
+        + "".join(f"{float(x)!r},{y!r},{pd!r},{ps!r}\n" for x, y in zip(t, a))
     )
 
 
@@ -141,7 +164,10 @@ def main() -> int:
         default=None,
         help="another checkout's scripts/twin.py, measured in the same run as a baseline",
     )
+    ap.add_argument("--pump", action="store_true", help="the whole pump's case instead")
     a = ap.parse_args()
+    if a.pump:
+        return pump(a.repeat)
     with tempfile.TemporaryDirectory() as d:
         work = pathlib.Path(d)
         kvo, kvo_long = work / "kvo.csv", work / "kvo-100s.csv"
@@ -195,6 +221,27 @@ def main() -> int:
                     wall,
                     n,
                 )
+    return 0
+
+
+def pump(repeat: int) -> int:
+    """The `--pump` case: replay of the duplex with its pressures and of the single cylinder."""
+    with tempfile.TemporaryDirectory() as d:
+        work = pathlib.Path(d)
+        duplex, simplex = work / "duplex600.csv", work / "simplex600.csv"
+        pump_data(duplex, True)
+        pump_data(simplex, False)
+        for name, src, machine in (
+            ("duplex unb600a, pressures", duplex, "unb600a"),
+            ("single cylinder unb600a-simplex", simplex, "unb600a-simplex"),
+        ):
+            wall, samples = min(
+                twin_run(src, ["--machine", machine], False, work) for _ in range(repeat)
+            )
+            print(
+                f"{name:34s} replay {samples:7d} samples {wall / samples * 1e6:6.2f} µs/sample "
+                f"{600.0 / wall:6.1f}× real time"
+            )
     return 0
 
 
