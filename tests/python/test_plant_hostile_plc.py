@@ -35,6 +35,8 @@ behaviour = st.one_of(
     st.tuples(st.just("--stamp-apart"), st.integers(0, 400), st.none()),
     # The endpoint closed 0.3 s at a data time (the missed samples come from the history).
     st.tuples(st.just("--outage"), st.integers(5, 35).map(lambda x: x / 10), st.just(0.3)),
+    # A server answering HistoryRead sorted by SourceTimestamp (with an outage, it matters).
+    st.tuples(st.just("--history-order"), st.just("time"), st.none()),
 )
 behaviours = st.lists(behaviour, min_size=1, max_size=2, unique_by=lambda b: b[0])
 
@@ -67,6 +69,9 @@ def _args(bs) -> list[str]:
 @given(bs=behaviours)
 # A clock step back with an outage after it (its history once sorted by time hid the step).
 @example(bs=[("--clock-step", 2000, 0.5), ("--outage", 2.3, 0.3)])
+@example(
+    bs=[("--clock-step", 2000, 0.5), ("--outage", 2.3, 0.3), ("--history-order", "time", None)]
+)
 def test_generated_plc_behaviours_lose_nothing_silently(fmu_path, tmp_path, data, bs):
     name = f"h{abs(hash(tuple(bs))) % 10**8}"
     plc = pu.PlcProcess(

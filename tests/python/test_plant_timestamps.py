@@ -222,3 +222,76 @@ def test_constant_speed_and_force_and_stamps_apart_give_the_file_replay(
     ref = pu.clean_run(fmu_path, data, counts=False)
     assert stored == 12000 and not drops, drops
     assert pu.same_values(pu.samples(db, "const"), ref[0], sqlite=True)
+
+
+def test_clock_step_back_across_an_outage_with_history_sorted_by_time_is_the_same_rule(
+    fmu_path, tmp_path, reference
+):
+    # A server that answers HistoryRead sorted by SourceTimestamp (OPC UA Part 11's raw history):
+    # in it the samples before the step back interleave with those after it. The twin puts each
+    # node's history back in the order written by the ServerTimestamps (the server's own clock),
+    # so the outcome is the rule of a step back seen live: one clock_jump, the same rows.
+    step, at = 0.5, 3000
+    name = "sorted"
+    p, db = _run(
+        tmp_path,
+        fmu_path,
+        name,
+        ["--clock-step", f"{at}:{step}", "--outage", "2.99:0.3", "--history-order", "time"],
+    )
+    stored, drops = _accounted(p, db, name)
+    ev = pu.events(db, name)
+    assert any(e[1] == "reconnect" and "history" in e[3] for e in ev), ev
+    assert sum(e[1] == "clock_jump" and "stepped back" in e[3] for e in ev) == 1, ev
+    got = pu.samples(db, name)[:, 1]
+    want = _step_rule(reference, at, step)
+    assert np.array_equal(got, want), (len(got), len(want))
+
+
+@pytest.mark.parametrize(
+    "writes, seq",
+    [("together", False), ("together", True), ("sequential", True)],
+    ids=["together", "together-seq", "sequential-seq"],
+)
+def test_clock_step_back_in_block_mode_is_one_jump_each_sample_counted_once(
+    fmu_path, tmp_path, reference, writes, seq
+):
+    # The PLC's clock steps back 0.5 s at sample 3000: its block time arrays (and, written
+    # together, the blocks' SourceTimestamps) go back with it. Block mode applies the rule of
+    # docs/plant.md "Timestamps" sample by sample, as scalar mode does.
+    step, at = 0.5, 3000
+    name = f"block{writes}{int(seq)}"
+    extra = 'time_node = "ns=2;s=Pump.Block.Time"\n'
+    extra += 'seq_node = "ns=2;s=Pump.Block.Seq"\n' if seq else ""
+    plc = pu.PlcProcess(
+        "--speed", "4", "--start-delay", "2", "--nodes", "block", "--block-writes", writes,
+        "--clock-step", f"{at}:{step}",
+    )  # fmt: skip
+    src = (
+        f'type = "opcua"\nendpoint = "{plc.endpoint}"\nmode = "block"\n'
+        'angle_node = "ns=2;s=Pump.Block.CrankAngle"\nend_node = "ns=2;s=Pump.Finished"\n'
+        'reconnect_max = 0.5\nangle_unit = "counts"\ncounts_per_rev = 4096\n' + extra
+    )
+    cfg = pu.write_config(
+        tmp_path / f"{name}.toml",
+        run=name,
+        source=src,
+        sinks=pu.sqlite_sink(tmp_path / f"{name}.sqlite"),
+        fmu=fmu_path,
+    )
+    proc = pu.start(cfg)
+    try:
+        with plc:
+            out, err = proc.communicate(timeout=90)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=10)
+    db = tmp_path / f"{name}.sqlite"
+    p = subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+    stored, drops = _accounted(p, db, name)
+    ev = pu.events(db, name)
+    assert sum(e[1] == "clock_jump" and "stepped back" in e[3] for e in ev) == 1, ev
+    got = pu.samples(db, name)[:, 1]
+    want = _step_rule(reference, at, step)
+    assert np.array_equal(got, want), (len(got), len(want))

@@ -210,6 +210,13 @@ def _main(argv, prog: str) -> int:
         help="at most M values per HistoryRead response (the rest through continuation points)",
     )
     ap.add_argument(
+        "--history-order",
+        choices=("written", "time"),
+        default="written",
+        help="HistoryRead values in the order written (written), or sorted by SourceTimestamp "
+        "(time), as some servers answer",
+    )
+    ap.add_argument(
         "--silent",
         action="store_true",
         help="accept connections and never answer (a hung server); plays nothing",
@@ -294,6 +301,7 @@ def _main(argv, prog: str) -> int:
             block_writes=a.block_writes,
             history_fail=a.history_fail,
             history_cap=a.history_cap,
+            history_order=a.history_order,
             silent=a.silent,
         )
     except (OSError, ValueError) as e:

@@ -17,7 +17,8 @@ Sample i carries the timestamp origin + t_i, origin a whole Unix second: a twin 
 origin sees the file's own times. Security (optional): Basic256Sha256 Sign or SignAndEncrypt only,
 with a certificate made at run time, and user name + password. Faults for the tests: a sample's
 angle with a bad status, NaN, a value of the wrong type, two numbers on the scalar node, a 2-D
-block array, no SourceTimestamp; a history that fails or caps its responses; an outage (the endpoint closed for some
+block array, no SourceTimestamp; a history that fails, caps its responses or answers sorted by
+SourceTimestamp; an outage (the endpoint closed for some
 seconds while the PLC goes on recording into its history).
 
 Layer: workflows, the plant (docs/architecture.md).
@@ -126,6 +127,7 @@ class PlcSim:
     block_writes: str = "together"  # "sequential": each array stamped by the server at its write
     history_fail: int = 0  # HistoryRead requests answered BadInternalError first (-1: all)
     history_cap: int = 0  # values per HistoryRead response at most (0: asyncua's 10 000)
+    history_order: str = "written"  # "time": HistoryRead values sorted by SourceTimestamp
     silent: bool = False  # accept connections and never answer (no OPC UA at all)
 
     def __post_init__(self):
@@ -227,6 +229,8 @@ class PlcSim:
             self.storage.max_history_data_response_size = self.history_cap
         if self.history_fail:
             self._failing_history(srv.iserver.history_manager)
+        if self.history_order == "time":
+            self._time_ordered_history()
         if self.history:
             for node in self.nodes.values():
                 # The PLC records every value it writes (not a sampled subscription).
@@ -266,6 +270,27 @@ class PlcSim:
 
         manager.read_history = failing
 
+    def _time_ordered_history(self) -> None:
+        """HistoryRead values sorted by SourceTimestamp (stable), as OPC UA Part 11 describes raw
+        history and as many servers answer: a step back of the PLC clock is then not visible in
+        the order, only in the ServerTimestamps (the server's own clock at each write)."""
+        storage = self.storage
+        read = storage.read_node_history
+
+        async def sorted_read(node_id, start, end, nb_values):
+            kept = storage._datachanges.get(node_id)
+            if kept is None:
+                return await read(node_id, start, end, nb_values)
+            # asyncua's memory storage filters its list in write order; sorted for this one
+            # request (the read does not yield to the event loop, so no write comes between).
+            storage._datachanges[node_id] = sorted(kept, key=lambda dv: dv.SourceTimestamp)
+            try:
+                return await read(node_id, start, end, nb_values)
+            finally:
+                storage._datachanges[node_id] = kept
+
+        storage.read_node_history = sorted_read
+
     async def _start_silent(self) -> None:
         """A server that accepts TCP connections and never answers (a hung PLC runtime)."""
         self.conns = []
@@ -288,7 +313,9 @@ class PlcSim:
             ua.Variant(value, vtype, Dimensions=dims),
             StatusCode=ua.StatusCode(status),
             SourceTimestamp=ts,
-            ServerTimestamp=ts,
+            # The server's own clock at the write (monotonic: a step of the PLC's clock, which
+            # stamps the SourceTimestamp, does not move it), as a server stamps a value received.
+            ServerTimestamp=self._now(),
         )
         await self.server.write_attribute_value(node.nodeid, dv)
         if self.history and ts is not None:  # a value without a timestamp has no place in it
@@ -419,7 +446,13 @@ class PlcSim:
 
         # Sequential: time, angle, speed, force, then the counter, one write after another, each
         # stamped by the server when it is written (as most servers do).
+        # The samples' times as the PLC's clock stamps them (a step back shifts them too).
         times = [self._stamp(origin, v) for v in self.t[lo:hi]]
+        if self.clock_step is not None:
+            k0, back = self.clock_step
+            times = [
+                x - dt.timedelta(seconds=back) if lo + j >= k0 else x for j, x in enumerate(times)
+            ]
         await self._write("Pump.Block.Time", times, ua.VariantType.DateTime, stamp())
         if dims is not None:
             self._clear("Pump.Block.CrankAngle")

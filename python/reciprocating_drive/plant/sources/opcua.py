@@ -532,6 +532,8 @@ class OpcUaSource:
                     since -= dt.timedelta(seconds=self.s.get("clock_tolerance", 1.0))
                 try:
                     hist = await self._history(nodes, since + dt.timedelta(microseconds=1))
+                    for role, dvs in hist.items():
+                        hist[role] = _written_order(dvs)
                     # Interleave the roles by timestamp, as the subscription would have, but
                     # keep each node's values in the order the server gives them (the order
                     # they were written): sorting them by time would interleave the samples
@@ -863,6 +865,18 @@ def _stamp(item):
     return item[0]
 
 
+def _written_order(dvs: list) -> list:
+    """A node's history values in the order they were written (docs/plant.md "History"): by
+    ServerTimestamp, the server's own clock when it received each value, when every value has
+    one; otherwise as the server gives them. A server that sorts raw history by SourceTimestamp
+    (OPC UA Part 11) would otherwise interleave the samples stamped before a step back of the
+    PLC clock with those after it and hide the step from the clock's rules. The sort is stable:
+    values the server stamped alike keep the server's order."""
+    if dvs and all(dv.ServerTimestamp is not None for dv in dvs):
+        return sorted(dvs, key=lambda dv: dv.ServerTimestamp)
+    return list(dvs)
+
+
 class _ScalarJoiner:
     """Scalar mode (docs/plant.md "Sample assembly"): the angle node is the clock. Each angle
     value is a sample; speed and force take the value of their node stamped at most
@@ -1029,6 +1043,14 @@ class _Joiner:
         out = out_now
         if done:
             newest = max(done)
+            # Complete groups in the order they completed (the order written), not sorted by
+            # stamp: after a step back of the PLC clock, its blocks would otherwise go before
+            # the ones written earlier, and the clock's rules would drop those instead
+            # (docs/plant.md "Timestamps").
+            for ts in done:
+                g = self.groups.pop(ts, None)
+                if g is not None:
+                    out += self._samples(ts, g, g.get("_bad"), block)
             for ts in sorted(t for t in self.groups if t <= newest or flush):
                 g = self.groups.pop(ts)
                 bad = g.get("_bad")
@@ -1104,6 +1126,11 @@ class _SeqJoiner:
         self.counters: collections.deque = collections.deque()  # (ts, value, arrived)
         self.taken_dt = None  # the stamp of the last counter value taken
         self.taken_value = None
+        # The writes taken, (role, stamp), bounded: the same write given again by a new
+        # subscription or the history is left out, and a write stamped before the last counter
+        # (a step back of the PLC clock) is not (docs/plant.md "Timestamps").
+        self.taken: set = set()
+        self.taken_order: collections.deque = collections.deque()
         self.check = _Joiner(src)._check
 
     def feed(self, batch, flush=False):
@@ -1116,7 +1143,7 @@ class _SeqJoiner:
             if ts is None:
                 out.append((None, None, None, None, None, f"no SourceTimestamp on {role}"))
                 continue
-            if self.taken_dt is not None and ts <= self.taken_dt:
+            if (role, ts) in self.taken:
                 continue  # taken already (given again by a new subscription or the history)
             if role == "seq":
                 v = dv.Value.Value if dv.Value is not None else None
@@ -1132,9 +1159,10 @@ class _SeqJoiner:
                         )
                     )
                     continue
-                k = bisect.bisect_left(self.counters, ts, key=_stamp)
-                if k == len(self.counters) or self.counters[k][0] != ts:
-                    self.counters.insert(k, (ts, v, now))  # in stamp order, each write once
+                if all(c[0] != ts for c in self.counters):
+                    # In the order written, each write once: after a step back of the PLC clock
+                    # a counter value is stamped before the previous one.
+                    self.counters.append((ts, v, now))
                 continue
             value, bad = self.check(role, dv, True)
             q = self.pending[role]
@@ -1144,13 +1172,19 @@ class _SeqJoiner:
             q.insert(k, (ts, value, bad, now))
         while self.counters:
             cts, cv, arrived = self.counters[0]
-            group, extra = {}, []
+            # The block's arrays: stamped after the previous counter value taken and at or
+            # before this one; after a step back (this one stamped before the previous), at or
+            # before this one.
+            prev_dt = self.taken_dt
+            group, extra, window = {}, [], {}
             for r in self.arrays:
                 q = self.pending[r]
                 k = bisect.bisect_right(q, cts, key=_stamp)
-                if k:
+                lo = bisect.bisect_right(q, prev_dt, key=_stamp) if prev_dt and prev_dt < cts else 0
+                window[r] = (lo, k)
+                if k > lo:
                     group[r] = q[k - 1]
-                    extra += [(r, x) for x in q[: k - 1]]
+                    extra += [(r, x) for x in q[lo : k - 1]]
             complete = len(group) == len(self.arrays)
             if not (
                 complete or flush or len(self.counters) > 1 or now - arrived >= self.GROUP_WAIT
@@ -1158,8 +1192,13 @@ class _SeqJoiner:
                 break  # the arrays written before this counter value may still be on their way
             self.counters.popleft()
             for r in self.arrays:
-                q = self.pending[r]
-                del q[: bisect.bisect_right(q, cts, key=_stamp)]
+                lo, k = window[r]
+                del self.pending[r][lo:k]
+            for key in [("seq", cts), *((r, x[0]) for r, x in group.items())]:
+                self.taken.add(key)
+                self.taken_order.append(key)
+            while len(self.taken_order) > 50000:
+                self.taken.discard(self.taken_order.popleft())
             for r, x in extra:
                 # An array written twice before the counter moved: the earlier value is lost.
                 n = len(x[1]) if r == "time" and isinstance(x[1], list) else 1
