@@ -138,8 +138,8 @@ pub(super) struct AffineReaction {
 /// Sum over supports of f·max(|∂R/∂P|, 2|∂M/∂P|/l_n) (pin: f·|∂R/∂P|): times |tanh(v/v_ε)| the
 /// largest slope of F_fr(P), i.e. the uniqueness number K of docs/model.md §4 (there written per
 /// unit side load Q, with |∂Q/∂P| = |tanβ|).
-// Always inlined, like `solve_piecewise_linear`, `piece`, `total` and `signed_friction`:
-// `Guide::solve_rigid_into` has two copies (docs/performance.md).
+// Always inlined, like `solve_piecewise_linear`: `Guide::solve_rigid_into` has two copies, and
+// left to itself the compiler then calls them out of line (docs/performance.md).
 #[inline(always)]
 pub(super) fn sensitivity(laws: &[FrictionLaw; 3], r: &[AffineReaction; 3]) -> f64 {
     let mut k = 0.0;
@@ -152,7 +152,7 @@ pub(super) fn sensitivity(laws: &[FrictionLaw; 3], r: &[AffineReaction; 3]) -> f
 /// g(P) of one support (the friction magnitude, the maximum of its candidate affine pieces
 /// ±R(P), ±2M(P)/l_n) with its left and right slopes: at a kink the left slope is the smallest,
 /// the right slope the largest slope among the active pieces.
-#[inline(always)]
+#[inline]
 fn piece(law: &FrictionLaw, r: &AffineReaction, p: f64) -> (f64, f64, f64) {
     let (f, k) = match *law {
         FrictionLaw::None => return (0.0, 0.0, 0.0),
@@ -184,7 +184,7 @@ fn piece(law: &FrictionLaw, r: &AffineReaction, p: f64) -> (f64, f64, f64) {
 
 /// Total signed friction F(P) = −tanh·Σ f·g and its left and right slopes (a constant factor
 /// scales one-sided derivatives without swapping them).
-#[inline(always)]
+#[inline]
 fn total(laws: &[FrictionLaw; 3], r: &[AffineReaction; 3], sign: f64, p: f64) -> (f64, f64, f64) {
     let (mut v, mut dl, mut dr) = (0.0, 0.0, 0.0);
     for x in 0..3 {
@@ -197,7 +197,7 @@ fn total(laws: &[FrictionLaw; 3], r: &[AffineReaction; 3], sign: f64, p: f64) ->
 }
 
 /// Signed friction of every support at P.
-#[inline(always)]
+#[inline]
 pub(super) fn signed_friction(
     laws: &[FrictionLaw; 3],
     r: &[AffineReaction; 3],

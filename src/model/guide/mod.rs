@@ -328,8 +328,8 @@ impl Guide {
     /// solution returned by value cost the single cylinder's loop step its copy). The pump's
     /// cylinders solve from two places (docs/model.md §4.1): `SITE` gives each its own copy
     /// (the first cylinder 0, the others and `solve_rigid` 1), so each copy has one caller and
-    /// is inlined there, and the helpers are `#[inline(always)]` so that they are inlined in
-    /// both copies; one shared copy was a call on every evaluation (docs/performance.md).
+    /// is inlined there, and the friction solver's helpers are `#[inline(always)]` so that they
+    /// are inlined in both copies; one shared copy was a call on every evaluation (docs/performance.md).
     #[inline]
     pub fn solve_rigid_into<const SITE: u8>(
         &self,
