@@ -735,7 +735,7 @@ impl Model {
             // The rigid slider rod pushes the crosshead sideways with −P·tanβ (§5.4); P is
             // solved exactly (piecewise linear in P).
             match &self.guide {
-                Some(g) => g.solve_rigid_into(
+                Some(g) => g.solve_rigid_into::<0>(
                     out.position,
                     out.velocity,
                     out.p_base,

@@ -138,6 +138,9 @@ pub(super) struct AffineReaction {
 /// Sum over supports of f·max(|∂R/∂P|, 2|∂M/∂P|/l_n) (pin: f·|∂R/∂P|): times |tanh(v/v_ε)| the
 /// largest slope of F_fr(P), i.e. the uniqueness number K of docs/model.md §4 (there written per
 /// unit side load Q, with |∂Q/∂P| = |tanβ|).
+// Always inlined, like `solve_piecewise_linear`: `Guide::solve_rigid_into` has two copies, and
+// left to itself the compiler then calls them out of line (docs/performance.md).
+#[inline(always)]
 pub(super) fn sensitivity(laws: &[FrictionLaw; 3], r: &[AffineReaction; 3]) -> f64 {
     let mut k = 0.0;
     for x in 0..3 {
@@ -211,6 +214,7 @@ pub(super) fn signed_friction(
 
 /// Solves `P = p_base + F_fr(P)` exactly for piecewise-linear friction. `sign` = tanh(v/v_ε);
 /// requires `|sign|·sensitivity < 1` (checked by the caller).
+#[inline(always)]
 pub(super) fn solve_piecewise_linear(
     laws: &[FrictionLaw; 3],
     r: &[AffineReaction; 3],

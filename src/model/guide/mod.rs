@@ -320,15 +320,18 @@ impl Guide {
         tan_beta: f64,
     ) -> Result<GuideOutputs, ModelError> {
         let mut out = GuideOutputs::default();
-        self.solve_rigid_into(s, v, p_base, tan_beta, &mut out)?;
+        self.solve_rigid_into::<1>(s, v, p_base, tan_beta, &mut out)?;
         Ok(out)
     }
 
-    /// [`Guide::solve_rigid`] writing its outputs into `out` (left alone on an error): the
-    /// pump's cylinders call it from two places (docs/model.md §4.1), so it is not inlined, and
-    /// a solution returned by value cost the single cylinder's loop step its copy
-    /// (docs/performance.md).
-    pub fn solve_rigid_into(
+    /// [`Guide::solve_rigid`] writing its outputs into `out` (left alone on an error; a
+    /// solution returned by value cost the single cylinder's loop step its copy). The pump's
+    /// cylinders solve from two places (docs/model.md §4.1): `SITE` gives each its own copy
+    /// (the first cylinder 0, the others and `solve_rigid` 1), so each copy has one caller and
+    /// is inlined there, and the friction solver's helpers are `#[inline(always)]` so that they
+    /// are inlined in both copies; one shared copy was a call on every evaluation (docs/performance.md).
+    #[inline]
+    pub fn solve_rigid_into<const SITE: u8>(
         &self,
         s: f64,
         v: f64,
@@ -533,6 +536,7 @@ impl Guide {
         Ok(out)
     }
 
+    #[inline(always)]
     fn outputs(&self, p: f64, at_p: &[ForceMoment; 3], fr: &[f64; 3]) -> GuideOutputs {
         let b = at_p[1];
         let (n1, n2) = friction::edge_forces(self.kinds[1], self.lengths[1], b);
