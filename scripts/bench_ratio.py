@@ -59,7 +59,7 @@ KINEMATICS = [
 NO_SUPPORTS = {"support_A.kind": 0, "support_B.kind": 0, "support_C.kind": 0}
 # The pump's loop (docs/model.md §4.1): the eight, of which crank.torque sums every cylinder, and
 # the pump's flow and hydraulic power.
-PUMP = EIGHT + ["pump.flow", "pump.hydraulic_power"]
+PUMP = EIGHT + ["fluid_end.flow", "fluid_end.hydraulic_power"]
 
 # (name, preset or None, overrides, outputs read, target: the FMU's instructions per loop step,
 # or None; docs/performance.md "Current figures")
@@ -74,7 +74,7 @@ SCENARIOS = [
     (
         "pump, pressures, friction on: one cylinder of unb600a",
         "unb600a",
-        {"pump.cylinders": 1},
+        {"fluid_end.cylinders": 1},
         PUMP,
         None,
     ),

@@ -64,7 +64,7 @@ def pump_data(path: pathlib.Path, pressures: bool, seconds=600.0) -> None:
         )
         return
     v = preset_values("unb600a")
-    pd, ps = v["pump.discharge_pressure"], v.get("pump.suction_pressure", 0.0)
+    pd, ps = v["fluid_end.discharge_pressure"], v.get("fluid_end.suction_pressure", 0.0)
     path.write_text(
         "time,crank_angle,discharge_pressure,suction_pressure\n"
         + "".join(f"{float(x)!r},{y!r},{pd!r},{ps!r}\n" for x, y in zip(t, a))

@@ -344,7 +344,7 @@ fn bad_parameters_are_rejected_at_initialization_with_precise_messages() {
         assert_eq!(f.set(name, default), OK);
         assert_eq!(f.exit(), OK, "{}", f.log.last());
     }
-    for (name, value) in [("mechanism", 9), ("load.profile", 4), ("pump.cylinders", 4)] {
+    for (name, value) in [("mechanism", 9), ("load.profile", 4), ("fluid_end.cylinders", 4)] {
         let f = Inst::new(&api, "bad");
         assert_eq!(f.enter(), OK);
         assert_eq!(f.set_int(name, value), OK);

@@ -99,7 +99,7 @@ const MACHINES: &[Machine] = &[
         name: "duplex double-acting, pressures",
         preset: None,
         overrides: &[
-            ("pump.cylinders", "Integer", "2"),
+            ("fluid_end.cylinders", "Integer", "2"),
             ("cylinder_2.phase", "Real", "1.5707963267948966"),
             ("load.profile", "Integer", "3"),
         ],
@@ -110,7 +110,7 @@ const MACHINES: &[Machine] = &[
         name: "triplex single-acting, pressures, balancer",
         preset: None,
         overrides: &[
-            ("pump.cylinders", "Integer", "3"),
+            ("fluid_end.cylinders", "Integer", "3"),
             ("cylinder_1.acting", "Integer", "1"),
             ("cylinder_2.acting", "Integer", "1"),
             ("cylinder_3.acting", "Integer", "1"),
@@ -230,8 +230,8 @@ fn outputs_read_in_any_order_and_subset_equal_the_eager_evaluation_bit_for_bit()
                     "crank.speed",
                     "crank.acceleration",
                     "link.external_force",
-                    "pump.discharge_pressure",
-                    "pump.suction_pressure",
+                    "fluid_end.discharge_pressure",
+                    "fluid_end.suction_pressure",
                 ];
                 for f in [&lazy, &eager] {
                     for (n, v) in names.iter().zip(inputs) {
@@ -256,8 +256,8 @@ fn outputs_read_in_any_order_and_subset_equal_the_eager_evaluation_bit_for_bit()
                     &crank,
                     &Inputs {
                         external_force: eager.get("link.external_force"),
-                        discharge_pressure: eager.get("pump.discharge_pressure"),
-                        suction_pressure: eager.get("pump.suction_pressure"),
+                        discharge_pressure: eager.get("fluid_end.discharge_pressure"),
+                        suction_pressure: eager.get("fluid_end.suction_pressure"),
                     },
                     &rod,
                 )

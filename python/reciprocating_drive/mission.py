@@ -55,17 +55,17 @@ EXTREMES = {
 #: A pump's outputs, recorded besides OUTPUTS for a pump preset (`is_pump`): the flow, the powers
 #: and the torque of every cylinder (the plots and the summary's pump section, docs/results.md).
 PUMP_OUTPUTS = (
-    "pump.flow",
-    "pump.hydraulic_power",
-    "pump.mechanical_power",
+    "fluid_end.flow",
+    "fluid_end.hydraulic_power",
+    "crank.mechanical_power",
     "cylinder_1.crank_torque",
     "cylinder_2.crank_torque",
     "cylinder_3.crank_torque",
 )
 PUMP_UNITS = {
-    "pump.flow": "m3/s",
-    "pump.hydraulic_power": "W",
-    "pump.mechanical_power": "W",
+    "fluid_end.flow": "m3/s",
+    "fluid_end.hydraulic_power": "W",
+    "crank.mechanical_power": "W",
     "cylinder_1.crank_torque": "N.m",
     "cylinder_2.crank_torque": "N.m",
     "cylinder_3.crank_torque": "N.m",
@@ -84,14 +84,14 @@ SETTLED = 1e-3
 
 def is_pump(params: dict) -> bool:
     """A pump preset: pressures in (load.profile 3) or more than one cylinder on the crankshaft."""
-    return int(params.get("load.profile", 0)) == 3 or int(params.get("pump.cylinders", 1)) > 1
+    return int(params.get("load.profile", 0)) == 3 or int(params.get("fluid_end.cylinders", 1)) > 1
 
 
 def pump_outputs(params: dict) -> tuple:
     """The pump outputs of a pump preset (only the active cylinders' torques), else none."""
     if not is_pump(params):
         return ()
-    n = int(params.get("pump.cylinders", 1))
+    n = int(params.get("fluid_end.cylinders", 1))
     return tuple(o for o in PUMP_OUTPUTS if not o.startswith("cylinder_") or int(o[9]) <= n)
 
 
@@ -116,7 +116,7 @@ class Mission:
 
     @property
     def cylinders(self) -> int:
-        return int(self.parameters.get("pump.cylinders", 1))
+        return int(self.parameters.get("fluid_end.cylinders", 1))
 
     @property
     def elastic(self) -> bool:
@@ -189,7 +189,7 @@ def run_mission(
     inputs = ("crank.angle", "crank.speed", "crank.acceleration", "link.external_force")
     # A pump's pressures are inputs too, held at the preset's (or the FMU's start) values.
     pressures = tuple(
-        p for p in ("pump.discharge_pressure", "pump.suction_pressure") if p in params
+        p for p in ("fluid_end.discharge_pressure", "fluid_end.suction_pressure") if p in params
     )
     start = {k: v for k, v in values.items() if k not in inputs + pressures}
     outputs = OUTPUTS + pump_outputs(params)
@@ -293,8 +293,8 @@ def summarize(m: Mission) -> dict:
         p = m.parameters
         out["pump"] = {
             "cylinders": m.cylinders,
-            "discharge_pressure": float(p.get("pump.discharge_pressure", 0.0)),
-            "suction_pressure": float(p.get("pump.suction_pressure", 0.0)),
+            "discharge_pressure": float(p.get("fluid_end.discharge_pressure", 0.0)),
+            "suction_pressure": float(p.get("fluid_end.suction_pressure", 0.0)),
             "flow_mean": last.flow_mean,
             "flow_pulsation": last.flow_pulsation,
             "hydraulic_power_mean": last.hydraulic_power_mean,

@@ -32,9 +32,9 @@ ROD_PANELS = [
 ]
 #: A pump preset's panels (mission.is_pump): the crank torque panel also draws every cylinder's.
 PUMP_PANELS = [
-    ("pump.flow", "flow Q", "L/s"),
-    ("pump.hydraulic_power", "hydraulic power", "kW"),
-    ("pump.mechanical_power", "mechanical power", "kW"),
+    ("fluid_end.flow", "flow Q", "L/s"),
+    ("fluid_end.hydraulic_power", "hydraulic power", "kW"),
+    ("crank.mechanical_power", "mechanical power", "kW"),
 ]
 #: Steady revolutions drawn against the crank angle.
 PLOT_REVOLUTIONS = 2

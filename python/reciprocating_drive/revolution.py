@@ -32,8 +32,8 @@ DEFAULT_QUANTITIES = (
     "crank.torque",
 )
 
-#: The per-revolution numbers of a pump (from pump.flow, pump.hydraulic_power and
-#: pump.mechanical_power; docs/results.md "Pump presets").
+#: The per-revolution numbers of a pump (from fluid_end.flow, fluid_end.hydraulic_power and
+#: crank.mechanical_power; docs/results.md "Pump presets").
 PUMP_COLUMNS = ("flow_mean", "flow_pulsation", "hydraulic_power_mean", "mechanical_power_mean")
 
 
@@ -84,7 +84,7 @@ class RevolutionSummary:
         row["friction_work"] = self.friction_work
         row["rod_angle_amplitude"] = self.rod_angle_amplitude
         row["stress_max"] = self.stress_max
-        if self.flow_mean is not None:  # a pump's run (pump.flow recorded)
+        if self.flow_mean is not None:  # a pump's run (fluid_end.flow recorded)
             for name in PUMP_COLUMNS:
                 row[name] = getattr(self, name)
         return row
@@ -289,18 +289,21 @@ def revolution_table(
 
     if "link.friction_total" in cols and "suspension.position" in cols:
         tab["friction_work"] = integral(cols["link.friction_total"], cols["suspension.position"])
-    if "pump.flow" in cols:
+    if "fluid_end.flow" in cols:
         # The pump (docs/results.md "Pump presets"): the time means over the revolution, and
         # the flow pulsation (Q_max − Q_min)/Q_mean from the sampled extremes: the flow's
         # extremes often sit at kinks (a chamber's delivery starts at its dead centre), where
         # the parabola of `_refined_peaks` would overshoot by up to an eighth of a step's rise.
-        q = cols["pump.flow"]
+        q = cols["fluid_end.flow"]
         tab["flow_mean"] = integral(q, t) / dur
         with np.errstate(all="ignore"):
             tab["flow_pulsation"] = (seg_max(q) - seg_min(q)) / tab["flow_mean"]
-        for name in ("hydraulic_power", "mechanical_power"):
-            if f"pump.{name}" in cols:
-                tab[f"{name}_mean"] = integral(cols[f"pump.{name}"], t) / dur
+        for name, out in (
+            ("hydraulic_power", "fluid_end.hydraulic_power"),
+            ("mechanical_power", "crank.mechanical_power"),
+        ):
+            if out in cols:
+                tab[f"{name}_mean"] = integral(cols[out], t) / dur
     if "suspension.position" in cols:
         # The stroke: the travel between the extreme positions of the revolution, each refined
         # like the other extremes (docs/twin.md "Output").

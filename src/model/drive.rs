@@ -37,7 +37,7 @@ use crate::model::params::{
 pub struct Inputs {
     /// `link.external_force` [N], positive along +s (cylinder 1's link).
     pub external_force: f64,
-    /// `pump.discharge_pressure`, `pump.suction_pressure` [Pa] (§4.1).
+    /// `fluid_end.discharge_pressure`, `fluid_end.suction_pressure` [Pa] (§4.1).
     pub discharge_pressure: f64,
     pub suction_pressure: f64,
 }
@@ -70,7 +70,7 @@ pub mod groups {
     /// Flow of each cylinder and of the pump, hydraulic power (§4.1). Needs the velocities:
     /// KINEMATICS, and CYLINDERS when there is more than one cylinder.
     pub const FLOW: u8 = 16;
-    /// `crank.torque`, `pump.mechanical_power`: every cylinder's torque.
+    /// `crank.torque`, `crank.mechanical_power`: every cylinder's torque.
     pub const TORQUE: u8 = FORCES | CYLINDERS;
     pub const ALL: u8 = KINEMATICS | LOADS | FORCES | CYLINDERS | FLOW;
 }
@@ -129,7 +129,7 @@ pub struct Outputs {
     /// Elastic rod (§6): largest stress and static axial shortening; 0 for a rigid rod.
     pub rod_stress_max: f64,
     pub rod_axial_deflection: f64,
-    /// The pump's cylinders (§4.1); entries beyond `pump.cylinders` stay 0.
+    /// The pump's cylinders (§4.1); entries beyond `fluid_end.cylinders` stay 0.
     pub cylinders: [CylinderOutputs; MAX_CYLINDERS],
     /// The guide's solution of cylinders 2.. (cylinder 1's is `guide`; the tangent starts from
     /// them).
@@ -229,7 +229,7 @@ impl Model {
         // unit has one horsehead.
         if pump.n > 1 && (p.mechanism != MECHANISM_CRANK_SLIDER || p.rod_kind != 0) {
             return Err(ModelError::invalid(format!(
-                "pump.cylinders = {} needs the rigid crank-slider (mechanism = 1, rod.kind = 0), \
+                "fluid_end.cylinders = {} needs the rigid crank-slider (mechanism = 1, rod.kind = 0), \
                  not mechanism = {}, rod.kind = {}: the elastic rod and the beam units are \
                  modelled for one cylinder",
                 pump.n, p.mechanism, p.rod_kind
@@ -626,8 +626,8 @@ impl Model {
         require_finite("crank.speed", crank.speed)?;
         require_finite("crank.acceleration", crank.acceleration)?;
         require_finite("link.external_force", inputs.external_force)?;
-        require_finite("pump.discharge_pressure", inputs.discharge_pressure)?;
-        require_finite("pump.suction_pressure", inputs.suction_pressure)?;
+        require_finite("fluid_end.discharge_pressure", inputs.discharge_pressure)?;
+        require_finite("fluid_end.suction_pressure", inputs.suction_pressure)?;
         Ok(())
     }
 
@@ -1254,8 +1254,8 @@ pub(crate) mod tests {
             (Params { mass: f64::NAN, ..Params::default() }, "mass.reciprocating"),
             (Params { rod_length: 0.1, ..Params::default() }, "geometry.rod_length"),
             (Params { load_profile: 4, ..Params::default() }, "load.profile"),
-            (Params { cylinders: 2, rod_kind: 2, ..Params::default() }, "pump.cylinders"),
-            (Params { cylinders: 2, mechanism: 2, ..Params::default() }, "pump.cylinders"),
+            (Params { cylinders: 2, rod_kind: 2, ..Params::default() }, "fluid_end.cylinders"),
+            (Params { cylinders: 2, mechanism: 2, ..Params::default() }, "fluid_end.cylinders"),
             (Params { mechanism: 7, ..Params::default() }, "mechanism"),
         ] {
             let e = Model::new(&p).unwrap_err().to_string();

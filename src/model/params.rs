@@ -11,7 +11,7 @@ use crate::model::guide::{GuideSpec, SupportKind, SupportSpec};
 pub const LOAD_PROFILE_COSINE: i32 = 0;
 pub const LOAD_PROFILE_DOUBLE_ACTING: i32 = 1;
 pub const LOAD_PROFILE_SINGLE_ACTING: i32 = 2;
-/// Chambers at `pump.discharge_pressure` while their volume shrinks, at `pump.suction_pressure`
+/// Chambers at `fluid_end.discharge_pressure` while their volume shrinks, at `fluid_end.suction_pressure`
 /// while it grows (docs/model.md §4.1).
 pub const LOAD_PROFILE_PRESSURES: i32 = 3;
 

@@ -53,10 +53,10 @@ const NAMES: [[&str; 4]; MAX_CYLINDERS] = [
 ];
 
 impl Pump {
-    /// Checks `pump.cylinders` and the active cylinders' parameters (inactive ones are ignored).
+    /// Checks `fluid_end.cylinders` and the active cylinders' parameters (inactive ones are ignored).
     pub fn new(count: i32, params: &[CylinderParams; MAX_CYLINDERS]) -> Result<Pump, ModelError> {
         if !(1..=MAX_CYLINDERS as i32).contains(&count) {
-            return Err(ModelError::out_of_range("pump.cylinders", count as f64, "1, 2 or 3"));
+            return Err(ModelError::out_of_range("fluid_end.cylinders", count as f64, "1, 2 or 3"));
         }
         let n = count as usize;
         let mut cylinders = [Cylinder::default(); MAX_CYLINDERS];
@@ -152,8 +152,8 @@ mod tests {
     fn bad_cylinders_are_refused_by_name() {
         let p = Params::default();
         for (count, edit, name) in [
-            (4, None, "pump.cylinders"),
-            (0, None, "pump.cylinders"),
+            (4, None, "fluid_end.cylinders"),
+            (0, None, "fluid_end.cylinders"),
             (2, Some((1, 0, 3.0)), "cylinder_2.acting"),
             (2, Some((1, 1, 0.0)), "cylinder_2.piston_diameter"),
             (3, Some((2, 2, 0.2)), "cylinder_3.rod_diameter"),

@@ -35,9 +35,9 @@ def pump(cylinders: int, acting: int, phases, **extra) -> dict:
     at the main job's step: the dead centres of 90° and 120° phases fall on samples)."""
     v = {
         "load.profile": 3,
-        "pump.cylinders": cylinders,
-        "pump.discharge_pressure": 10e6,
-        "pump.suction_pressure": 0.2e6,
+        "fluid_end.cylinders": cylinders,
+        "fluid_end.discharge_pressure": 10e6,
+        "fluid_end.suction_pressure": 0.2e6,
         "guide.friction_coefficient": 0.0,
         "guide.velocity_scale": 1e-9,
         "crank.speed": 2 * math.pi / 0.9,

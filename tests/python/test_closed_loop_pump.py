@@ -43,7 +43,10 @@ def test_torque_pulses_per_revolution(fmu_path, tmp_path, name, n, acting, phase
     # 4 MPa against a drive of 10x the shipped motor's breakdown torque (2000 N·m, 46 kN·m at the
     # crank): a mean crank torque of about 13 kN·m for the duplex, with the pulses well resolved.
     values = pump(
-        n, acting, phases, **{"pump.discharge_pressure": 4e6, "pump.suction_pressure": 0.0}
+        n,
+        acting,
+        phases,
+        **{"fluid_end.discharge_pressure": 4e6, "fluid_end.suction_pressure": 0.0},
     )
     values["guide.velocity_scale"] = 1e-3
     ssv = write_ssv(tmp_path / f"{name}.ssv", values)
@@ -56,7 +59,7 @@ def test_torque_pulses_per_revolution(fmu_path, tmp_path, name, n, acting, phase
     ]
     assert closed_loop.main(args) == 0
     summary = json.loads((tmp_path / "closed_loop.json").read_text())
-    assert summary["parameters"]["pump"]["pump.cylinders"] == n
+    assert summary["parameters"]["pump"]["fluid_end.cylinders"] == n
     with open(tmp_path / "closed_loop.csv") as f:
         rows = list(csv.reader(f))
     head = rows[0]
@@ -85,7 +88,7 @@ def test_torque_pulses_per_revolution(fmu_path, tmp_path, name, n, acting, phase
     [
         (["--pump", "nope"], "--pump 'nope': no such preset; allowed: default,"),
         (["--pump", "BAD"], "--pump '"),
-        (["--set", "pump.pump.discharge_pressure=abc"], "allowed: a number"),
+        (["--set", "pump.fluid_end.discharge_pressure=abc"], "allowed: a number"),
     ],
 )
 def test_bad_pump_options_are_one_line(fmu_path, tmp_path, capsys, args, words):

@@ -41,8 +41,8 @@ INPUTS = [
     "crank.speed",
     "crank.acceleration",
     "link.external_force",
-    "pump.discharge_pressure",
-    "pump.suction_pressure",
+    "fluid_end.discharge_pressure",
+    "fluid_end.suction_pressure",
 ]
 # Scales of the random pressures [Pa] and the differences' steps in them.
 DISCHARGE, SUCTION = 3.0e7, 1.0e6
@@ -84,13 +84,13 @@ MACHINES = {
     "sk8-3.5-4000 (beam unit class I, clamp friction)": "sk8-3.5-4000",
     # The pump of docs/model.md §4.1: the chambers' pressures, several cylinders.
     "duplex double-acting, pressures, guide friction": {
-        "pump.cylinders": 2,
+        "fluid_end.cylinders": 2,
         "cylinder_2.phase": math.pi / 2,
         "load.profile": 3,
     },
     "triplex single-acting, pressures, no friction, balancer": {
         **FRICTIONLESS,
-        "pump.cylinders": 3,
+        "fluid_end.cylinders": 3,
         "cylinder_1.acting": 1,
         "cylinder_2.acting": 1,
         "cylinder_3.acting": 1,
@@ -617,7 +617,7 @@ def test_model_structure_matches_the_derivatives(fmu_path, tmp_path, machine):
         for o in outputs:
             if deps[o]:
                 held = elastic and o in ("rod.angle", "rod.angular_velocity")
-                # (Cylinders beyond pump.cylinders are 0, and a friction or fluid force may be.)
+                # (Cylinders beyond fluid_end.cylinders are 0, and a friction or fluid force may be.)
                 may_vanish = (
                     o.startswith(
                         (

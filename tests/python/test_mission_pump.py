@@ -74,7 +74,7 @@ def test_mean_flow_is_the_displacement_times_the_speed(fmu_path, tmp_path):
     q_mean = 2 * area * 2 * r * w / (2 * math.pi)
     p = s["pump"]
     assert p["flow_mean"] == pytest.approx(q_mean, rel=1e-6)
-    dp = v["pump.discharge_pressure"] - v["pump.suction_pressure"]
+    dp = v["fluid_end.discharge_pressure"] - v["fluid_end.suction_pressure"]
     assert p["hydraulic_power_mean"] == pytest.approx(dp * q_mean, rel=1e-6)
     assert p["mechanical_power_mean"] == pytest.approx(dp * q_mean, rel=1e-6)
     # The summary's text and the plot/CSV of a pump.
@@ -90,7 +90,11 @@ def test_mean_flow_is_the_displacement_times_the_speed(fmu_path, tmp_path):
         assert words in text
     with open(tmp_path / "duplex.csv") as f:
         head = next(csv.reader(f))
-    for col in ("pump.flow [m3/s]", "pump.mechanical_power [W]", "cylinder_2.crank_torque [N.m]"):
+    for col in (
+        "fluid_end.flow [m3/s]",
+        "crank.mechanical_power [W]",
+        "cylinder_2.crank_torque [N.m]",
+    ):
         assert col in head
     assert "cylinder_3.crank_torque [N.m]" not in head
     # Cylinder 2 is cylinder 1 a quarter revolution later: the same torque extremes, 90° earlier.

@@ -35,7 +35,7 @@ def test_pressure_nodes_give_the_file_replay_bit_for_bit(fmu_path, tmp_path):
     from reciprocating_drive.twin import SUMMARY_FIELDS, Options, Twin
 
     machine = pump(2, 2, [0.0, math.pi / 2], **{"guide.velocity_scale": 0.02})
-    machine.update({"pump.discharge_pressure": 1e6, "pump.suction_pressure": 0.0})
+    machine.update({"fluid_end.discharge_pressure": 1e6, "fluid_end.suction_pressure": 0.0})
     machine.pop("crank.speed")
     ssv = write_ssv(tmp_path / "duplex.ssv", machine)
     data = data_with_pressures(tmp_path / "data.csv")

@@ -34,7 +34,7 @@ def test_example_study_mean_flow(fmu_path):
     r, lam = v["geometry.crank_radius"], v["geometry.crank_radius"] / v["geometry.rod_length"]
     w, ve = study.crank_speed, v["guide.velocity_scale"]
     volume = 0.0
-    for k in range(1, int(v["pump.cylinders"]) + 1):
+    for k in range(1, int(v["fluid_end.cylinders"]) + 1):
         d2 = v[f"cylinder_{k}.piston_diameter"] ** 2
         rod2 = v[f"cylinder_{k}.rod_diameter"] ** 2 if v[f"cylinder_{k}.acting"] == 2 else d2
         volume += math.pi / 4 * (2 * d2 - rod2) * 2 * r

@@ -59,7 +59,7 @@ def run_twin(tmp_path, machine: dict, pressures: bool):
 
 def machine(**extra):
     v = pump(2, 2, [0.0, math.pi / 2], **{"guide.velocity_scale": 0.02, **extra})
-    v.update({"pump.discharge_pressure": 1e6, "pump.suction_pressure": 0.0})
+    v.update({"fluid_end.discharge_pressure": 1e6, "fluid_end.suction_pressure": 0.0})
     v.update({"geometry.crank_radius": R, "geometry.rod_length": L})
     for k in (1, 2):
         v[f"cylinder_{k}.rod_diameter"] = D_ROD

@@ -10,7 +10,7 @@ torque and power, δ per revolution).
 
     rdrive closed-loop [--importer libcosim|fmpy|model-exchange] [--step 1e-3] [--time 10]
     rdrive closed-loop --set drivetrain.crank.inertia=80 --set pump.load.mean=2e4
-    rdrive closed-loop --pump unb600a --set pump.pump.discharge_pressure=1e6
+    rdrive closed-loop --pump unb600a --set pump.fluid_end.discharge_pressure=1e6
 
 Exit codes: 0 done, 1 the loop failed or diverged (the message names docs/closed-loop.md's
 stability condition ρ_eff < 1), 2 a user error, 70 an internal error, 130 stopped.
@@ -80,7 +80,7 @@ def parser(prog: str = PROG) -> ArgumentParser:
         default=[],
         metavar="COMPONENT.PARAMETER=VALUE",
         help="a parameter of the pump or the drivetrain over the shipped sets (ssp/ClosedLoop/*.ssv); "
-        "for the pump also its input pump.discharge_pressure or pump.suction_pressure [Pa]",
+        "for the pump also its input fluid_end.discharge_pressure or fluid_end.suction_pressure [Pa]",
     )
     ap.add_argument(
         "--pump",

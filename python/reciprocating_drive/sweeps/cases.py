@@ -53,11 +53,11 @@ OUTPUTS = (
     "rod.stress_max",
 )
 #: Read besides OUTPUTS when a study asks for a pump's metric (study.PUMP_METRICS).
-PUMP_OUTPUTS = ("pump.flow",)
+PUMP_OUTPUTS = ("fluid_end.flow",)
 
 
 def outputs_of(study: Study) -> tuple:
-    """The outputs a case of `study` reads: OUTPUTS, and pump.flow for a pump's metrics."""
+    """The outputs a case of `study` reads: OUTPUTS, and fluid_end.flow for a pump's metrics."""
     return OUTPUTS + (PUMP_OUTPUTS if set(study.metrics) & set(PUMP_METRICS) else ())
 
 

@@ -82,15 +82,15 @@ METRICS = {
     "rod_force_min": "minimum rod.force (signed) [N]",
     "rod_angle_amplitude": "largest |rod.angle| (ϑ) [rad]",
     "stress_max": "largest rod.stress_max [Pa]",
-    "flow_mean": "mean pump.flow [m3/s] (mean over the evaluated revolutions)",
-    "flow_pulsation": "flow pulsation (Q_max - Q_min)/Q_mean of pump.flow (mean over the evaluated revolutions)",
+    "flow_mean": "mean fluid_end.flow [m3/s] (mean over the evaluated revolutions)",
+    "flow_pulsation": "flow pulsation (Q_max - Q_min)/Q_mean of fluid_end.flow (mean over the evaluated revolutions)",
 }
 #: The metrics of a pump's flow (docs/sweeps.md "Metrics"): computed by the reference summary of
 #: each case (revolution.revolution_table), not by the batched arithmetic of sweep_cases.
 PUMP_METRICS = ("flow_mean", "flow_pulsation")
 
 #: The FMU's inputs a study (and the closed loop's --set) may set like parameters: held constant.
-PRESSURE_INPUTS = ("pump.discharge_pressure", "pump.suction_pressure")
+PRESSURE_INPUTS = ("fluid_end.discharge_pressure", "fluid_end.suction_pressure")
 
 #: Study parameters that set the crank speed instead of an FMU parameter.
 SPEED_PARAMETERS = ("strokes_per_minute", "crank.speed")

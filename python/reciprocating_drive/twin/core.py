@@ -66,8 +66,8 @@ INPUTS = (
     "crank.speed",
     "crank.acceleration",
     "link.external_force",
-    "pump.discharge_pressure",
-    "pump.suction_pressure",
+    "fluid_end.discharge_pressure",
+    "fluid_end.suction_pressure",
 )
 #: The optional CSV columns of the process (docs/twin.md "Input") and the FMU inputs they drive:
 #: a sample's `force` holds them in this order. A pressure column that is absent (NaN) leaves the
@@ -209,8 +209,8 @@ SUMMARY_FIELDS = (
     "rod_angle_amplitude",
     "stress_max",
     "interrupted",
-    # A pump's (docs/twin.md "Output"): the time means of pump.flow, pump.hydraulic_power and
-    # pump.mechanical_power over the revolution and the flow pulsation (Q_max − Q_min)/Q_mean.
+    # A pump's (docs/twin.md "Output"): the time means of fluid_end.flow, fluid_end.hydraulic_power and
+    # crank.mechanical_power over the revolution and the flow pulsation (Q_max − Q_min)/Q_mean.
     "flow_mean",
     "flow_pulsation",
     "hydraulic_power_mean",

@@ -57,7 +57,7 @@ double-acting drilling pump loaded by its pressures), <code>unb600a-simplex</cod
 load), <code>triplex-1600</code> (triplex single-acting drilling pump, 1 600 hp class), <code>sk8-3.5-4000</code> (beam pumping unit, seed 001), <code>kvo630</code> (small cryogenic machine with a
 helical-spring connecting rod). Apply one in fmpy as <code>start_values</code> (the repository's <code>scripts/presets.py</code>
 reads them); each also gives the start value of <code>crank.speed</code> (the pump presets also of
-<code>pump.discharge_pressure</code> and <code>pump.suction_pressure</code>).</p>
+<code>fluid_end.discharge_pressure</code> and <code>fluid_end.suction_pressure</code>).</p>
 
 <h2>Errors</h2>
 <p>Invalid parameters (out of range, a linkage that cannot assemble, supports that do not hold the link or leave it

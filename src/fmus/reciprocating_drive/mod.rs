@@ -252,7 +252,7 @@ impl FmuModel for ReciprocatingDrive {
         ("cylinder_1.friction", &[0]),
         ("cylinder_1.rod_force", &[0]),
         ("cylinder_1.crank_torque", &[0]),
-        ("pump.mechanical_power", &[0]),
+        ("crank.mechanical_power", &[0]),
     ];
 
     /// dϑ/dt = ϑ̇; dϑ̇/dt = ϑ̈ from the cage equation (docs/model.md §6), whose clamp loads

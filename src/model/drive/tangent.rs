@@ -18,8 +18,8 @@ use crate::model::loads;
 use crate::model::params::LOAD_PROFILE_PRESSURES;
 
 /// A direction in the space of the inputs and the cage state: the changes of crank.angle,
-/// crank.speed, crank.acceleration, link.external_force, pump.discharge_pressure,
-/// pump.suction_pressure and (Model Exchange, an elastic rod)
+/// crank.speed, crank.acceleration, link.external_force, fluid_end.discharge_pressure,
+/// fluid_end.suction_pressure and (Model Exchange, an elastic rod)
 /// of the cage states rod.cage_angle ϑ and rod.cage_rate ϑ̇ (ignored by a rigid mechanism).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Seed {
