@@ -8,6 +8,9 @@ SPEC_INPUTS = {
     "crank.speed": "rad/s",
     "crank.acceleration": "rad/s2",
     "link.external_force": "N",
+    # The pump's pressures (§4.1).
+    "fluid_end.discharge_pressure": "Pa",
+    "fluid_end.suction_pressure": "Pa",
 }
 SPEC_OUTPUTS = {
     "suspension.position": "m",
@@ -34,6 +37,25 @@ SPEC_OUTPUTS = {
     # Added to the contract: the crank state the outputs belong to (docs/model.md §2).
     "crank.model_angle": "rad",
     "crank.model_speed": "rad/s",
+    # The whole pump (§4.1): the pump's flow and powers, and each cylinder's link and loads.
+    "fluid_end.flow": "m3/s",
+    "fluid_end.hydraulic_power": "W",
+    "crank.mechanical_power": "W",
+    **{
+        f"cylinder_{k}.{name}": unit
+        for k in (1, 2, 3)
+        for name, unit in (
+            ("position", "m"),
+            ("velocity", "m/s"),
+            ("acceleration", "m/s2"),
+            ("fluid_force", "N"),
+            ("inertia_force", "N"),
+            ("friction", "N"),
+            ("rod_force", "N"),
+            ("crank_torque", "N.m"),
+            ("flow", "m3/s"),
+        )
+    },
 }
 # The outputs the crank-slider kinematics and loads (§2, §3.1, §4) need; later features add more.
 REQUIRED_OUTPUTS = list(SPEC_OUTPUTS)[:9]
@@ -52,7 +74,7 @@ def test_interface_matches_physics_md_section_10(model_description):
     by_name = {v.name: v for v in md.modelVariables}
     inputs = {v.name: v for v in md.modelVariables if v.causality == "input"}
     outputs = {v.name: v for v in md.modelVariables if v.causality == "output"}
-    # Exactly the four inputs of §2, with their units.
+    # Exactly the inputs of §2 and the pump's pressures (§4.1), with their units.
     assert {n: v.unit for n, v in inputs.items()} == SPEC_INPUTS
     # Every output is one of §10 with the unit of §10, and the crank-slider set is complete.
     for n, v in outputs.items():
@@ -74,11 +96,13 @@ def test_interface_matches_physics_md_section_10(model_description):
 
 def test_output_dependencies_are_the_true_feedthrough(model_description):
     """<ModelStructure><Outputs>: each output depends on exactly the inputs its formula uses
-    (§2-§4): s, TF, β on θ; v, β' on θ, ω; a, Φ on θ, ω, ε; P, T on all four; and, Model
+    (§2-§4): s, TF, β on θ; v, β' on θ, ω; a, Φ on θ, ω, ε; P, T on all four and on the
+    pump's two pressures (the fluid force of load.profile 3, §4.1); and, Model
     Exchange's other knowns, on the elastic rod's cage states (§6): ϑ (the rod angle, and P, T
     through the clamp loads) and ϑ̇ (the rod's angular velocity)."""
     md = model_description
     theta, omega, eps, f = "crank.angle", "crank.speed", "crank.acceleration", "link.external_force"
+    pd, ps = "fluid_end.discharge_pressure", "fluid_end.suction_pressure"
     cage, rate = "rod.cage_angle", "rod.cage_rate"
     expected = {
         "suspension.position": {theta},
@@ -88,8 +112,8 @@ def test_output_dependencies_are_the_true_feedthrough(model_description):
         "rod.angular_velocity": {theta, omega, rate},
         "suspension.acceleration": {theta, omega, eps},
         "inertia.force": {theta, omega, eps},
-        "rod.force": {theta, omega, eps, f, cage},
-        "crank.torque": {theta, omega, eps, f, cage},
+        "rod.force": {theta, omega, eps, f, pd, ps, cage},
+        "crank.torque": {theta, omega, eps, f, pd, ps, cage},
         # The crank state itself: the angle as set (carried forward), the speed as set.
         "crank.model_angle": {theta},
         "crank.model_speed": {omega},

@@ -423,7 +423,10 @@ def _quiet_distributed():
 
     from distributed.versions import VersionMismatchWarning
 
-    names = ("distributed", "tornado", "asyncio")
+    # tornado.application by name: distributed's logging configuration gives it a level of its
+    # own (error), so it does not follow "tornado"; a callback failing inside distributed while
+    # the cluster closes after Ctrl-C would print its traceback there.
+    names = ("distributed", "tornado", "tornado.application", "asyncio")
     levels = [logging.getLogger(n).level for n in names]
     for n in names:
         logging.getLogger(n).setLevel(logging.CRITICAL)
